@@ -1,0 +1,31 @@
+"""fog-gym: a Gymnasium environment for driving perception under graded, physically calibrated fog.
+
+``import fog_gym`` registers ``FogDrive-v0``.
+
+Example:
+    >>> import gymnasium as gym, fog_gym
+    >>> "FogDrive-v0" in gym.registry
+    True
+"""
+
+from __future__ import annotations
+
+from gymnasium.envs.registration import register
+
+from fog_gym.config import CAMERA_NAMES, TIMES_OF_DAY, TOWNS, CameraConfig, FogDriveConfig, Pose, RigConfig
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "CAMERA_NAMES", "TIMES_OF_DAY", "TOWNS", "CameraConfig", "FogDriveConfig", "Pose", "RigConfig", "FogDriveEnv",
+]  # fmt: skip
+
+register(id="FogDrive-v0", entry_point="fog_gym.env:FogDriveEnv", max_episode_steps=None, disable_env_checker=False)
+
+
+def __getattr__(name: str):
+    if name == "FogDriveEnv":
+        from fog_gym.env import FogDriveEnv
+
+        return FogDriveEnv
+    raise AttributeError(name)

@@ -1,0 +1,199 @@
+"""``FogDrive-v0``: a highway-env traffic world lifted into 3D, seen through the FogDrive camera rig.
+
+Example:
+    >>> import gymnasium as gym, fog_gym
+    >>> env = gym.make("FogDrive-v0", town="roundabout", resolution=(64, 48))
+    >>> obs, info = env.reset(seed=0)
+    >>> obs["CAM_FRONT"].shape, obs["CAM_FRONT_DEPTH"].dtype, obs["CAM_FRONT_SEM"].dtype
+    ((48, 64, 3), dtype('float32'), dtype('uint8'))
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import replace
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from fog_gym.config import FogDriveConfig, RigConfig
+from fog_gym.encoding import SEMANTIC_TAGS
+from fog_gym.scene import Lighting, Scene, StaticWorld, vehicle_primitives
+from fog_gym.scenery import STYLES, build_surface, place_props
+from fog_gym.sensors import CameraFrame, CameraRig
+from fog_gym.world import EGO_ID, TOWN_SPECS, TrafficWorld
+
+MAX_SPEED = 40.0  # highway-env's Vehicle.MAX_SPEED [m/s]: bounds where the ego can get in one episode
+MAX_TAG = max(SEMANTIC_TAGS.values())
+
+
+class FogDriveEnv(gym.Env):
+    """The FogDrive rig in a highway-env world. Observation: a flat ``Dict`` keyed by FogDrive channel names.
+
+    For each camera ``C`` of the rig: ``C`` (H, W, 3) uint8 RGB, ``C_DEPTH`` (H, W) float32 planar depth in
+    metres (sky = 1000), ``C_SEM`` (H, W) uint8 CARLA ≥ 0.9.14 tag ids. Instance ids per camera are in
+    :attr:`instance_buffers` (not a FogDrive channel). Actions, reward and termination are highway-env's.
+
+    Arguments (all optional): ``town`` (one of :data:`fog_gym.TOWNS`), ``time_of_day`` ("day"/"night"),
+    ``resolution`` (W, H) for every camera, ``cameras`` (subset of camera names), ``rig`` (a full
+    :class:`RigConfig`), ``episode_seconds``, ``simulation_frequency``, ``keyframe_frequency``,
+    ``highway_config`` (highway-env config overrides), or ``config`` (a complete :class:`FogDriveConfig`).
+
+    >>> env = FogDriveEnv(town="merge", resolution=(32, 24), cameras=["CAM_FRONT"])
+    >>> sorted(env.observation_space.spaces)
+    ['CAM_FRONT', 'CAM_FRONT_DEPTH', 'CAM_FRONT_SEM']
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
+
+    def __init__(
+        self,
+        town: str | None = None,
+        time_of_day: str | None = None,
+        resolution: Sequence[int] | None = None,
+        cameras: Sequence[str] | None = None,
+        rig: RigConfig | None = None,
+        episode_seconds: float | None = None,
+        simulation_frequency: int | None = None,
+        keyframe_frequency: int | None = None,
+        highway_config: dict[str, Any] | None = None,
+        config: FogDriveConfig | None = None,
+        render_mode: str | None = None,
+    ) -> None:
+        cfg = config if config is not None else FogDriveConfig()
+        if not isinstance(cfg, FogDriveConfig):
+            raise ValueError(f"config must be a FogDriveConfig, got {type(cfg).__name__}")
+        if rig is not None and (resolution is not None or cameras is not None):
+            pass  # resolution/cameras refine the given rig below
+        rig_cfg = rig if rig is not None else cfg.rig
+        if cameras is not None:
+            if isinstance(cameras, str):
+                raise ValueError(f"cameras must be a sequence of camera names, got the string {cameras!r}")
+            rig_cfg = RigConfig(tuple(_camera(rig_cfg, n) for n in cameras))
+        if resolution is not None:
+            rig_cfg = rig_cfg.with_resolution(resolution)
+        updates = {
+            k: v
+            for k, v in dict(
+                town=town, time_of_day=time_of_day, episode_seconds=episode_seconds,
+                simulation_frequency=simulation_frequency, keyframe_frequency=keyframe_frequency,
+                highway_config=highway_config,
+            ).items()
+            if v is not None
+        }  # fmt: skip
+        self.config = replace(cfg, rig=rig_cfg, **updates)
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
+        self.render_mode = render_mode
+
+        c = self.config
+        self.world = TrafficWorld(c.town, c.simulation_frequency, c.keyframe_frequency, c.episode_seconds, dict(c.highway_config))
+        self.cameras = CameraRig(c.rig, far=c.far_distance)
+        self.action_space = self.world.action_space
+        obs_spaces: dict[str, spaces.Space] = {}
+        for cam in c.rig.cameras:
+            shape = (cam.height, cam.width)
+            obs_spaces[cam.name] = spaces.Box(0, 255, shape + (3,), np.uint8)
+            obs_spaces[f"{cam.name}_DEPTH"] = spaces.Box(0.0, c.far_distance, shape, np.float32)
+            obs_spaces[f"{cam.name}_SEM"] = spaces.Box(0, MAX_TAG, shape, np.uint8)
+        self.observation_space = spaces.Dict(obs_spaces)
+        self.scene: Scene | None = None
+        self.frames: dict[str, CameraFrame] = {}
+        self._static: StaticWorld | None = None
+        self._lighting: Lighting | None = None
+        self._steps = 0
+
+    # -- Gymnasium API --------------------------------------------------------------------------------
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        super().reset(seed=seed)
+        world_seed = int(self.np_random.integers(0, 2**31 - 1))
+        self.world.reset(seed=world_seed)
+        self.action_space = self.world.action_space
+        rng = np.random.default_rng(np.random.SeedSequence([world_seed, 0x5CE]))
+        self._static = self._build_static(rng)
+        self._lighting = Lighting.for_time_of_day(self.config.time_of_day, rng)
+        self._steps = 0
+        obs = self._observe()
+        return obs, self._info({})
+
+    def step(self, action: Any):
+        if self.scene is None:
+            raise RuntimeError("call reset() before step()")
+        reward, terminated, hw_info = self.world.step(action)
+        self._steps += 1
+        truncated = self._steps >= self.config.episode_steps and not terminated
+        obs = self._observe()
+        return obs, reward, terminated, truncated, self._info(hw_info)
+
+    def render(self) -> np.ndarray | None:
+        if self.render_mode != "rgb_array" or self.scene is None:
+            return None
+        from fog_gym.viz import birds_eye_view, composite
+
+        front = self.frames.get("CAM_FRONT") or next(iter(self.frames.values()), None)
+        return composite(None if front is None else front.rgb, birds_eye_view(self.scene))
+
+    def close(self) -> None:
+        self.world.close()
+
+    # -- internals ------------------------------------------------------------------------------------
+    def _build_static(self, rng: np.random.Generator) -> StaticWorld:
+        radius = MAX_SPEED * self.config.episode_seconds + 250.0
+        lanes = self.world.lane_geometry(self.world.start_position, radius)
+        surface = build_surface(lanes, resolution=self.config.surface_resolution)
+        props = place_props(lanes, surface, rng, STYLES[TOWN_SPECS[self.config.town].scenery])
+        return StaticWorld.build(surface, props)
+
+    def _observe(self) -> dict[str, np.ndarray]:
+        state = self.world.vehicle_state()
+        night = self._lighting.night
+        self.scene = Scene(
+            time=self.world.time,
+            ego_id=EGO_ID,
+            ego_pose=self.world.ego_pose,
+            vehicles=state,
+            static=self._static,
+            lighting=self._lighting,
+            primitives=vehicle_primitives(state, night, exclude_id=EGO_ID),  # the ego never sees its own body
+        )
+        self.frames = self.cameras.render(self.scene)
+        obs: dict[str, np.ndarray] = {}
+        for name, f in self.frames.items():
+            obs[name] = f.rgb
+            obs[f"{name}_DEPTH"] = f.depth
+            obs[f"{name}_SEM"] = f.semantic
+        return obs
+
+    def _info(self, hw_info: dict) -> dict[str, Any]:
+        ego = self.world.hw.vehicle
+        info = {
+            "town": self.config.town,
+            "town_number": self.config.town_number,
+            "time_of_day": self.config.time_of_day,
+            "sim_time": self.world.time,
+            "step": self._steps,
+            "speed": float(ego.speed),
+            "crashed": bool(ego.crashed),
+        }
+        if "rewards" in hw_info:
+            info["rewards"] = {k: float(v) for k, v in hw_info["rewards"].items()}
+        return info
+
+    @property
+    def instance_buffers(self) -> dict[str, np.ndarray]:
+        """Per-camera instance ids of the latest frame (vehicle id; 0 = static world and sky)."""
+        return {name: f.instance for name, f in self.frames.items()}
+
+
+def _camera(rig: RigConfig, name: str):
+    from fog_gym.config import CAMERA_NAMES, FOGDRIVE_CAMERA_POSES, CameraConfig
+
+    if name not in CAMERA_NAMES:
+        raise ValueError(f"camera name must be one of {CAMERA_NAMES}, got {name!r}")
+    try:
+        return rig.camera(name)
+    except KeyError:
+        ref = rig.cameras[0] if rig.cameras else None
+        return CameraConfig(name, FOGDRIVE_CAMERA_POSES[name], *((ref.width, ref.height, ref.fov) if ref else ()))

@@ -1,0 +1,116 @@
+"""Frames, rotations, intrinsics and projection (pure numpy, imports nothing from the environment).
+
+Frames (DESIGN.md §4):
+
+* world, vehicle, sensor and LiDAR frames follow CARLA: left-handed, +x forward, +y right, +z up,
+  yaw positive turning right (towards +y). highway-env's (x, y, heading) carry over unchanged.
+* camera frame is the computer-vision frame: +x right, +y down, +z forward.
+
+Pixel convention: pixel column ``j`` covers ``u in [j, j + 1)``; its centre is ``u = j + 0.5``.
+A point that projects to ``(u, v)`` therefore lies in pixel ``(floor(v), floor(u))``.
+
+Example:
+    >>> import numpy as np
+    >>> K = intrinsic_matrix(1280, 960, 100.0)
+    >>> round(float(K[0, 0]), 2)
+    537.09
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+#: Maps sensor-local CARLA axes (x fwd, y right, z up) to camera axes (x right, y down, z fwd).
+SENSOR_TO_CAMERA = np.array(
+    [[0.0, 1.0, 0.0, 0.0], [0.0, 0.0, -1.0, 0.0], [1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]]
+)
+
+
+def rotation_matrix(pitch_deg: float, roll_deg: float, yaw_deg: float) -> np.ndarray:
+    """3×3 rotation of CARLA's ``Transform`` (angles in degrees, left-handed frame).
+
+    Columns are the sensor's x, y, z axes expressed in the parent frame. Yaw turns +x towards +y,
+    positive pitch lifts the nose, as in CARLA.
+
+    >>> np.round(rotation_matrix(0, 0, 90) @ [1, 0, 0], 6).tolist()
+    [0.0, 1.0, 0.0]
+    """
+    p, r, y = np.radians([pitch_deg, roll_deg, yaw_deg])
+    cp, sp, cr, sr, cy, sy = math.cos(p), math.sin(p), math.cos(r), math.sin(r), math.cos(y), math.sin(y)
+    return np.array(
+        [
+            [cp * cy, cy * sp * sr - sy * cr, -cy * sp * cr - sy * sr],
+            [cp * sy, sy * sp * sr + cy * cr, -sy * sp * cr + cy * sr],
+            [sp, -cp * sr, cp * cr],
+        ]
+    )
+
+
+def transform_matrix(location: tuple[float, float, float], rotation: tuple[float, float, float]) -> np.ndarray:
+    """4×4 sensor→parent transform from ``(x, y, z)`` metres and ``(pitch, roll, yaw)`` degrees."""
+    m = np.eye(4)
+    m[:3, :3] = rotation_matrix(*rotation)
+    m[:3, 3] = location
+    return m
+
+
+def yaw_transform(x: float, y: float, yaw_rad: float, z: float = 0.0) -> np.ndarray:
+    """4×4 transform of a frame at ``(x, y, z)`` turned by ``yaw_rad`` (radians) about +z."""
+    c, s = math.cos(yaw_rad), math.sin(yaw_rad)
+    return np.array([[c, -s, 0.0, x], [s, c, 0.0, y], [0.0, 0.0, 1.0, z], [0.0, 0.0, 0.0, 1.0]])
+
+
+def intrinsic_matrix(width: int, height: int, fov_deg: float) -> np.ndarray:
+    """CARLA's pinhole intrinsic: ``f = W / (2 tan(FOV/2))`` for both axes, principal point at the centre."""
+    f = width / (2.0 * math.tan(math.radians(fov_deg) / 2.0))
+    return np.array([[f, 0.0, width / 2.0], [0.0, f, height / 2.0], [0.0, 0.0, 1.0]])
+
+
+def world_to_camera(vehicle_to_world: np.ndarray, sensor_to_vehicle: np.ndarray) -> np.ndarray:
+    """4×4 matrix taking world points (CARLA frame) to camera-frame points (CV frame)."""
+    return SENSOR_TO_CAMERA @ np.linalg.inv(vehicle_to_world @ sensor_to_vehicle)
+
+
+def lidar_to_camera(lidar_to_vehicle: np.ndarray, camera_to_vehicle: np.ndarray) -> np.ndarray:
+    """FogDrive's extrinsic ``E``: LiDAR-frame points to camera-frame (CV) points."""
+    return SENSOR_TO_CAMERA @ np.linalg.inv(camera_to_vehicle) @ lidar_to_vehicle
+
+
+def transform_points(matrix: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Apply a 4×4 transform to ``(..., 3)`` points."""
+    points = np.asarray(points, dtype=np.float64)
+    return points @ matrix[:3, :3].T + matrix[:3, 3]
+
+
+def project_points(K: np.ndarray, camera_points: np.ndarray) -> np.ndarray:
+    """Pinhole projection of camera-frame points ``(..., 3)`` (z > 0) to pixel coordinates ``(..., 2)``."""
+    p = np.asarray(camera_points, dtype=np.float64)
+    uv = p @ K.T
+    return uv[..., :2] / uv[..., 2:3]
+
+
+#: Corner order of :func:`box_corners` in the box's own frame (signs of x, y, z half extents).
+#: Bottom face first (z−), counter-clockwise seen from above in a right-handed view, then the top face:
+#: 0 (+,+,−) front-right-bottom, 1 (+,−,−) front-left-bottom, 2 (−,−,−) rear-left-bottom,
+#: 3 (−,+,−) rear-right-bottom, 4–7 the same with z+.
+BOX_CORNER_SIGNS = np.array(
+    [[1, 1, -1], [1, -1, -1], [-1, -1, -1], [-1, 1, -1], [1, 1, 1], [1, -1, 1], [-1, -1, 1], [-1, 1, 1]],
+    dtype=np.float64,
+)
+
+
+def box_corners(centers: np.ndarray, sizes: np.ndarray, yaws: np.ndarray) -> np.ndarray:
+    """Corners ``(N, 8, 3)`` of upright boxes from centres ``(N, 3)``, sizes ``(N, 3)`` = (l, w, h), yaws ``(N,)`` rad.
+
+    Corner order is :data:`BOX_CORNER_SIGNS`.
+    """
+    centers = np.asarray(centers, dtype=np.float64).reshape(-1, 3)
+    sizes = np.asarray(sizes, dtype=np.float64).reshape(-1, 3)
+    yaws = np.asarray(yaws, dtype=np.float64).reshape(-1)
+    local = BOX_CORNER_SIGNS[None] * (sizes[:, None, :] / 2.0)
+    c, s = np.cos(yaws)[:, None], np.sin(yaws)[:, None]
+    x = local[..., 0] * c - local[..., 1] * s
+    y = local[..., 0] * s + local[..., 1] * c
+    return np.stack([x, y, local[..., 2]], axis=-1) + centers[:, None, :]

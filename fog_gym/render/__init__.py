@@ -1,0 +1,1 @@
+"""Rasterisation kernels (numba). Pure functions over numpy arrays; nothing here knows the environment."""

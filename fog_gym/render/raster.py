@@ -1,0 +1,417 @@
+"""Multi-camera rasteriser for upright boxes over a textured ground plane (numba kernels).
+
+Cost scales with the pixels each primitive covers, not with pixels × primitives:
+
+1. per camera, every box is reduced to at most three front faces, clipped against the near plane and
+   projected to convex screen polygons with an affine inverse-depth plane (``_setup_faces``);
+2. the image is cut into row bands; each (camera, band) task, in parallel, first fills its rows with the
+   analytic ground plane (ray/plane intersection + a road-surface map lookup) or the sky, then scan-converts
+   the faces whose screen bounds touch the band, span by span, with a depth test.
+
+Outputs follow CARLA: planar depth (metres along the optical axis), sky at ``far``.
+Pixel ``(i, j)`` is sampled at its centre ``(j + 0.5, i + 0.5)``.
+"""
+
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit, prange
+
+# Box faces: corner indices (geometry.BOX_CORNER_SIGNS order) and local outward normals.
+_FACE_CORNERS = np.array(
+    [[0, 1, 5, 4], [2, 3, 7, 6], [0, 4, 7, 3], [1, 2, 6, 5], [4, 5, 6, 7], [0, 3, 2, 1]], dtype=np.int64
+)
+_FACE_NORMALS = np.array(
+    [[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], dtype=np.float64
+)
+_CORNER_SIGNS = np.array(
+    [[1, 1, -1], [1, -1, -1], [-1, -1, -1], [-1, 1, -1], [1, 1, 1], [1, -1, 1], [-1, -1, 1], [-1, 1, 1]],
+    dtype=np.float64,
+)
+MAX_VERTS = 8
+NEAR = 0.05
+BAND_ROWS = 32
+
+
+@njit(cache=True, parallel=True, fastmath=False)
+def _setup_faces(
+    cam_rot, cam_trans, cam_k, width, height, far,
+    centers, halves, yaws, colors, tags, insts, emissive,
+    sun_dir, ambient, sun_intensity,
+):  # fmt: skip
+    n_cam = cam_rot.shape[0]
+    n_prim = centers.shape[0]
+    max_faces = 3 * n_prim
+    verts = np.zeros((n_cam, max_faces, MAX_VERTS, 2))
+    nverts = np.zeros((n_cam, max_faces), dtype=np.int64)
+    planes = np.zeros((n_cam, max_faces, 3))
+    face_rgb = np.zeros((n_cam, max_faces, 3), dtype=np.uint8)
+    face_tag = np.zeros((n_cam, max_faces), dtype=np.uint8)
+    face_inst = np.zeros((n_cam, max_faces), dtype=np.uint16)
+    bounds = np.zeros((n_cam, max_faces, 4), dtype=np.int64)  # y0, y1, x0, x1 inclusive
+    counts = np.zeros(n_cam, dtype=np.int64)
+    for c in prange(n_cam):
+        R = cam_rot[c]
+        T = cam_trans[c]
+        fx, fy, cx, cy = cam_k[c, 0], cam_k[c, 1], cam_k[c, 2], cam_k[c, 3]
+        # camera centre in world: -R^T T
+        ccx = -(R[0, 0] * T[0] + R[1, 0] * T[1] + R[2, 0] * T[2])
+        ccy = -(R[0, 1] * T[0] + R[1, 1] * T[1] + R[2, 1] * T[2])
+        ccz = -(R[0, 2] * T[0] + R[1, 2] * T[1] + R[2, 2] * T[2])
+        n_out = 0
+        corners_c = np.empty((8, 3))
+        poly = np.empty((MAX_VERTS, 3))
+        clipped = np.empty((MAX_VERTS, 3))
+        for p in range(n_prim):
+            cyaw = np.cos(yaws[p])
+            syaw = np.sin(yaws[p])
+            # quick reject: whole box beyond far or behind camera (bounding sphere)
+            hx, hy, hz = halves[p, 0], halves[p, 1], halves[p, 2]
+            radius = np.sqrt(hx * hx + hy * hy + hz * hz)
+            pcx = R[0, 0] * centers[p, 0] + R[0, 1] * centers[p, 1] + R[0, 2] * centers[p, 2] + T[0]
+            pcy = R[1, 0] * centers[p, 0] + R[1, 1] * centers[p, 1] + R[1, 2] * centers[p, 2] + T[1]
+            pcz = R[2, 0] * centers[p, 0] + R[2, 1] * centers[p, 1] + R[2, 2] * centers[p, 2] + T[2]
+            if pcz + radius < NEAR or pcz - radius > far:
+                continue
+            for k in range(8):
+                lx = _CORNER_SIGNS[k, 0] * hx
+                ly = _CORNER_SIGNS[k, 1] * hy
+                wx = centers[p, 0] + lx * cyaw - ly * syaw
+                wy = centers[p, 1] + lx * syaw + ly * cyaw
+                wz = centers[p, 2] + _CORNER_SIGNS[k, 2] * hz
+                corners_c[k, 0] = R[0, 0] * wx + R[0, 1] * wy + R[0, 2] * wz + T[0]
+                corners_c[k, 1] = R[1, 0] * wx + R[1, 1] * wy + R[1, 2] * wz + T[1]
+                corners_c[k, 2] = R[2, 0] * wx + R[2, 1] * wy + R[2, 2] * wz + T[2]
+            for f in range(6):
+                ln = _FACE_NORMALS[f]
+                nwx = ln[0] * cyaw - ln[1] * syaw
+                nwy = ln[0] * syaw + ln[1] * cyaw
+                nwz = ln[2]
+                # face centre in world
+                fcx = centers[p, 0] + (ln[0] * hx) * cyaw - (ln[1] * hy) * syaw
+                fcy = centers[p, 1] + (ln[0] * hx) * syaw + (ln[1] * hy) * cyaw
+                fcz = centers[p, 2] + ln[2] * hz
+                if nwx * (ccx - fcx) + nwy * (ccy - fcy) + nwz * (ccz - fcz) <= 1e-9:
+                    continue  # back face
+                # camera-frame normal and plane offset
+                ncx = R[0, 0] * nwx + R[0, 1] * nwy + R[0, 2] * nwz
+                ncy = R[1, 0] * nwx + R[1, 1] * nwy + R[1, 2] * nwz
+                ncz = R[2, 0] * nwx + R[2, 1] * nwy + R[2, 2] * nwz
+                c0 = corners_c[_FACE_CORNERS[f, 0]]
+                d0 = ncx * c0[0] + ncy * c0[1] + ncz * c0[2]
+                if d0 > -1e-9:
+                    continue
+                for k in range(4):
+                    ck = corners_c[_FACE_CORNERS[f, k]]
+                    poly[k, 0] = ck[0]
+                    poly[k, 1] = ck[1]
+                    poly[k, 2] = ck[2]
+                # clip against z >= NEAR (Sutherland-Hodgman, one plane)
+                m = 0
+                zmin = 1e30
+                for k in range(4):
+                    a0 = poly[k]
+                    a1 = poly[(k + 1) % 4]
+                    in0 = a0[2] >= NEAR
+                    in1 = a1[2] >= NEAR
+                    if in0:
+                        clipped[m, 0] = a0[0]
+                        clipped[m, 1] = a0[1]
+                        clipped[m, 2] = a0[2]
+                        m += 1
+                    if in0 != in1:
+                        s = (NEAR - a0[2]) / (a1[2] - a0[2])
+                        clipped[m, 0] = a0[0] + s * (a1[0] - a0[0])
+                        clipped[m, 1] = a0[1] + s * (a1[1] - a0[1])
+                        clipped[m, 2] = NEAR
+                        m += 1
+                if m < 3:
+                    continue
+                umin = 1e30
+                umax = -1e30
+                vmin = 1e30
+                vmax = -1e30
+                area = 0.0
+                for k in range(m):
+                    zk = clipped[k, 2]
+                    if zk < zmin:
+                        zmin = zk
+                    u = fx * clipped[k, 0] / zk + cx
+                    v = fy * clipped[k, 1] / zk + cy
+                    verts[c, n_out, k, 0] = u
+                    verts[c, n_out, k, 1] = v
+                    umin = min(umin, u)
+                    umax = max(umax, u)
+                    vmin = min(vmin, v)
+                    vmax = max(vmax, v)
+                if zmin > far:
+                    continue
+                for k in range(m):
+                    k1 = (k + 1) % m
+                    area += verts[c, n_out, k, 0] * verts[c, n_out, k1, 1] - verts[c, n_out, k1, 0] * verts[c, n_out, k, 1]
+                if area < 0.0:  # make orientation positive (interior where every edge function >= 0)
+                    for k in range(m // 2):
+                        k2 = m - 1 - k
+                        tu = verts[c, n_out, k, 0]
+                        tv = verts[c, n_out, k, 1]
+                        verts[c, n_out, k, 0] = verts[c, n_out, k2, 0]
+                        verts[c, n_out, k, 1] = verts[c, n_out, k2, 1]
+                        verts[c, n_out, k2, 0] = tu
+                        verts[c, n_out, k2, 1] = tv
+                y0 = int(np.ceil(vmin - 0.5))
+                y1 = int(np.floor(vmax - 0.5))
+                x0 = int(np.ceil(umin - 0.5))
+                x1 = int(np.floor(umax - 0.5))
+                if y1 < 0 or x1 < 0 or y0 > height - 1 or x0 > width - 1 or y1 < y0 or x1 < x0:
+                    continue
+                bounds[c, n_out, 0] = max(y0, 0)
+                bounds[c, n_out, 1] = min(y1, height - 1)
+                bounds[c, n_out, 2] = max(x0, 0)
+                bounds[c, n_out, 3] = min(x1, width - 1)
+                nverts[c, n_out] = m
+                # inverse depth as an affine function of (u, v)
+                planes[c, n_out, 0] = ncx / fx / d0
+                planes[c, n_out, 1] = ncy / fy / d0
+                planes[c, n_out, 2] = (ncz - ncx * cx / fx - ncy * cy / fy) / d0
+                if emissive[p]:
+                    shade = 1.0
+                else:
+                    lam = nwx * sun_dir[0] + nwy * sun_dir[1] + nwz * sun_dir[2]
+                    shade = ambient + sun_intensity * max(lam, 0.0)
+                for ch in range(3):
+                    val = colors[p, ch] * shade * 255.0
+                    face_rgb[c, n_out, ch] = np.uint8(min(max(val, 0.0), 255.0))
+                face_tag[c, n_out] = tags[p]
+                face_inst[c, n_out] = insts[p]
+                n_out += 1
+        counts[c] = n_out
+    return verts, nverts, planes, face_rgb, face_tag, face_inst, bounds, counts
+
+
+@njit(cache=True, inline="always")
+def _hash_noise(ix, iy):
+    h = (ix * 73856093) ^ (iy * 19349663)
+    h = (h ^ (h >> 13)) * 1274126177
+    return (h >> 7) & 15
+
+
+@njit(cache=True, inline="always")
+def _ground_pixel(out_rgb, out_sem, c, i, j, fxw, fyw, surface, s_rows, s_cols, tiles_x, surf_lut, surf_tag):
+    cls = 0
+    gx = 0
+    gy = 0
+    if fxw >= 0.0 and fyw >= 0.0 and fxw < s_cols and fyw < s_rows:
+        gx = int(fxw)
+        gy = int(fyw)
+        cls = surface[(((gy >> 3) * tiles_x + (gx >> 3)) << 6) + ((gy & 7) << 3) + (gx & 7)]
+    k = cls * 16 + _hash_noise(gx, gy)
+    out_rgb[c, i, j, 0] = surf_lut[k, 0]
+    out_rgb[c, i, j, 1] = surf_lut[k, 1]
+    out_rgb[c, i, j, 2] = surf_lut[k, 2]
+    out_sem[c, i, j] = surf_tag[cls]
+
+
+@njit(cache=True, parallel=True, fastmath=False)
+def _raster_bands(
+    cam_rot, cam_trans, cam_k, width, height, far,
+    surface, s_rows, s_cols, tiles_x, surf_x0, surf_y0, surf_res, surf_lut, surf_tag,
+    sky_horizon, sky_zenith,
+    verts, nverts, planes, face_rgb, face_tag, face_inst, bounds, counts,
+    out_rgb, out_depth, out_sem, out_inst,
+):  # fmt: skip
+    n_cam = cam_rot.shape[0]
+    n_bands = (height + BAND_ROWS - 1) // BAND_ROWS
+    inv_res = 1.0 / surf_res
+    for task in prange(n_cam * n_bands):
+        c = task // n_bands
+        r0 = (task % n_bands) * BAND_ROWS
+        r1 = min(r0 + BAND_ROWS, height)
+        R = cam_rot[c]
+        T = cam_trans[c]
+        fx, fy, cx, cy = cam_k[c, 0], cam_k[c, 1], cam_k[c, 2], cam_k[c, 3]
+        ccx = -(R[0, 0] * T[0] + R[1, 0] * T[1] + R[2, 0] * T[2])
+        ccy = -(R[0, 1] * T[0] + R[1, 1] * T[1] + R[2, 1] * T[2])
+        ccz = -(R[0, 2] * T[0] + R[1, 2] * T[1] + R[2, 2] * T[2])
+        # world direction of the camera ray r = ((u-cx)/fx, (v-cy)/fy, 1): d = R^T r, affine in u
+        sx = R[0, 0] / fx
+        sy = R[0, 1] / fx
+        sz = R[0, 2] / fx
+        out_inst[c, r0:r1] = 0
+        for i in range(r0, r1):
+            ry = (i + 0.5 - cy) / fy
+            bx = R[2, 0] + R[1, 0] * ry
+            by = R[2, 1] + R[1, 1] * ry
+            bz = R[2, 2] + R[1, 2] * ry
+            # sky colour for this row, from the ray through the image centre column (cosmetic gradient)
+            mx = bx + sx * (0.5 * width + 0.5 - cx)
+            my = by + sy * (0.5 * width + 0.5 - cx)
+            mz = bz + sz * (0.5 * width + 0.5 - cx)
+            e = max(mz / np.sqrt(mx * mx + my * my + mz * mz), 0.0)
+            w = np.sqrt(e)
+            s0 = np.uint8(sky_horizon[0] * (1.0 - w) + sky_zenith[0] * w)
+            s1 = np.uint8(sky_horizon[1] * (1.0 - w) + sky_zenith[1] * w)
+            s2 = np.uint8(sky_horizon[2] * (1.0 - w) + sky_zenith[2] * w)
+            if abs(sz) < 1e-15:
+                # no roll: the ray's height component is constant along the row, so is the ground distance
+                if bz < -1e-12 and -ccz / bz < far and -ccz / bz > 0.0:
+                    t = -ccz / bz
+                    fxw = (ccx + t * (bx + sx * (0.5 - cx)) - surf_x0) * inv_res
+                    fyw = (ccy + t * (by + sy * (0.5 - cx)) - surf_y0) * inv_res
+                    kx = t * sx * inv_res
+                    ky = t * sy * inv_res
+                    tf = np.float32(t)
+                    for j in range(width):
+                        _ground_pixel(out_rgb, out_sem, c, i, j, fxw + kx * j, fyw + ky * j, surface,
+                                      s_rows, s_cols, tiles_x, surf_lut, surf_tag)
+                        out_depth[c, i, j] = tf
+                else:
+                    for j in range(width):
+                        out_rgb[c, i, j, 0] = s0
+                        out_rgb[c, i, j, 1] = s1
+                        out_rgb[c, i, j, 2] = s2
+                    out_depth[c, i] = far
+                    out_sem[c, i] = 11
+                continue
+            for j in range(width):
+                u = j + 0.5 - cx
+                dz = bz + sz * u
+                t = far
+                if dz < -1e-12:
+                    t = -ccz / dz
+                if t > 0.0 and t < far:
+                    _ground_pixel(out_rgb, out_sem, c, i, j, (ccx + t * (bx + sx * u) - surf_x0) * inv_res,
+                                  (ccy + t * (by + sy * u) - surf_y0) * inv_res, surface,
+                                  s_rows, s_cols, tiles_x, surf_lut, surf_tag)
+                    out_depth[c, i, j] = t
+                else:
+                    out_rgb[c, i, j, 0] = s0
+                    out_rgb[c, i, j, 1] = s1
+                    out_rgb[c, i, j, 2] = s2
+                    out_depth[c, i, j] = far
+                    out_sem[c, i, j] = 11
+        for f in range(counts[c]):
+            fy0 = max(bounds[c, f, 0], r0)
+            fy1 = min(bounds[c, f, 1], r1 - 1)
+            if fy1 < fy0:
+                continue
+            m = nverts[c, f]
+            pa = planes[c, f, 0]
+            pb = planes[c, f, 1]
+            pc = planes[c, f, 2]
+            for i in range(fy0, fy1 + 1):
+                v = i + 0.5
+                lo = -1e30
+                hi = 1e30
+                empty = False
+                for k in range(m):
+                    k1 = (k + 1) % m
+                    pu = verts[c, f, k, 0]
+                    pv = verts[c, f, k, 1]
+                    ex = verts[c, f, k1, 0] - pu
+                    ey = verts[c, f, k1, 1] - pv
+                    A = -ey
+                    B = ex * (v - pv) + ey * pu
+                    if A > 1e-12:
+                        lo = max(lo, -B / A)
+                    elif A < -1e-12:
+                        hi = min(hi, -B / A)
+                    elif B < 0.0:
+                        empty = True
+                        break
+                if empty or hi < lo:
+                    continue
+                j0 = max(int(np.ceil(lo - 0.5)), bounds[c, f, 2])
+                j1 = min(int(np.floor(hi - 0.5)), bounds[c, f, 3])
+                rowz = pb * v + pc
+                for j in range(j0, j1 + 1):
+                    invz = pa * (j + 0.5) + rowz
+                    if invz * out_depth[c, i, j] > 1.0:  # nearer than what is there (no division)
+                        out_depth[c, i, j] = 1.0 / invz
+                        out_rgb[c, i, j, 0] = face_rgb[c, f, 0]
+                        out_rgb[c, i, j, 1] = face_rgb[c, f, 1]
+                        out_rgb[c, i, j, 2] = face_rgb[c, f, 2]
+                        out_sem[c, i, j] = face_tag[c, f]
+                        out_inst[c, i, j] = face_inst[c, f]
+
+
+class TiledSurface(NamedTuple):
+    """A road-surface class map stored in 8×8 tiles (one cache line each), for fast lookups from any view."""
+
+    flat: np.ndarray  # uint8, tiled
+    rows: int
+    cols: int
+    tiles_x: int
+    origin: tuple[float, float]  # world (x, y) of cell (0, 0)'s corner
+    resolution: float  # metres per cell
+
+
+def tile_surface(grid: np.ndarray, origin: tuple[float, float], resolution: float) -> TiledSurface:
+    """Convert a row-major (rows = world y, cols = world x) class grid into :class:`TiledSurface`."""
+    rows, cols = grid.shape
+    ty, tx = -(-rows // 8), -(-cols // 8)
+    padded = np.zeros((ty * 8, tx * 8), np.uint8)
+    padded[:rows, :cols] = grid
+    flat = np.ascontiguousarray(padded.reshape(ty, 8, tx, 8).transpose(0, 2, 1, 3)).reshape(-1)
+    return TiledSurface(flat, rows, cols, tx, (float(origin[0]), float(origin[1])), float(resolution))
+
+
+def surface_lut(class_rgb: np.ndarray, texture_amp: float) -> np.ndarray:
+    """Per-class shaded colours with 16 texture levels: ``(n_classes * 16, 3)`` uint8."""
+    base = np.asarray(class_rgb, np.float64)[:, None, :]
+    levels = (np.arange(16) - 7.5)[None, :, None] * texture_amp
+    return np.clip(np.rint(base + levels), 0, 255).astype(np.uint8).reshape(-1, 3)
+
+
+def render(
+    cam_rot: np.ndarray,
+    cam_trans: np.ndarray,
+    cam_k: np.ndarray,
+    width: int,
+    height: int,
+    far: float,
+    prims: dict[str, np.ndarray],
+    surface: TiledSurface,
+    surface_lut_rgb: np.ndarray,
+    surface_tag: np.ndarray,
+    sky_horizon: np.ndarray,
+    sky_zenith: np.ndarray,
+    sun_dir: np.ndarray,
+    ambient: float,
+    sun_intensity: float,
+    out: dict[str, np.ndarray] | None = None,
+) -> dict[str, np.ndarray]:
+    """Render ``C`` cameras of one resolution.
+
+    ``cam_rot`` (C, 3, 3) and ``cam_trans`` (C, 3) map world to camera frame (``p_c = R p_w + t``);
+    ``cam_k`` (C, 4) holds fx, fy, cx, cy. ``prims`` has ``centers`` (P, 3), ``halves`` (P, 3), ``yaws`` (P,),
+    ``colors`` (P, 3) albedo in [0, 1], ``tags`` (P,) uint8, ``insts`` (P,) uint16, ``emissive`` (P,) bool.
+    ``surface_lut_rgb`` comes from :func:`surface_lut`, ``surface_tag`` maps surface class → semantic tag.
+    Returns ``rgb`` (C, H, W, 3) uint8, ``depth`` (C, H, W) float32, ``sem`` (C, H, W) uint8,
+    ``inst`` (C, H, W) uint16.
+    """
+    n_cam = cam_rot.shape[0]
+    if out is None:
+        out = {
+            "rgb": np.empty((n_cam, height, width, 3), np.uint8),
+            "depth": np.empty((n_cam, height, width), np.float32),
+            "sem": np.empty((n_cam, height, width), np.uint8),
+            "inst": np.empty((n_cam, height, width), np.uint16),
+        }
+    cam_rot = np.ascontiguousarray(cam_rot, np.float64)
+    cam_trans = np.ascontiguousarray(cam_trans, np.float64)
+    cam_k = np.ascontiguousarray(cam_k, np.float64)
+    faces = _setup_faces(
+        cam_rot, cam_trans, cam_k, int(width), int(height), float(far),
+        prims["centers"], prims["halves"], prims["yaws"], prims["colors"], prims["tags"], prims["insts"],
+        prims["emissive"], np.asarray(sun_dir, np.float64), float(ambient), float(sun_intensity),
+    )  # fmt: skip
+    _raster_bands(
+        cam_rot, cam_trans, cam_k, int(width), int(height), float(far),
+        surface.flat, surface.rows, surface.cols, surface.tiles_x, surface.origin[0], surface.origin[1],
+        surface.resolution, surface_lut_rgb, np.asarray(surface_tag, np.uint8),
+        np.asarray(sky_horizon, np.float64), np.asarray(sky_zenith, np.float64),
+        *faces, out["rgb"], out["depth"], out["sem"], out["inst"],
+    )  # fmt: skip
+    return out

@@ -1,0 +1,81 @@
+"""Pictures for people: bird's-eye view, the render composite and camera contact sheets (OpenCV).
+
+Example:
+    >>> import numpy as np
+    >>> sheet = contact_sheet({"CAM_FRONT": [np.zeros((4, 6, 3), np.uint8)]}, tile_width=6)
+    >>> sheet.shape[2]
+    3
+"""
+
+from __future__ import annotations
+
+import cv2
+import numpy as np
+
+from fog_gym.geometry import box_corners
+from fog_gym.scene import Scene
+from fog_gym.scenery import SURFACE_RGB
+
+_BEV_COLORS = np.clip(SURFACE_RGB * 1.0, 0, 255).astype(np.uint8)
+
+
+def birds_eye_view(scene: Scene, size_px: int = 480, metres: float = 100.0) -> np.ndarray:
+    """Top-down RGB view centred on the ego, ego heading up; vehicles as boxes (ego red)."""
+    x, y, yaw = scene.ego_pose
+    scale = size_px / metres
+    # pixel (col, row) -> world: ego heading points up (−row), +y (right of ego) to the right
+    c, s = np.cos(yaw), np.sin(yaw)
+    cols, rows = np.meshgrid(np.arange(size_px) + 0.5 - size_px / 2, np.arange(size_px) + 0.5 - size_px / 2)
+    fwd, right = -rows / scale, cols / scale
+    wx, wy = x + fwd * c - right * s, y + fwd * s + right * c
+    img = _BEV_COLORS[scene.static.surface.class_at(wx, wy)].copy()
+
+    def to_px(pts: np.ndarray) -> np.ndarray:
+        d = pts[..., :2] - np.array([x, y])
+        f = d[..., 0] * c + d[..., 1] * s
+        r = -d[..., 0] * s + d[..., 1] * c
+        return np.stack([r * scale + size_px / 2, -f * scale + size_px / 2], -1)
+
+    props = scene.static.props
+    if len(props):
+        corners = box_corners(props.centers, props.sizes, props.yaws)[:, :4]
+        near = np.hypot(props.centers[:, 0] - x, props.centers[:, 1] - y) < metres
+        for poly, col in zip(to_px(corners[near]), (props.colors[near] * 255).astype(int)):
+            cv2.fillConvexPoly(img, np.round(poly * 16).astype(np.int32), tuple(int(v) for v in col), cv2.LINE_AA, 4)
+    v = scene.vehicles
+    corners = box_corners(v.centers, v.sizes, v.yaws)[:, :4]
+    for i, poly in enumerate(to_px(corners)):
+        col = (220, 30, 30) if v.ids[i] == scene.ego_id else (40, 90, 220)
+        cv2.fillConvexPoly(img, np.round(poly * 16).astype(np.int32), col, cv2.LINE_AA, 4)
+    return img
+
+
+def _fit(img: np.ndarray, width: int) -> np.ndarray:
+    h, w = img.shape[:2]
+    height = max(1, int(round(h * width / w)))
+    return cv2.resize(img, (width, height), interpolation=cv2.INTER_AREA if w > width else cv2.INTER_NEAREST)
+
+
+def composite(front_rgb: np.ndarray | None, bev: np.ndarray, height: int = 480) -> np.ndarray:
+    """Front camera and bird's-eye view side by side, both ``height`` pixels tall."""
+    bev = cv2.resize(bev, (height, height), interpolation=cv2.INTER_AREA)
+    if front_rgb is None:
+        return bev
+    h, w = front_rgb.shape[:2]
+    front = cv2.resize(front_rgb, (max(1, int(round(w * height / h))), height), interpolation=cv2.INTER_AREA)
+    return np.concatenate([front, bev], axis=1)
+
+
+def contact_sheet(rows: dict[str, list[np.ndarray]], tile_width: int = 320, label: bool = True) -> np.ndarray:
+    """A grid of images: one row per key (labelled), tiles scaled to ``tile_width`` and padded to a common height."""
+    tiles = [[_fit(t if t.ndim == 3 else np.repeat(t[..., None], 3, -1), tile_width) for t in row] for row in rows.values()]
+    tile_h = max(t.shape[0] for row in tiles for t in row)
+    ncol = max(len(r) for r in tiles)
+    sheet = np.full((tile_h * len(tiles), tile_width * ncol, 3), 255, np.uint8)
+    for r, (name, row) in enumerate(zip(rows, tiles)):
+        for col, t in enumerate(row):
+            sheet[r * tile_h : r * tile_h + t.shape[0], col * tile_width : col * tile_width + t.shape[1]] = t
+        if label:
+            cv2.putText(sheet, name, (6, r * tile_h + 18), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (0, 0, 0), 3, cv2.LINE_AA)
+            cv2.putText(sheet, name, (6, r * tile_h + 18), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (255, 255, 255), 1, cv2.LINE_AA)
+    return sheet
