@@ -1,0 +1,528 @@
+#!/usr/bin/env python
+"""Per-stage timing of FogDrive-v0 against bare highway-env. This script only reports numbers and never
+asserts a timing.
+
+The script prints Markdown tables to stdout. Progress bars go to stderr.
+
+1. **Per-stage timings** for two camera rigs on one town:
+
+   * the full FogDrive rig: 4 cameras at 1280×960 (``RigConfig.fogdrive()``);
+   * a small RL rig: one 128×128 ``CAM_FRONT``.
+
+   Each cell is the median in milliseconds with the p25–p75 range, taken over ``--repeats`` timed frames.
+   The stages are:
+
+   * the traffic step ``env.world.step(idle)``, which runs highway-env at 20 Hz with 10 Hz keyframes and
+     skips highway-env's observation;
+   * the scene build that ``FogDriveEnv._observe`` does before it renders: ``world.vehicle_state()``,
+     ``scene.vehicle_primitives()`` and constructing the ``Scene``;
+   * ``CameraRig.primitives(scene)`` (props near the ego plus vehicles);
+   * ``CameraRig.render(scene)`` for all cameras, batched;
+   * each camera rendered alone by a one-camera ``CameraRig``;
+   * the wall time of a full ``env.step(idle)``.
+
+   Below those come the steps per second, the reset time (median of 3), the construction time, and the
+   ratio of the full step to a bare highway-env step.
+2. **Bare highway-env baseline**. It uses the same scenario class and config as the town
+   (``fog_gym.world.TOWN_SPECS``) at the same frequencies, and a plain ``highway`` scenario with
+   ``vehicles_count=50``. The times are ``env.step`` including highway-env's own observation. The
+   observation (``observation_type.observe()``) is also timed on its own.
+3. **cProfile shares** over about 10 bare highway-env steps: the time in ``Road.neighbour_vehicles`` and in
+   the collision checks (``handle_collisions``, which includes ``_is_colliding``). Both are O(N²) pure
+   Python. cProfile adds a cost to every Python call, so read these figures as shares, not absolute times.
+4. **Scene size**: the vehicles and render primitives per frame (median, with min–max).
+
+Methodology:
+
+* Before anything is timed, the script warms up. The first render compiles or loads the numba kernels,
+  and the first frame builds the props cache.
+* The idle action is ``1`` for a ``Discrete`` action space and zeros for a ``Box``.
+* When an episode ends while frames are being timed (a crash, or the episode length), the env is reset.
+  The reset is not timed, and it is counted in the "resets" column.
+* The machine may be shared and noisy, so every figure is a median over repeats.
+
+Usage::
+
+    python scripts/bench.py                  # 20 timed frames per configuration, town "highway"
+    python scripts/bench.py --quick          # smoke run (3 frames)
+    python scripts/bench.py --town merge --repeats 50 --json out/bench.json
+"""
+
+from __future__ import annotations
+
+import argparse
+import copy
+import cProfile
+import json
+import os
+import platform
+import pstats
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from tqdm import tqdm
+
+from fog_gym.config import TOWNS
+
+DEFAULT_REPEATS = 20
+QUICK_REPEATS = 3
+RESET_REPEATS = 3
+PROFILE_STEPS = 10
+WARMUP_STEPS = 2
+DENSE_VEHICLES = 50
+
+RIGS: dict[str, dict[str, Any]] = {
+    # key: label, FogDriveEnv kwargs
+    "full": {"label": "full rig: 4 × 1280×960", "kwargs": {}},  # rig=None → RigConfig.fogdrive()
+    "rl": {"label": "RL rig: 1 × 128×128", "kwargs": {"resolution": (128, 128), "cameras": ["CAM_FRONT"]}},
+}
+
+
+# -- small helpers ------------------------------------------------------------------------------------
+
+
+def timed(fn: Callable[..., Any], *args: Any, **kwargs: Any) -> tuple[Any, float]:
+    """Call ``fn`` and return ``(result, elapsed milliseconds)``."""
+    t0 = time.perf_counter_ns()
+    out = fn(*args, **kwargs)
+    return out, (time.perf_counter_ns() - t0) / 1e6
+
+
+def summarize(samples: list[float]) -> dict[str, Any]:
+    """Return the median, the p25/p75, the min/max and the raw samples (milliseconds)."""
+    a = np.asarray(samples, dtype=np.float64)
+    if a.size == 0:
+        return {"n": 0}
+    p25, med, p75 = np.percentile(a, [25, 50, 75])
+    return {
+        "n": int(a.size), "median": float(med), "p25": float(p25), "p75": float(p75),
+        "min": float(a.min()), "max": float(a.max()), "samples": [round(float(x), 4) for x in a],
+    }  # fmt: skip
+
+
+def idle_action(space: Any) -> Any:
+    """The idle action: IDLE (index 1) for highway-env's discrete meta-actions, zeros for continuous ones."""
+    from gymnasium import spaces
+
+    if isinstance(space, spaces.Discrete):
+        return 1
+    if isinstance(space, spaces.Box):
+        return np.zeros(space.shape, space.dtype)
+    raise TypeError(f"no idle action for action space {space!r}")
+
+
+def fmt_ms(stat: dict[str, Any] | None) -> str:
+    if not stat or not stat.get("n"):
+        return "—"
+    med = stat["median"]
+    if stat["n"] == 1:
+        return f"{med:.2f}"
+    return f"{med:.2f} ({stat['p25']:.2f}–{stat['p75']:.2f})"
+
+
+def markdown_table(header: list[str], rows: list[list[str]]) -> str:
+    widths = [max(len(str(r[i])) for r in [header, *rows]) for i in range(len(header))]
+    line = lambda cells: "| " + " | ".join(str(c).ljust(w) for c, w in zip(cells, widths)) + " |"  # noqa: E731
+    sep = "|" + "|".join("-" * (w + 2) for w in widths) + "|"
+    return "\n".join([line(header), sep, *(line(r) for r in rows)])
+
+
+# -- FogDrive-v0 stages --------------------------------------------------------------------------------
+
+
+def build_scene(env: Any) -> tuple[Any, dict[str, float]]:
+    """Build the Scene as ``FogDriveEnv._observe`` does before it renders. Also return the sub-stage times.
+
+    This reads the env's private ``_lighting`` and ``_static``, as ``_observe`` does.
+    """
+    from fog_gym.scene import Scene, vehicle_primitives
+    from fog_gym.world import EGO_ID
+
+    t0 = time.perf_counter_ns()
+    state = env.world.vehicle_state()
+    t1 = time.perf_counter_ns()
+    prims = vehicle_primitives(state, env._lighting.night, exclude_id=EGO_ID)
+    t2 = time.perf_counter_ns()
+    scene = Scene(
+        time=env.world.time,
+        ego_id=EGO_ID,
+        ego_pose=env.world.ego_pose,
+        vehicles=state,
+        static=env._static,
+        lighting=env._lighting,
+        primitives=prims,
+    )
+    t3 = time.perf_counter_ns()
+    return scene, {"vehicle_state": (t1 - t0) / 1e6, "vehicle_primitives": (t2 - t1) / 1e6, "total": (t3 - t0) / 1e6}
+
+
+def solo_rigs(env: Any) -> dict[str, Any]:
+    """Make one single-camera ``CameraRig`` for each camera of the env's rig (same far plane)."""
+    from fog_gym.config import RigConfig
+    from fog_gym.sensors import CameraRig
+
+    return {c.name: CameraRig(RigConfig((c,)), far=env.config.far_distance) for c in env.config.rig.cameras}
+
+
+class EpisodeKeeper:
+    """Reset the env (untimed) when an episode ends, and refresh the solo rigs' props caches after a reset."""
+
+    def __init__(self, env: Any, solos: dict[str, Any]) -> None:
+        self.env, self.solos = env, solos
+        self.resets = 0
+        self.steps = 0  # steps since the last reset
+
+    def after_step(self, terminated: bool, truncated: bool = False) -> None:
+        self.steps += 1
+        if terminated or truncated or self.steps >= self.env.config.episode_steps:
+            self.resets += 1
+            self.steps = 0
+            self.env.reset(seed=self.resets)
+            for rig in self.solos.values():  # prop_primitives() is cached per static world: fill it now, untimed
+                rig.primitives(self.env.scene)
+
+
+def warm_up(env: Any, solos: dict[str, Any], action: Any) -> None:
+    """Compile or load the numba kernels and fill the caches: reset, a few steps, one render per solo rig."""
+    env.reset(seed=0)
+    for _ in range(WARMUP_STEPS):
+        env.step(action)
+    scene, _ = build_scene(env)
+    env.cameras.render(scene)
+    for rig in solos.values():
+        rig.render(scene)
+
+
+def measure_reset(env: Any, repeats: int, desc: str) -> dict[str, Any]:
+    samples = [timed(env.reset, seed=0)[1] for _ in tqdm(range(repeats), desc=desc, unit="reset", leave=False)]
+    return summarize(samples)
+
+
+def measure_stages(env: Any, solos: dict[str, Any], action: Any, repeats: int, desc: str) -> dict[str, Any]:
+    """Time each stage of a frame: traffic step, scene build, primitives, batched render, solo renders."""
+    keep = EpisodeKeeper(env, solos)
+    t: dict[str, list[float]] = {k: [] for k in (
+        "traffic_step", "vehicle_state", "vehicle_primitives", "scene_build", "rig_primitives", "cameras_batched",
+    )}  # fmt: skip
+    for name in solos:
+        t[f"camera:{name}"] = []
+    counts: dict[str, list[int]] = {"vehicles": [], "vehicle_primitives": [], "render_primitives": [], "props": []}
+    for _ in tqdm(range(repeats), desc=desc, unit="frame", leave=False):
+        (_, terminated, _), ms = timed(env.world.step, action)
+        t["traffic_step"].append(ms)
+        scene, sub = build_scene(env)
+        t["vehicle_state"].append(sub["vehicle_state"])
+        t["vehicle_primitives"].append(sub["vehicle_primitives"])
+        t["scene_build"].append(sub["total"])
+        prims, ms = timed(env.cameras.primitives, scene)
+        t["rig_primitives"].append(ms)
+        _, ms = timed(env.cameras.render, scene)
+        t["cameras_batched"].append(ms)
+        for name, rig in solos.items():
+            _, ms = timed(rig.render, scene)
+            t[f"camera:{name}"].append(ms)
+        counts["vehicles"].append(len(scene.vehicles))
+        counts["vehicle_primitives"].append(len(scene.primitives["centers"]))
+        counts["render_primitives"].append(len(prims["centers"]))
+        counts["props"].append(len(scene.static.props))
+        keep.after_step(terminated)
+    out: dict[str, Any] = {k: summarize(v) for k, v in t.items()}
+    out["counts"] = {k: {"median": float(np.median(v)), "min": int(min(v)), "max": int(max(v))} for k, v in counts.items()}
+    out["resets"] = keep.resets
+    return out
+
+
+def measure_env_step(env: Any, action: Any, repeats: int, desc: str) -> dict[str, Any]:
+    """Wall time of ``env.step(action)``: traffic, scene and every camera, plus the observation dict."""
+    keep = EpisodeKeeper(env, {})
+    samples = []
+    for _ in tqdm(range(repeats), desc=desc, unit="step", leave=False):
+        (_, _, terminated, truncated, _), ms = timed(env.step, action)
+        samples.append(ms)
+        keep.after_step(terminated, truncated)
+    return {**summarize(samples), "resets": keep.resets}
+
+
+def bench_rig(town: str, rig_key: str, repeats: int) -> dict[str, Any]:
+    from fog_gym.env import FogDriveEnv
+
+    label = RIGS[rig_key]["label"]
+    env, ms_init = timed(FogDriveEnv, town=town, **RIGS[rig_key]["kwargs"])
+    solos = solo_rigs(env)
+    action = idle_action(env.action_space)
+    warm_up(env, solos, action)
+    result: dict[str, Any] = {"label": label, "cameras": list(env.cameras.names), "construct": summarize([ms_init])}
+    result["reset"] = measure_reset(env, RESET_REPEATS, f"{rig_key}: reset")
+    result["stages"] = measure_stages(env, solos, action, repeats, f"{rig_key}: stages")
+    result["env_step"] = measure_env_step(env, action, repeats, f"{rig_key}: env.step")
+    env.close()
+    return result
+
+
+# -- bare highway-env ----------------------------------------------------------------------------------
+
+
+def bare_highway_env(town: str, **overrides: Any) -> Any:
+    """The town's highway-env scenario with fog-gym's config and frequencies, with the observation kept."""
+    import highway_env.envs as hw_envs
+
+    from fog_gym.config import FogDriveConfig
+    from fog_gym.world import TOWN_SPECS
+
+    spec = TOWN_SPECS[town]
+    defaults = FogDriveConfig()
+    config = copy.deepcopy(spec.config)
+    config.update({
+        "simulation_frequency": defaults.simulation_frequency,
+        "policy_frequency": defaults.keyframe_frequency,
+        "duration": 1e9,  # as in TrafficWorld: no time-limit truncation while timing
+        "offscreen_rendering": True,
+    })  # fmt: skip
+    config.update(overrides)
+    return getattr(hw_envs, spec.env_class)(config=config)
+
+
+def measure_bare(hw: Any, repeats: int, desc: str) -> dict[str, Any]:
+    """``hw.step(idle)`` wall time (observation included), and ``observe()`` timed alone after each step."""
+    action = idle_action(hw.action_space)
+    hw.reset(seed=0)
+    for _ in range(WARMUP_STEPS):
+        hw.step(action)
+    steps, observe, resets, n_vehicles = [], [], 0, []
+    for _ in tqdm(range(repeats), desc=desc, unit="step", leave=False):
+        (_, _, terminated, truncated, _), ms = timed(hw.step, action)
+        steps.append(ms)
+        observe.append(timed(hw.observation_type.observe)[1])
+        n_vehicles.append(len(hw.road.vehicles))
+        if terminated or truncated:
+            resets += 1
+            hw.reset(seed=resets)
+    return {
+        "step": summarize(steps), "observe": summarize(observe), "resets": resets,
+        "vehicles": float(np.median(n_vehicles)),
+        "substeps": int(hw.config["simulation_frequency"] // hw.config["policy_frequency"]),
+    }  # fmt: skip
+
+
+def profile_bare(hw: Any, steps: int) -> dict[str, Any]:
+    """Run cProfile over ``steps`` highway-env steps. Return the share of the profiled time spent in the O(N²) helpers."""
+    action = idle_action(hw.action_space)
+    hw.reset(seed=0)
+    hw.step(action)
+    prof = cProfile.Profile()
+    resets = 0
+    for _ in tqdm(range(steps), desc="profile", unit="step", leave=False):
+        prof.enable()
+        _, _, terminated, truncated, _ = hw.step(action)
+        prof.disable()
+        if terminated or truncated:  # the reset is not profiled
+            resets += 1
+            hw.reset(seed=resets)
+    stats = pstats.Stats(prof)
+    total = stats.total_tt  # seconds, sum of own times = all profiled time
+    found: dict[str, dict[str, float]] = {}
+    for (filename, _, funcname), (_, ncalls, _, cumtime, _) in stats.stats.items():
+        if funcname in ("neighbour_vehicles", "handle_collisions", "_is_colliding") and "highway_env" in filename:
+            f = found.setdefault(funcname, {"cumtime": 0.0, "calls": 0})
+            f["cumtime"] += cumtime
+            f["calls"] += ncalls
+    return {
+        "steps": steps, "resets": resets, "total_s": total,
+        **{
+            name: {
+                "share": found.get(name, {}).get("cumtime", 0.0) / total if total else 0.0,
+                "calls_per_step": found.get(name, {}).get("calls", 0) / steps,
+            }
+            for name in ("neighbour_vehicles", "handle_collisions", "_is_colliding")
+        },
+    }  # fmt: skip
+
+
+def bench_baselines(town: str, repeats: int, profile_steps: int) -> dict[str, Any]:
+    """Bare highway-env for the town's config and for a dense highway (50 vehicles). Both are timed and profiled."""
+    from fog_gym.world import TOWN_SPECS
+
+    out: dict[str, Any] = {}
+    configs = {
+        "town": (f"{town} ({TOWN_SPECS[town].env_class}, fog-gym config)", town, {}),
+        "dense": (f"highway, vehicles_count={DENSE_VEHICLES}", "highway", {"vehicles_count": DENSE_VEHICLES,
+                                                                          "vehicles_density": 1.0}),
+    }  # fmt: skip
+    for key, (label, t, overrides) in configs.items():
+        hw = bare_highway_env(t, **overrides)
+        res = measure_bare(hw, repeats, f"bare {key}: step")
+        res["profile"] = profile_bare(hw, profile_steps)
+        res["label"] = label
+        res["config"] = {k: v for k, v in hw.config.items() if isinstance(v, (int, float, str, bool))}
+        hw.close()
+        out[key] = res
+    return out
+
+
+# -- report --------------------------------------------------------------------------------------------
+
+
+def camera_keys(rig_result: dict[str, Any]) -> list[str]:
+    return [f"camera:{n}" for n in rig_result["cameras"]]
+
+
+def sum_medians(rig_result: dict[str, Any], keys: Any) -> float:
+    return sum(rig_result["stages"][k]["median"] for k in keys)
+
+
+def render_report(results: dict[str, Any]) -> str:
+    meta, rigs, base = results["meta"], results["rigs"], results["baseline"]
+    keys = list(rigs)
+    bare_ms = base["town"]["step"]["median"]
+    out = [
+        f"# fog-gym benchmark: town `{meta['town']}`",
+        "",
+        f"{meta['repeats']} timed frames per configuration · {meta['cpu_count']} CPUs, numba {meta['numba']} "
+        f"({meta['numba_threads']} threads) · highway-env {meta['highway_env']} · Python {meta['python']} · "
+        f"{meta['platform']}",
+        "",
+        "## FogDrive-v0 per-stage timings: ms, median (p25–p75)",
+        "",
+    ]
+    cam_names = []
+    for k in keys:
+        cam_names += [c for c in rigs[k]["cameras"] if c not in cam_names]
+
+    def row(label: str, get: Callable[[dict[str, Any]], str]) -> list[str]:
+        return [label, *(get(rigs[k]) for k in keys)]
+
+    rows = [
+        row("env construction (once)", lambda r: fmt_ms(r["construct"])),
+        row(f"env.reset(seed=0) (median of {RESET_REPEATS})", lambda r: fmt_ms(r["reset"])),
+        row("traffic step: `world.step` (2 × 20 Hz sub-steps, no obs)", lambda r: fmt_ms(r["stages"]["traffic_step"])),
+        row("  scene: `world.vehicle_state()`", lambda r: fmt_ms(r["stages"]["vehicle_state"])),
+        row("  scene: `vehicle_primitives()`", lambda r: fmt_ms(r["stages"]["vehicle_primitives"])),
+        row("scene build (state + primitives + `Scene`)", lambda r: fmt_ms(r["stages"]["scene_build"])),
+        row("`cameras.primitives(scene)` (inside render)", lambda r: fmt_ms(r["stages"]["rig_primitives"])),
+        row("cameras (all, batched): `cameras.render`", lambda r: fmt_ms(r["stages"]["cameras_batched"])),
+    ]
+    for name in cam_names:
+        rows.append(row(f"  camera {name} alone", lambda r, n=name: fmt_ms(r["stages"].get(f"camera:{n}"))))
+    rows.append(row("  sum of cameras alone (medians)", lambda r: f"{sum_medians(r, camera_keys(r)):.2f}"))
+    rows.append(row("traffic + scene + cameras (sum of medians)",
+                    lambda r: f"{sum_medians(r, ('traffic_step', 'scene_build', 'cameras_batched')):.2f}"))
+    rows.append(row("**full `env.step`**", lambda r: f"**{fmt_ms(r['env_step'])}**"))
+    rows.append(row("env steps / s (1000 / median)", lambda r: f"{1000.0 / r['env_step']['median']:.1f}"))
+    rows.append(row("bare highway-env step, same scenario (with obs)", lambda r: fmt_ms(base["town"]["step"])))
+    rows.append(row("**ratio: FogDrive-v0 step / bare step**",
+                    lambda r: f"**{r['env_step']['median'] / bare_ms:.2f}×**"))  # fmt: skip
+    rows.append(row("ratio: traffic step / bare step", lambda r: f"{r['stages']['traffic_step']['median'] / bare_ms:.2f}×"))
+    rows.append(row("episode resets while timing (untimed)", lambda r: str(r["stages"]["resets"] + r["env_step"]["resets"])))
+    out.append(markdown_table(["stage", *(rigs[k]["label"] for k in keys)], rows))
+
+    out += ["", "## Scene size per frame: median (min–max)", ""]
+
+    def count(r: dict[str, Any], key: str) -> str:
+        c = r["stages"]["counts"][key]
+        return f"{c['median']:.0f} ({c['min']}–{c['max']})"
+
+    rows = [
+        row("vehicles (incl. ego)", lambda r: count(r, "vehicles")),
+        row("vehicle primitives (ego excluded)", lambda r: count(r, "vehicle_primitives")),
+        row("static props in the episode", lambda r: count(r, "props")),
+        row("render primitives (props near ego + vehicles)", lambda r: count(r, "render_primitives")),
+    ]
+    out.append(markdown_table(["", *(rigs[k]["label"] for k in keys)], rows))
+
+    out += ["", f"## Bare highway-env (observation included): ms, median (p25–p75), {meta['repeats']} steps", ""]
+    rows = []
+    for b in base.values():
+        sub = b["substeps"]
+        rows.append([
+            b["label"], f"{b['vehicles']:.0f}", fmt_ms(b["step"]), f"{b['step']['median'] / sub:.2f}",
+            fmt_ms(b["observe"]), f"{b['step']['median'] - b['observe']['median']:.2f}",
+        ])  # fmt: skip
+    out.append(markdown_table(
+        ["scenario (20 Hz sim, 10 Hz policy)", "vehicles", "env.step", "per 20 Hz sub-step", "Kinematics observe()",
+         "step − observe"], rows))  # fmt: skip
+
+    prof_steps = next(iter(base.values()))["profile"]["steps"]
+    out += ["", f"## cProfile over {prof_steps} bare highway-env steps: share of profiled time (calls / step)", ""]
+    rows = []
+    for b in base.values():
+        p = b["profile"]
+        cell = lambda name: f"{100 * p[name]['share']:.1f} % ({p[name]['calls_per_step']:.0f})"  # noqa: E731
+        rows.append([b["label"], f"{p['total_s'] * 1000 / p['steps']:.1f}", cell("neighbour_vehicles"),
+                     cell("handle_collisions"), cell("_is_colliding")])  # fmt: skip
+    out.append(markdown_table(
+        ["scenario", "profiled ms / step", "`Road.neighbour_vehicles`", "`handle_collisions` (incl. below)",
+         "`_is_colliding`"], rows))  # fmt: skip
+    out += ["", "cProfile slows every Python call, so its ms / step is higher than the timings above. Read the "
+            "percentages as shares of highway-env's Python time (the shares are cumulative and can overlap)."]  # fmt: skip
+    return "\n".join(out)
+
+
+# -- main ----------------------------------------------------------------------------------------------
+
+
+def positive_int(text: str) -> int:
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
+    if v <= 0:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
+    return v
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="bench.py",
+        description="Per-stage milliseconds of FogDrive-v0 (traffic step, scene build, cameras batched and alone, "
+        "full env.step) for the full 4×1280×960 rig and a 1×128×128 RL rig, against a bare highway-env step. "
+        "It prints Markdown tables and asserts nothing.",
+    )
+    parser.add_argument("--repeats", type=positive_int, default=None,
+                        help=f"timed frames per configuration (default {DEFAULT_REPEATS}; {QUICK_REPEATS} with --quick)")
+    parser.add_argument("--town", choices=TOWNS, default="highway", help="fog-gym town (default highway)")
+    parser.add_argument("--quick", action="store_true", help=f"smoke run: {QUICK_REPEATS} repeats, 3 profiled steps")
+    parser.add_argument("--json", type=Path, default=None, metavar="PATH",
+                        help="also write every figure (with the raw samples) as JSON to PATH")  # fmt: skip
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = build_parser().parse_args(argv)
+    repeats = args.repeats or (QUICK_REPEATS if args.quick else DEFAULT_REPEATS)
+    profile_steps = 3 if args.quick else PROFILE_STEPS
+
+    import highway_env
+    import numba
+
+    try:
+        from importlib.metadata import version
+
+        hw_version = version("highway-env")
+    except Exception:  # pragma: no cover - metadata missing in odd installs
+        hw_version = getattr(highway_env, "__version__", "?")
+    meta = {
+        "town": args.town, "repeats": repeats, "quick": args.quick, "profile_steps": profile_steps,
+        "cpu_count": os.cpu_count(), "numba": numba.__version__, "numba_threads": numba.get_num_threads(),
+        "highway_env": hw_version, "python": platform.python_version(), "platform": platform.platform(terse=True),
+        "time": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+    }  # fmt: skip
+
+    t0 = time.perf_counter()
+    rigs = {key: bench_rig(args.town, key, repeats) for key in RIGS}
+    baseline = bench_baselines(args.town, repeats, profile_steps)
+    results = {"meta": {**meta, "wall_s": time.perf_counter() - t0}, "rigs": rigs, "baseline": baseline}
+
+    print(render_report(results))
+    if args.json is not None:
+        args.json.parent.mkdir(parents=True, exist_ok=True)
+        args.json.write_text(json.dumps(results, indent=2))
+        print(f"\nwrote {args.json}", file=sys.stderr)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

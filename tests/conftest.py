@@ -1,0 +1,23 @@
+import os
+
+import numpy as np
+import pytest
+
+os.environ.setdefault("SDL_VIDEODRIVER", "offscreen")
+
+import fog_gym  # noqa: E402,F401  (registers FogDrive-v0)
+
+
+@pytest.fixture(scope="session")
+def small_env():
+    """A small-resolution highway env, reset with seed 0 (shared; tests must not step it)."""
+    from fog_gym.env import FogDriveEnv
+
+    env = FogDriveEnv(town="highway", resolution=(160, 120))
+    env.reset(seed=0)
+    yield env
+    env.close()
+
+
+def first_idle(action_space):
+    return 1 if action_space.shape == () else np.zeros(action_space.shape, np.float32)
