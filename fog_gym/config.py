@@ -80,7 +80,7 @@ class CameraConfig:
     """One pinhole camera; RGB, depth, semantic and instance buffers share its pose and intrinsics.
 
     >>> CameraConfig("CAM_FRONT", Pose(1.8, 0, 1.2), 640, 480).intrinsic()[0, 0].round(2)
-    np.float64(268.55)
+    np.float64(268.51)
     """
 
     name: str

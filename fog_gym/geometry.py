@@ -13,7 +13,7 @@ Example:
     >>> import numpy as np
     >>> K = intrinsic_matrix(1280, 960, 100.0)
     >>> round(float(K[0, 0]), 2)
-    537.09
+    537.02
 """
 
 from __future__ import annotations
