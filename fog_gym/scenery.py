@@ -181,11 +181,10 @@ class _Placer:
 
     def __init__(self, surface: SurfaceMap, cell: float = 0.5) -> None:
         factor = max(1, int(round(cell / surface.resolution)))
-        g = surface.grid
-        h, w = g.shape[0] // factor, g.shape[1] // factor
-        paved = (g[: h * factor, : w * factor] != TERRAIN).reshape(h, factor, w, factor).any(axis=(1, 3))
-        road = (g[: h * factor, : w * factor] == ROAD) | (g[: h * factor, : w * factor] == MARKING)
-        road = road.reshape(h, factor, w, factor).any(axis=(1, 3))
+        coarse = surface.grid[factor // 2 :: factor, factor // 2 :: factor]  # nearest sample is enough here
+        paved = coarse != TERRAIN
+        road = (coarse == ROAD) | (coarse == MARKING)
+        h, w = coarse.shape
         self.cell = surface.resolution * factor
         self.origin = surface.origin
         self.dist_paved = cv2.distanceTransform((~paved).astype(np.uint8), cv2.DIST_L2, 5) * self.cell
@@ -201,14 +200,17 @@ class _Placer:
 
     def try_place(self, x, y, length, width, yaw, min_paved_dist, min_road_dist=0.0, pad=0.5) -> bool:
         poly = self._footprint(x, y, length, width, yaw, pad)
-        mask = np.zeros_like(self.occupied)
-        cv2.fillConvexPoly(mask, poly, 1)
+        h, w = self.occupied.shape
+        if poly.min() < 0 or poly[:, 0].max() >= w or poly[:, 1].max() >= h:
+            return False
+        (c0, r0), (c1, r1) = poly.min(axis=0), poly.max(axis=0) + 1
+        mask = np.zeros((r1 - r0, c1 - c0), np.uint8)
+        cv2.fillConvexPoly(mask, poly - [c0, r0], 1)
         sel = mask.astype(bool)
-        if not sel.any() or poly.min() < 0 or poly[:, 0].max() >= mask.shape[1] or poly[:, 1].max() >= mask.shape[0]:
+        window = (slice(r0, r1), slice(c0, c1))
+        if not sel.any() or self.occupied[window][sel].any():
             return False
-        if self.occupied[sel].any():
-            return False
-        if self.dist_paved[sel].min() < min_paved_dist or self.dist_road[sel].min() < min_road_dist:
+        if self.dist_paved[window][sel].min() < min_paved_dist or self.dist_road[window][sel].min() < min_road_dist:
             return False
         cv2.fillConvexPoly(self.occupied, self._footprint(x, y, length, width, yaw, 0.0), 1)
         return True
