@@ -146,18 +146,21 @@ class FogDriveEnv(gym.Env):
         props = place_props(lanes, surface, rng, STYLES[TOWN_SPECS[self.config.town].scenery])
         return StaticWorld.build(surface, props)
 
-    def _observe(self) -> dict[str, np.ndarray]:
+    def build_scene(self) -> Scene:
+        """The :class:`Scene` of the world's current state (what every sensor sees)."""
         state = self.world.vehicle_state()
-        night = self._lighting.night
-        self.scene = Scene(
+        return Scene(
             time=self.world.time,
             ego_id=EGO_ID,
             ego_pose=self.world.ego_pose,
             vehicles=state,
             static=self._static,
             lighting=self._lighting,
-            primitives=vehicle_primitives(state, night, exclude_id=EGO_ID),  # the ego never sees its own body
+            primitives=vehicle_primitives(state, self._lighting.night, exclude_id=EGO_ID),  # never see the own body
         )
+
+    def _observe(self) -> dict[str, np.ndarray]:
+        self.scene = self.build_scene()
         self.frames = self.cameras.render(self.scene)
         obs: dict[str, np.ndarray] = {}
         for name, f in self.frames.items():

@@ -21,12 +21,15 @@ The script prints Markdown tables to stdout. Progress bars go to stderr.
    * each camera rendered alone by a one-camera ``CameraRig``;
    * the wall time of a full ``env.step(idle)``.
 
-   Below those come the steps per second, the reset time (median of 3), the construction time, and the
-   ratio of the full step to a bare highway-env step.
-2. **Bare highway-env baseline**. It uses the same scenario class and config as the town
-   (``fog_gym.world.TOWN_SPECS``) at the same frequencies, and a plain ``highway`` scenario with
-   ``vehicles_count=50``. The times are ``env.step`` including highway-env's own observation. The
-   observation (``observation_type.observe()``) is also timed on its own.
+   Below those come the steps per second, the reset time (median of 3) with the static-world build inside
+   it, and the construction time. Last is the ratio of the full step to a bare highway-env step of the
+   same scenario. The bare step is timed in alternation with ``env.step``, so both see the same
+   machine load.
+2. **Bare highway-env baseline**. The first scenario uses the same scenario class and config as the town
+   (``fog_gym.world.TOWN_SPECS``) at the same frequencies. It is reset with the seed that
+   ``FogDriveEnv.reset(seed=0)`` gives its world, so it starts from the same traffic. The second is the
+   ``highway`` town with ``vehicles_count=50``. The times are ``env.step`` including highway-env's own
+   Kinematics observation. The observation (``observation_type.observe()``) is also timed on its own.
 3. **cProfile shares** over about 10 bare highway-env steps: the time in ``Road.neighbour_vehicles`` and in
    the collision checks (``handle_collisions``, which includes ``_is_colliding``). Both are O(N²) pure
    Python. cProfile adds a cost to every Python call, so read these figures as shares, not absolute times.
@@ -126,7 +129,10 @@ def fmt_ms(stat: dict[str, Any] | None) -> str:
 
 def markdown_table(header: list[str], rows: list[list[str]]) -> str:
     widths = [max(len(str(r[i])) for r in [header, *rows]) for i in range(len(header))]
-    line = lambda cells: "| " + " | ".join(str(c).ljust(w) for c, w in zip(cells, widths)) + " |"  # noqa: E731
+
+    def line(cells: list[str]) -> str:
+        return "| " + " | ".join(str(c).ljust(w) for c, w in zip(cells, widths)) + " |"
+
     sep = "|" + "|".join("-" * (w + 2) for w in widths) + "|"
     return "\n".join([line(header), sep, *(line(r) for r in rows)])
 
@@ -197,9 +203,13 @@ def warm_up(env: Any, solos: dict[str, Any], action: Any) -> None:
         rig.render(scene)
 
 
-def measure_reset(env: Any, repeats: int, desc: str) -> dict[str, Any]:
-    samples = [timed(env.reset, seed=0)[1] for _ in tqdm(range(repeats), desc=desc, unit="reset", leave=False)]
-    return summarize(samples)
+def measure_reset(env: Any, repeats: int, desc: str) -> tuple[dict[str, Any], dict[str, Any]]:
+    """``env.reset(seed=0)`` wall time. Also time the static-world build inside it (road surface map + props)."""
+    resets, static = [], []
+    for _ in tqdm(range(repeats), desc=desc, unit="reset", leave=False):
+        resets.append(timed(env.reset, seed=0)[1])
+        static.append(timed(env._build_static, np.random.default_rng(0))[1])  # private: what reset() calls
+    return summarize(resets), summarize(static)
 
 
 def measure_stages(env: Any, solos: dict[str, Any], action: Any, repeats: int, desc: str) -> dict[str, Any]:
@@ -231,20 +241,35 @@ def measure_stages(env: Any, solos: dict[str, Any], action: Any, repeats: int, d
         counts["props"].append(len(scene.static.props))
         keep.after_step(terminated)
     out: dict[str, Any] = {k: summarize(v) for k, v in t.items()}
-    out["counts"] = {k: {"median": float(np.median(v)), "min": int(min(v)), "max": int(max(v))} for k, v in counts.items()}
+    out["counts"] = {
+        k: {"median": float(np.median(v)), "min": int(min(v)), "max": int(max(v))} for k, v in counts.items()
+    }
     out["resets"] = keep.resets
     return out
 
 
-def measure_env_step(env: Any, action: Any, repeats: int, desc: str) -> dict[str, Any]:
-    """Wall time of ``env.step(action)``: traffic, scene and every camera, plus the observation dict."""
+def measure_env_step(env: Any, action: Any, bare: Any, repeats: int, desc: str) -> tuple[dict, dict]:
+    """Wall time of ``env.step(action)``, alternating with a bare highway-env step of the same scenario.
+
+    ``env.step`` covers the traffic, the scene, every camera and the observation dict. Both envs start
+    from the same traffic, and each timed ``env.step`` is followed by one timed ``bare.step``. The two
+    series therefore see the same machine load, and their ratio holds up when the load drifts.
+    """
+    env.reset(seed=0)
+    bare.reset(seed=fog_world_seed(0))
+    bare_action = idle_action(bare.action_space)
     keep = EpisodeKeeper(env, {})
-    samples = []
+    fog_ms, bare_ms, bare_resets = [], [], 0
     for _ in tqdm(range(repeats), desc=desc, unit="step", leave=False):
         (_, _, terminated, truncated, _), ms = timed(env.step, action)
-        samples.append(ms)
+        fog_ms.append(ms)
         keep.after_step(terminated, truncated)
-    return {**summarize(samples), "resets": keep.resets}
+        (_, _, terminated, truncated, _), ms = timed(bare.step, bare_action)
+        bare_ms.append(ms)
+        if terminated or truncated:
+            bare_resets += 1
+            bare.reset(seed=fog_world_seed(bare_resets))
+    return {**summarize(fog_ms), "resets": keep.resets}, {**summarize(bare_ms), "resets": bare_resets}
 
 
 def bench_rig(town: str, rig_key: str, repeats: int) -> dict[str, Any]:
@@ -256,9 +281,11 @@ def bench_rig(town: str, rig_key: str, repeats: int) -> dict[str, Any]:
     action = idle_action(env.action_space)
     warm_up(env, solos, action)
     result: dict[str, Any] = {"label": label, "cameras": list(env.cameras.names), "construct": summarize([ms_init])}
-    result["reset"] = measure_reset(env, RESET_REPEATS, f"{rig_key}: reset")
+    result["reset"], result["static_build"] = measure_reset(env, RESET_REPEATS, f"{rig_key}: reset")
     result["stages"] = measure_stages(env, solos, action, repeats, f"{rig_key}: stages")
-    result["env_step"] = measure_env_step(env, action, repeats, f"{rig_key}: env.step")
+    bare = bare_highway_env(town)
+    result["env_step"], result["bare_step"] = measure_env_step(env, action, bare, repeats, f"{rig_key}: env.step")
+    bare.close()
     env.close()
     return result
 
@@ -286,10 +313,32 @@ def bare_highway_env(town: str, **overrides: Any) -> Any:
     return getattr(hw_envs, spec.env_class)(config=config)
 
 
-def measure_bare(hw: Any, repeats: int, desc: str) -> dict[str, Any]:
+def apply_idm_profile(town: str) -> None:
+    """Set highway-env's process-wide IDM constants for ``town``, as ``TrafficWorld`` does before each step."""
+    from highway_env.vehicle.behavior import IDMVehicle
+
+    from fog_gym import world
+
+    profile = world._IDM_INTERSECTION if town == "intersection" else world._IDM_DEFAULT
+    for k, v in profile.items():
+        setattr(IDMVehicle, k, v)
+
+
+def fog_world_seed(seed: int) -> int:
+    """The highway-env seed that ``FogDriveEnv.reset(seed=seed)`` passes to its world (same derivation as there).
+
+    A bare env reset with this seed starts from the same traffic as FogDrive-v0. Only the vehicle sizes differ.
+    """
+    from gymnasium.utils import seeding
+
+    rng, _ = seeding.np_random(seed)
+    return int(rng.integers(0, 2**31 - 1))
+
+
+def measure_bare(hw: Any, repeats: int, desc: str, seed: int = 0) -> dict[str, Any]:
     """``hw.step(idle)`` wall time (observation included), and ``observe()`` timed alone after each step."""
     action = idle_action(hw.action_space)
-    hw.reset(seed=0)
+    hw.reset(seed=seed)
     for _ in range(WARMUP_STEPS):
         hw.step(action)
     steps, observe, resets, n_vehicles = [], [], 0, []
@@ -309,7 +358,7 @@ def measure_bare(hw: Any, repeats: int, desc: str) -> dict[str, Any]:
 
 
 def profile_bare(hw: Any, steps: int) -> dict[str, Any]:
-    """Run cProfile over ``steps`` highway-env steps. Return the share of the profiled time spent in the O(N²) helpers."""
+    """Run cProfile over ``steps`` highway-env steps. Return the share of profiled time in the O(N²) helpers."""
     action = idle_action(hw.action_space)
     hw.reset(seed=0)
     hw.step(action)
@@ -348,13 +397,15 @@ def bench_baselines(town: str, repeats: int, profile_steps: int) -> dict[str, An
 
     out: dict[str, Any] = {}
     configs = {
-        "town": (f"{town} ({TOWN_SPECS[town].env_class}, fog-gym config)", town, {}),
-        "dense": (f"highway, vehicles_count={DENSE_VEHICLES}", "highway", {"vehicles_count": DENSE_VEHICLES,
-                                                                          "vehicles_density": 1.0}),
-    }  # fmt: skip
-    for key, (label, t, overrides) in configs.items():
+        # the town as FogDrive-v0 runs it, from the same initial traffic as FogDriveEnv.reset(seed=0)
+        "town": (f"{town} ({TOWN_SPECS[town].env_class}, fog-gym config)", town, {}, fog_world_seed(0)),
+        # the highway town with more vehicles: 1 ego + 50 others
+        "dense": (f"highway, vehicles_count={DENSE_VEHICLES}", "highway", {"vehicles_count": DENSE_VEHICLES}, 0),
+    }
+    for key, (label, t, overrides, seed) in configs.items():
+        apply_idm_profile(t)  # the last world stepped may have left another town's IDM constants
         hw = bare_highway_env(t, **overrides)
-        res = measure_bare(hw, repeats, f"bare {key}: step")
+        res = measure_bare(hw, repeats, f"bare {key}: step", seed)
         res["profile"] = profile_bare(hw, profile_steps)
         res["label"] = label
         res["config"] = {k: v for k, v in hw.config.items() if isinstance(v, (int, float, str, bool))}
@@ -382,8 +433,13 @@ def render_report(results: dict[str, Any]) -> str:
         f"# fog-gym benchmark: town `{meta['town']}`",
         "",
         f"{meta['repeats']} timed frames per configuration · {meta['cpu_count']} CPUs, numba {meta['numba']} "
-        f"({meta['numba_threads']} threads) · highway-env {meta['highway_env']} · Python {meta['python']} · "
+        f"({meta['numba_threads']} threads, {meta['numba_layer']} layer) · highway-env {meta['highway_env']} · "
+        f"Python {meta['python']} · "
         f"{meta['platform']}",
+        "",
+        f"Load average (1/5/15 min) at start {meta['loadavg_start']}, at end {meta['loadavg_end']}; "
+        f"wall time {meta['wall_s']:.0f} s. Another busy process on this machine inflates every figure, the numba "
+        "kernels' parallel joins most of all.",
         "",
         "## FogDrive-v0 per-stage timings: ms, median (p25–p75)",
         "",
@@ -398,6 +454,7 @@ def render_report(results: dict[str, Any]) -> str:
     rows = [
         row("env construction (once)", lambda r: fmt_ms(r["construct"])),
         row(f"env.reset(seed=0) (median of {RESET_REPEATS})", lambda r: fmt_ms(r["reset"])),
+        row("  static world build alone (`_build_static`)", lambda r: fmt_ms(r["static_build"])),
         row("traffic step: `world.step` (2 × 20 Hz sub-steps, no obs)", lambda r: fmt_ms(r["stages"]["traffic_step"])),
         row("  scene: `world.vehicle_state()`", lambda r: fmt_ms(r["stages"]["vehicle_state"])),
         row("  scene: `vehicle_primitives()`", lambda r: fmt_ms(r["stages"]["vehicle_primitives"])),
@@ -412,11 +469,14 @@ def render_report(results: dict[str, Any]) -> str:
                     lambda r: f"{sum_medians(r, ('traffic_step', 'scene_build', 'cameras_batched')):.2f}"))
     rows.append(row("**full `env.step`**", lambda r: f"**{fmt_ms(r['env_step'])}**"))
     rows.append(row("env steps / s (1000 / median)", lambda r: f"{1000.0 / r['env_step']['median']:.1f}"))
-    rows.append(row("bare highway-env step, same scenario (with obs)", lambda r: fmt_ms(base["town"]["step"])))
+    rows.append(row("bare highway-env step, same scenario (with obs), interleaved",
+                    lambda r: fmt_ms(r["bare_step"])))
     rows.append(row("**ratio: FogDrive-v0 step / bare step**",
-                    lambda r: f"**{r['env_step']['median'] / bare_ms:.2f}×**"))  # fmt: skip
-    rows.append(row("ratio: traffic step / bare step", lambda r: f"{r['stages']['traffic_step']['median'] / bare_ms:.2f}×"))
-    rows.append(row("episode resets while timing (untimed)", lambda r: str(r["stages"]["resets"] + r["env_step"]["resets"])))
+                    lambda r: f"**{r['env_step']['median'] / r['bare_step']['median']:.2f}×**"))
+    rows.append(row("ratio: traffic step / bare step (separate runs)",
+                    lambda r: f"{r['stages']['traffic_step']['median'] / bare_ms:.2f}×"))
+    rows.append(row("episode resets while timing (untimed)",
+                    lambda r: str(sum(r[k]["resets"] for k in ("stages", "env_step", "bare_step")))))
     out.append(markdown_table(["stage", *(rigs[k]["label"] for k in keys)], rows))
 
     out += ["", "## Scene size per frame: median (min–max)", ""]
@@ -457,11 +517,19 @@ def render_report(results: dict[str, Any]) -> str:
         ["scenario", "profiled ms / step", "`Road.neighbour_vehicles`", "`handle_collisions` (incl. below)",
          "`_is_colliding`"], rows))  # fmt: skip
     out += ["", "cProfile slows every Python call, so its ms / step is higher than the timings above. Read the "
-            "percentages as shares of highway-env's Python time (the shares are cumulative and can overlap)."]  # fmt: skip
+            "percentages as shares of highway-env's Python time (the shares are cumulative and can overlap)."]
     return "\n".join(out)
 
 
 # -- main ----------------------------------------------------------------------------------------------
+
+
+def load_average() -> list[float] | None:
+    """1-, 5- and 15-minute load averages (None where the OS has none). Noise from other processes shows here."""
+    try:
+        return [round(x, 2) for x in os.getloadavg()]
+    except (AttributeError, OSError):
+        return None
 
 
 def positive_int(text: str) -> int:
@@ -482,7 +550,8 @@ def build_parser() -> argparse.ArgumentParser:
         "It prints Markdown tables and asserts nothing.",
     )
     parser.add_argument("--repeats", type=positive_int, default=None,
-                        help=f"timed frames per configuration (default {DEFAULT_REPEATS}; {QUICK_REPEATS} with --quick)")
+                        help=f"timed frames per configuration (default {DEFAULT_REPEATS}; "
+                        f"{QUICK_REPEATS} with --quick)")
     parser.add_argument("--town", choices=TOWNS, default="highway", help="fog-gym town (default highway)")
     parser.add_argument("--quick", action="store_true", help=f"smoke run: {QUICK_REPEATS} repeats, 3 profiled steps")
     parser.add_argument("--json", type=Path, default=None, metavar="PATH",
@@ -498,6 +567,8 @@ def main(argv: list[str] | None = None) -> int:
     import highway_env
     import numba
 
+    import fog_gym.env  # noqa: F401  (import everything up front: module imports are not env construction)
+
     try:
         from importlib.metadata import version
 
@@ -508,13 +579,14 @@ def main(argv: list[str] | None = None) -> int:
         "town": args.town, "repeats": repeats, "quick": args.quick, "profile_steps": profile_steps,
         "cpu_count": os.cpu_count(), "numba": numba.__version__, "numba_threads": numba.get_num_threads(),
         "highway_env": hw_version, "python": platform.python_version(), "platform": platform.platform(terse=True),
-        "time": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+        "time": time.strftime("%Y-%m-%dT%H:%M:%S%z"), "loadavg_start": load_average(),
     }  # fmt: skip
 
     t0 = time.perf_counter()
     rigs = {key: bench_rig(args.town, key, repeats) for key in RIGS}
     baseline = bench_baselines(args.town, repeats, profile_steps)
-    results = {"meta": {**meta, "wall_s": time.perf_counter() - t0}, "rigs": rigs, "baseline": baseline}
+    meta.update(wall_s=time.perf_counter() - t0, loadavg_end=load_average(), numba_layer=numba.threading_layer())
+    results = {"meta": meta, "rigs": rigs, "baseline": baseline}
 
     print(render_report(results))
     if args.json is not None:

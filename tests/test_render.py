@@ -36,6 +36,18 @@ def front_rig(w=W, h=H, pose=Pose(1.8, 0, 1.2)):
     return CameraRig(RigConfig((CameraConfig("CAM_FRONT", pose, w, h, 100.0),)))
 
 
+def render_boxes(rig, scene, prims):
+    """Render raw primitives (no vehicle parts) with the rig's front camera."""
+    from fog_gym.render.raster import render
+
+    M = rig.world_to_camera(scene, "CAM_FRONT")
+    K = rig.intrinsics["CAM_FRONT"]
+    light = scene.lighting
+    return render(M[None, :3, :3], M[None, :3, 3], np.array([[K[0, 0], K[1, 1], K[0, 2], K[1, 2]]]), W, H, 1000.0,
+                  prims, scene.static.tiled, light.surface_lut(), np.array([10, 1, 2, 24], np.uint8),
+                  light.sky_horizon, light.sky_zenith, light.sun_dir, light.ambient, light.sun_intensity)  # fmt: skip
+
+
 def test_flat_road_depth_is_analytic():
     rig = front_rig()
     f = rig.render(make_scene())["CAM_FRONT"]
@@ -64,8 +76,6 @@ def test_tilted_camera_ground_depth():
 
 def test_box_projects_where_K_predicts():
     """A lone box's visible face: the pixel K predicts holds its id, at the exact planar depth."""
-    from fog_gym.render.raster import render
-
     rig = front_rig()
     scene = make_scene()
     M = rig.world_to_camera(scene, "CAM_FRONT")
@@ -75,10 +85,7 @@ def test_box_projects_where_K_predicts():
         "colors": np.array([[1.0, 0.0, 0.0]]), "tags": np.array([14], np.uint8), "insts": np.array([7], np.uint16),
         "emissive": np.array([False]),
     }  # fmt: skip
-    light = scene.lighting
-    out = render(M[None, :3, :3], M[None, :3, 3], np.array([[K[0, 0], K[1, 1], K[0, 2], K[1, 2]]]), W, H, 1000.0,
-                 prims, scene.static.tiled, light.surface_lut(), np.array([10, 1, 2, 24], np.uint8),
-                 light.sky_horizon, light.sky_zenith, light.sun_dir, light.ambient, light.sun_intensity)  # fmt: skip
+    out = render_boxes(rig, scene, prims)
     inst, depth = out["inst"][0], out["depth"][0]
     # rear face (x = 20) is planar depth 20 − 1.8 = 18.2 from the camera
     corners_world = g.box_corners(prims["centers"], 2 * prims["halves"], prims["yaws"])[0]
@@ -97,8 +104,6 @@ def test_box_projects_where_K_predicts():
 
 def test_box_crossing_near_plane_is_clipped_not_exploded():
     """A long box that starts behind the camera and ends in front covers only what it should."""
-    from fog_gym.render.raster import render
-
     rig = front_rig()
     scene = make_scene()
     M = rig.world_to_camera(scene, "CAM_FRONT")
@@ -108,10 +113,7 @@ def test_box_crossing_near_plane_is_clipped_not_exploded():
         "colors": np.array([[0.5, 0.5, 0.5]]), "tags": np.array([14], np.uint8), "insts": np.array([9], np.uint16),
         "emissive": np.array([False]),
     }  # fmt: skip
-    light = scene.lighting
-    out = render(M[None, :3, :3], M[None, :3, 3], np.array([[K[0, 0], K[1, 1], K[0, 2], K[1, 2]]]), W, H, 1000.0,
-                 prims, scene.static.tiled, light.surface_lut(), np.array([10, 1, 2, 24], np.uint8),
-                 light.sky_horizon, light.sky_zenith, light.sun_dir, light.ambient, light.sun_intensity)  # fmt: skip
+    out = render_boxes(rig, scene, prims)
     mask = out["inst"][0] == 9
     assert mask.any()
     cols = np.nonzero(mask.any(axis=0))[0]
