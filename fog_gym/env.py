@@ -65,8 +65,6 @@ class FogDriveEnv(gym.Env):
         cfg = config if config is not None else FogDriveConfig()
         if not isinstance(cfg, FogDriveConfig):
             raise ValueError(f"config must be a FogDriveConfig, got {type(cfg).__name__}")
-        if rig is not None and (resolution is not None or cameras is not None):
-            pass  # resolution/cameras refine the given rig below
         rig_cfg = rig if rig is not None else cfg.rig
         if cameras is not None:
             if isinstance(cameras, str):

@@ -135,6 +135,7 @@ class TrafficWorld:
     def reset(self, seed: int | None = None) -> None:
         """Reset the scenario; ``seed`` determines traffic, classes, sizes and colours."""
         self._apply_idm_profile()
+        self.hw.observation_type.observe = lambda: None  # reset also observes once; define_spaces replaces it
         self.hw.reset(seed=seed)
         self._skip_observation()
         self.action_space = self.hw.action_space

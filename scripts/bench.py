@@ -14,8 +14,8 @@ The script prints Markdown tables to stdout. Progress bars go to stderr.
 
    * the traffic step ``env.world.step(idle)``, which runs highway-env at 20 Hz with 10 Hz keyframes and
      skips highway-env's observation;
-   * the scene build that ``FogDriveEnv._observe`` does before it renders: ``world.vehicle_state()``,
-     ``scene.vehicle_primitives()`` and constructing the ``Scene``;
+   * the scene build (``FogDriveEnv.build_scene``: ``world.vehicle_state()``, ``scene.vehicle_primitives()``
+     and the ``Scene``), and its two sub-stages timed on their own;
    * ``CameraRig.primitives(scene)`` (props near the ego plus vehicles);
    * ``CameraRig.render(scene)`` for all cameras, batched;
    * each camera rendered alone by a one-camera ``CameraRig``;
@@ -141,29 +141,18 @@ def markdown_table(header: list[str], rows: list[list[str]]) -> str:
 
 
 def build_scene(env: Any) -> tuple[Any, dict[str, float]]:
-    """Build the Scene as ``FogDriveEnv._observe`` does before it renders. Also return the sub-stage times.
-
-    This reads the env's private ``_lighting`` and ``_static``, as ``_observe`` does.
-    """
-    from fog_gym.scene import Scene, vehicle_primitives
+    """``env.build_scene()`` (what ``step`` does before it renders), with its sub-stages timed separately."""
+    from fog_gym.scene import vehicle_primitives
     from fog_gym.world import EGO_ID
 
     t0 = time.perf_counter_ns()
     state = env.world.vehicle_state()
     t1 = time.perf_counter_ns()
-    prims = vehicle_primitives(state, env._lighting.night, exclude_id=EGO_ID)
+    vehicle_primitives(state, env.scene.lighting.night, exclude_id=EGO_ID)
     t2 = time.perf_counter_ns()
-    scene = Scene(
-        time=env.world.time,
-        ego_id=EGO_ID,
-        ego_pose=env.world.ego_pose,
-        vehicles=state,
-        static=env._static,
-        lighting=env._lighting,
-        primitives=prims,
-    )
+    scene = env.build_scene()
     t3 = time.perf_counter_ns()
-    return scene, {"vehicle_state": (t1 - t0) / 1e6, "vehicle_primitives": (t2 - t1) / 1e6, "total": (t3 - t0) / 1e6}
+    return scene, {"vehicle_state": (t1 - t0) / 1e6, "vehicle_primitives": (t2 - t1) / 1e6, "total": (t3 - t2) / 1e6}
 
 
 def solo_rigs(env: Any) -> dict[str, Any]:
