@@ -14,6 +14,8 @@ The models follow CARLA's ``sensor.lidar.ray_cast``, ``sensor.lidar.ray_cast_sem
 * radar: random rays into an elliptic cone, detections on actors only, radial velocity (negative = approaching).
 
 All points are in the sensor frame: left-handed, +x forward, +y right, +z up (as CARLA's ``raw_data``).
+Pass primitives without the ego's own boxes (``Scene.primitives`` leaves them out); a sensor inside a box sees
+through it in any case, as a line trace that starts inside a mesh.
 
 Example:
     >>> from fog_gym.scenery import SurfaceMap
@@ -33,10 +35,11 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from numba import njit
 
 from fog_gym.config import Pose
 from fog_gym.geometry import transform_matrix, yaw_transform
-from fog_gym.render.raycast import GROUND, MISS, cast_rays
+from fog_gym.render.raycast import MISS, cast_rays
 from fog_gym.scenery import SURFACE_TAGS, SurfaceMap
 
 _EPS = float(np.finfo(np.float32).eps)  # CARLA switches drop-off / noise on above float epsilon
@@ -117,7 +120,9 @@ class LidarConfig:
         upper = _interval("upper_fov", self.upper_fov, -90.0, 90.0)
         lower = _interval("lower_fov", self.lower_fov, -90.0, 90.0)
         if upper <= lower:
-            raise ValueError(f"upper_fov must be greater than lower_fov, got upper_fov={upper!r} and lower_fov={lower!r}")
+            raise ValueError(
+                f"upper_fov must be greater than lower_fov, got upper_fov={upper!r} and lower_fov={lower!r}"
+            )
         object.__setattr__(self, "upper_fov", upper)
         object.__setattr__(self, "lower_fov", lower)
         object.__setattr__(self, "horizontal_fov", _interval("horizontal_fov", self.horizontal_fov, 0.0, 360.0, True))
@@ -279,6 +284,81 @@ def _transform(sensor_to_world: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return m[:3, :3], m[:3, 3].copy()
 
 
+@njit(cache=True)
+def _lidar_points(dirs, dist, index, noise, uniform, attenuation, limit, alpha, beta):
+    """Kept returns as (N, 4) float32 x, y, z, intensity; ``noise`` / ``uniform`` empty when switched off.
+
+    Intensity and the drop-off test are float32, as CARLA computes them."""
+    n = dirs.shape[0]
+    intensity = np.empty(n, dtype=np.float32)
+    keep = np.zeros(n, dtype=np.bool_)
+    neg_a = np.float32(-attenuation)
+    limit32 = np.float32(limit)
+    alpha32 = np.float32(alpha)
+    beta32 = np.float32(beta)
+    count = 0
+    for i in range(n):
+        if index[i] == MISS:
+            continue
+        value = np.exp(neg_a * dist[i])
+        intensity[i] = value
+        if value > limit32 or uniform.shape[0] == 0 or uniform[i] < alpha32 * value + beta32:
+            keep[i] = True
+            count += 1
+    out = np.empty((count, 4), dtype=np.float32)
+    k = 0
+    for i in range(n):
+        if keep[i]:
+            r = np.float64(dist[i])
+            if noise.shape[0] > 0:
+                r += noise[i]
+            out[k, 0] = dirs[i, 0] * r
+            out[k, 1] = dirs[i, 1] * r
+            out[k, 2] = dirs[i, 2] * r
+            out[k, 3] = intensity[i]
+            k += 1
+    return out
+
+
+@njit(cache=True)
+def _semantic_points(dirs, dist, index, cosine, rotation, origin, insts, tags, grid, gx0, gy0, res, surface_tags):
+    """Returns as (N, 6) float32 x, y, z, cos, id, tag; ground tags from the surface grid (as SurfaceMap.class_at)."""
+    n = dirs.shape[0]
+    count = 0
+    for i in range(n):
+        if index[i] != MISS:
+            count += 1
+    out = np.empty((count, 6), dtype=np.float32)
+    rows, cols = grid.shape
+    k = 0
+    for i in range(n):
+        p = index[i]
+        if p == MISS:
+            continue
+        d = np.float64(dist[i])
+        out[k, 0] = dirs[i, 0] * d
+        out[k, 1] = dirs[i, 1] * d
+        out[k, 2] = dirs[i, 2] * d
+        out[k, 3] = cosine[i]
+        if p >= 0:
+            out[k, 4] = insts[p]
+            out[k, 5] = tags[p]
+        else:
+            ux, uy, uz = dirs[i, 0], dirs[i, 1], dirs[i, 2]
+            wx = origin[0] + d * (rotation[0, 0] * ux + rotation[0, 1] * uy + rotation[0, 2] * uz)
+            wy = origin[1] + d * (rotation[1, 0] * ux + rotation[1, 1] * uy + rotation[1, 2] * uz)
+            col = int(np.floor((wx - gx0) / res))
+            row = int(np.floor((wy - gy0) / res))
+            cls = grid[row, col] if 0 <= row < rows and 0 <= col < cols else 0
+            out[k, 4] = 0.0
+            out[k, 5] = surface_tags[cls]
+        k += 1
+    return out
+
+
+_NONE = np.zeros(0)
+
+
 def simulate_lidar(
     cfg: LidarConfig,
     sensor_to_world: np.ndarray,
@@ -296,32 +376,28 @@ def simulate_lidar(
     dropoff_intensity_limit``, else with probability ``I · dropoff_zero_intensity / dropoff_intensity_limit +
     1 − dropoff_zero_intensity``. Misses give no point. Points are in laser order (channel-major).
     ``surface`` is not used (CARLA's intensity has no reflectivity term); it keeps the LiDAR signatures alike.
+    The random draws (a uniform per ray for the general drop-off, then per traced ray a normal for the noise and a
+    uniform for the intensity drop-off, each only when switched on) all come from ``rng``: a seed fixes the result.
 
     >>> cfg = LidarConfig.fogdrive(dropoff_general_rate=0.0, dropoff_zero_intensity=0.0)
     >>> pts = simulate_lidar(cfg, sensor_to_world(cfg.pose), empty_prims(), None, np.random.default_rng(0))
-    >>> bool(np.allclose(pts[:, 2], -2.0, atol=1e-4)), bool(np.allclose(pts[:, 3], np.exp(-0.004 * np.linalg.norm(pts[:, :3], axis=1)), atol=1e-6))
-    (True, True)
+    >>> len(pts) // 1016, bool(np.allclose(pts[:, 2], -2.0, atol=1e-4))  # the 48 rings that meet the ground in 120 m
+    (48, True)
+    >>> bool(np.allclose(pts[:, 3], np.exp(-0.004 * np.linalg.norm(pts[:, :3], axis=1)), atol=1e-6))
+    True
     """
     rot, origin = _transform(sensor_to_world)
     dirs = lidar_directions(cfg, simulation_frequency, start_angle)
-    if cfg.dropoff_general_rate > _EPS:
-        dirs = dirs[rng.random(dirs.shape[0]) >= cfg.dropoff_general_rate]
-    hits = cast_rays(origin, dirs @ rot.T, cfg.range, prims)
-    hit = hits.index != MISS
-    d = hits.distance[hit].astype(np.float64)
-    dirs = dirs[hit]
-    intensity = np.exp(-cfg.atmosphere_attenuation_rate * d)
-    if cfg.noise_stddev > _EPS:
-        d = d + rng.normal(0.0, cfg.noise_stddev, d.shape[0])
-    keep = intensity > cfg.dropoff_intensity_limit
-    if cfg.dropoff_zero_intensity > 0.0 and not keep.all():
-        alpha = cfg.dropoff_zero_intensity / cfg.dropoff_intensity_limit if cfg.dropoff_intensity_limit > 0 else 0.0
-        u = rng.random(d.shape[0])
-        keep |= u < alpha * intensity + (1.0 - cfg.dropoff_zero_intensity)
-    out = np.empty((int(keep.sum()), 4), np.float32)
-    out[:, :3] = dirs[keep] * d[keep, None]
-    out[:, 3] = intensity[keep]
-    return out
+    if cfg.dropoff_general_rate > _EPS:  # rays skipped before tracing
+        dirs = dirs.take(np.flatnonzero(rng.random(dirs.shape[0]) >= cfg.dropoff_general_rate), axis=0)
+    n = dirs.shape[0]
+    hits = cast_rays(origin, dirs, cfg.range, prims, rotation=rot)
+    noise = rng.normal(0.0, cfg.noise_stddev, n) if cfg.noise_stddev > _EPS else _NONE
+    uniform = rng.random(n) if cfg.dropoff_zero_intensity > 0.0 else _NONE
+    limit = cfg.dropoff_intensity_limit
+    alpha = cfg.dropoff_zero_intensity / limit if limit > 0.0 else 0.0
+    return _lidar_points(dirs, hits.distance, hits.index, noise, uniform, cfg.atmosphere_attenuation_rate, limit,
+                         alpha, 1.0 - cfg.dropoff_zero_intensity)  # fmt: skip
 
 
 def simulate_semantic_lidar(
@@ -351,26 +427,13 @@ def simulate_semantic_lidar(
     """
     rot, origin = _transform(sensor_to_world)
     dirs = lidar_directions(cfg, simulation_frequency, start_angle)
-    hits = cast_rays(origin, dirs @ rot.T, cfg.range, prims)
-    hit = np.flatnonzero(hits.index != MISS)
-    d = hits.distance[hit].astype(np.float64)
-    idx = hits.index[hit]
-    dirs = dirs[hit]
-    out = np.empty((hit.size, 6), np.float32)
-    out[:, :3] = dirs * d[:, None]
-    out[:, 3] = hits.cos_incidence[hit]
-    on_box = idx >= 0
-    ids = np.zeros(hit.size, np.float32)
-    tags = np.empty(hit.size, np.float32)
-    ids[on_box] = np.asarray(prims["insts"])[idx[on_box]]
-    tags[on_box] = np.asarray(prims["tags"])[idx[on_box]]
-    ground = idx == GROUND
-    if ground.any():
-        world = origin + (dirs[ground] @ rot.T) * d[ground, None]
-        tags[ground] = SURFACE_TAGS[surface.class_at(world[:, 0], world[:, 1])]
-    out[:, 4] = ids
-    out[:, 5] = tags
-    return out
+    hits = cast_rays(origin, dirs, cfg.range, prims, rotation=rot)
+    grid = np.ascontiguousarray(surface.grid, np.uint8)
+    return _semantic_points(
+        dirs, hits.distance, hits.index, hits.cos_incidence, rot, origin,
+        np.ascontiguousarray(prims["insts"]), np.ascontiguousarray(prims["tags"]), grid,
+        float(surface.origin[0]), float(surface.origin[1]), float(surface.resolution), SURFACE_TAGS,
+    )  # fmt: skip
 
 
 def _velocity_table(velocities: Any, max_id: int) -> np.ndarray:
@@ -387,10 +450,12 @@ def _velocity_table(velocities: Any, max_id: int) -> np.ndarray:
         try:
             ids, vels = velocities
         except (TypeError, ValueError):
-            raise ValueError("velocities must be a mapping id -> (3,), an (ids, velocities) pair or a VehicleState") from None
+            raise ValueError(
+                "velocities_by_id must be a mapping id -> (3,), an (ids, velocities) pair or a VehicleState"
+            ) from None
         ids, vels = np.asarray(ids, np.int64).reshape(-1), np.asarray(vels, np.float64).reshape(-1, 3)
     if ids.shape[0] != vels.shape[0]:
-        raise ValueError(f"velocities: {ids.shape[0]} ids but {vels.shape[0]} velocity rows")
+        raise ValueError(f"velocities_by_id: {ids.shape[0]} ids but {vels.shape[0]} velocity rows")
     inside = (ids >= 0) & (ids <= max_id)
     table[ids[inside]] = vels[inside]
     return table
@@ -401,7 +466,7 @@ def simulate_radar(
     sensor_to_world: np.ndarray,
     prims: dict[str, np.ndarray],
     rng: np.random.Generator,
-    velocities: Any = None,
+    velocities_by_id: Any = None,
     sensor_velocity: np.ndarray | tuple[float, float, float] = (0.0, 0.0, 0.0),
     simulation_frequency: float = 20.0,
 ) -> np.ndarray:
@@ -411,7 +476,7 @@ def simulate_radar(
     (sensor frame) with ``r, θ/2π ~ U(0, 1)`` as in CARLA, so the far end of the cone is the plane ``x = range``.
     Every box and the ground occlude, but only hits on actors (``insts > 0``) become detections, in ray order.
     ``velocity = (v_target − sensor_velocity) · unit(hit − sensor)``: negative when the target approaches.
-    ``velocities`` gives each actor's world velocity: a mapping id → (3,), an ``(ids, velocities)`` pair or a
+    ``velocities_by_id`` gives each actor's world velocity: a mapping id → (3,), an ``(ids, velocities)`` pair or a
     :class:`~fog_gym.world.VehicleState`; ids it lacks count as standing still. Azimuth (positive to the right)
     and altitude come from the ray direction in the sensor frame; depth is the hit distance.
 
@@ -440,7 +505,7 @@ def simulate_radar(
     actor[on_box] = insts[idx[on_box]] > 0
     det = np.flatnonzero(actor & (hits.distance < length))
     ids = insts[idx[det]]
-    table = _velocity_table(velocities, int(insts.max()) if insts.size else 0)
+    table = _velocity_table(velocities_by_id, int(insts.max()) if insts.size else 0)
     v_rel = table[ids] - np.asarray(sensor_velocity, np.float64).reshape(3)
     out = np.empty((det.size, 4), np.float32)
     out[:, 0] = np.einsum("ij,ij->i", v_rel, world_dirs[det])

@@ -6,8 +6,9 @@ boxes near each ray, never with rays × boxes:
 1. boxes whose nearest point lies beyond ``max_range`` from the origin are dropped;
 2. the others are sorted by that nearest distance and binned into a grid of *direction cells* as seen from the
    origin: azimuth (a monotone "diamond" pseudo-angle, no trigonometry) × sin(elevation) over the rays'
-   elevation span. A box goes into every cell its azimuth and elevation intervals touch (exact, conservative
-   bounds); a box whose footprint holds the origin, or comes within :data:`NEAR_ALL` of it, spans every azimuth;
+   elevation span (sampled; rays and boxes beyond it clamp to the edge bins). A box goes into every cell its
+   azimuth and elevation intervals touch (exact, conservative bounds); a box whose footprint holds the origin,
+   or comes within :data:`NEAR_ALL` of it, spans every azimuth;
 3. each ray (in parallel) starts from its ground-plane hit, then tests only the boxes of its cell, nearest
    first, with an exact ray/oriented-box slab test, and stops at the first box that lies farther than the
    current hit.
@@ -38,6 +39,7 @@ MISS = -2
 NEAR_ALL = 0.05
 _PAD = 1e-9  # widening of every box's bin interval against rounding at cell borders
 _T_MIN = 1e-6  # hits nearer than this (origin on or inside a box) do not count
+_SPAN_SAMPLES = 2048  # rays sampled for the elevation span of the bins
 
 
 @njit(cache=True, inline="always")
@@ -100,7 +102,7 @@ def _bin_boxes(ox, oy, oz, max_range, centers, halves, yaws, n_az, n_el, s_lo, s
     a0 = np.zeros(k_n, dtype=np.int64)
     a1 = np.zeros(k_n, dtype=np.int64)
     e0 = np.zeros(k_n, dtype=np.int64)
-    e1 = np.full(k_n, -1, dtype=np.int64)  # e1 < e0: no cell (box outside the rays' elevation span)
+    e1 = np.zeros(k_n, dtype=np.int64)
     inv_ds = n_el / (s_hi - s_lo) if s_hi > s_lo else 0.0
     for k in range(k_n):
         p = order[k]
@@ -123,8 +125,7 @@ def _bin_boxes(ox, oy, oz, max_range, centers, halves, yaws, n_az, n_el, s_lo, s
                 sv_hi = 1.0
             if z_bot <= 0.0:
                 sv_lo = -1.0
-        if sv_hi < s_lo - _PAD or sv_lo > s_hi + _PAD:
-            continue
+        # clamp to the edge bins (never drop): rays outside the sampled span clamp the same way
         e0[k] = min(max(int(np.floor((sv_lo - _PAD - s_lo) * inv_ds)), 0), n_el - 1)
         e1[k] = min(max(int(np.floor((sv_hi + _PAD - s_lo) * inv_ds)), 0), n_el - 1)
         if r_min < NEAR_ALL:
@@ -202,21 +203,19 @@ def _slab(o, d, h, t0, t1):
 
 
 @njit(cache=True, parallel=True)
-def _cast(origin, directions, max_range, centers, halves, yaws, n_az, n_el):
+def _cast(origin, rotation, directions, max_range, centers, halves, yaws, n_az, n_el):
     n_rays = directions.shape[0]
     ox, oy, oz = origin[0], origin[1], origin[2]
-    dirs = np.empty((n_rays, 3))
-    for i in prange(n_rays):
-        dx, dy, dz = directions[i, 0], directions[i, 1], directions[i, 2]
-        nrm = np.sqrt(dx * dx + dy * dy + dz * dz)
-        dirs[i, 0] = dx / nrm
-        dirs[i, 1] = dy / nrm
-        dirs[i, 2] = dz / nrm
+    R = rotation
+    # span of sin(elevation) over a sample of the rays, for the elevation bins. Rays and boxes outside it
+    # clamp to the edge bins, so the sample only tunes the binning; results never depend on it.
     s_lo = 1.0
     s_hi = -1.0
-    for i in range(n_rays):
-        s_lo = min(s_lo, dirs[i, 2])
-        s_hi = max(s_hi, dirs[i, 2])
+    for i in range(0, n_rays, max(1, n_rays // _SPAN_SAMPLES)):
+        ax, ay, az = directions[i, 0], directions[i, 1], directions[i, 2]
+        sz = (R[2, 0] * ax + R[2, 1] * ay + R[2, 2] * az) / np.sqrt(ax * ax + ay * ay + az * az)
+        s_lo = min(s_lo, sz)
+        s_hi = max(s_hi, sz)
     table, near, prim, offsets, entries = _bin_boxes(
         ox, oy, oz, max_range, centers, halves, yaws, n_az, n_el, s_lo, s_hi
     )
@@ -225,7 +224,12 @@ def _cast(origin, directions, max_range, centers, halves, yaws, n_az, n_el):
     index = np.empty(n_rays, dtype=np.int32)
     cosine = np.empty(n_rays, dtype=np.float32)
     for i in prange(n_rays):
-        dx, dy, dz = dirs[i, 0], dirs[i, 1], dirs[i, 2]
+        # unit world direction
+        ax, ay, az = directions[i, 0], directions[i, 1], directions[i, 2]
+        inv_n = 1.0 / np.sqrt(ax * ax + ay * ay + az * az)
+        dx = (R[0, 0] * ax + R[0, 1] * ay + R[0, 2] * az) * inv_n
+        dy = (R[1, 0] * ax + R[1, 1] * ay + R[1, 2] * az) * inv_n
+        dz = (R[2, 0] * ax + R[2, 1] * ay + R[2, 2] * az) * inv_n
         best = max_range
         hit = MISS
         cos_hit = 0.0
@@ -280,15 +284,18 @@ def cast_rays(
     directions: np.ndarray,
     max_range: float,
     prims: dict[str, np.ndarray],
-    n_azimuth_bins: int = 1024,
-    n_elevation_bins: int = 32,
+    rotation: np.ndarray | None = None,
+    n_azimuth_bins: int = 512,
+    n_elevation_bins: int = 16,
 ) -> RayHits:
     """Cast rays from one world point against the boxes of ``prims`` and the ground plane ``z = 0``.
 
-    ``directions`` (N, 3) need not be unit length; distances are metres along the ray. ``prims`` holds
-    ``centers`` (P, 3), ``halves`` (P, 3) and ``yaws`` (P,) as for the rasteriser (other keys are ignored).
-    A hit counts when it lies strictly nearer than ``max_range``; hits from inside a box do not count.
-    The bin counts only trade set-up time against per-ray work; results do not depend on them.
+    ``directions`` (N, 3) need not be unit length (but non-zero); with ``rotation`` (3×3) they are in a local
+    frame and the world direction is ``rotation @ direction`` (pass a sensor's rotation and its own ray pattern).
+    Distances are metres along the ray.
+    ``prims`` holds ``centers`` (P, 3), ``halves`` (P, 3) and ``yaws`` (P,) as for the rasteriser (other keys
+    are ignored). A hit counts when it lies strictly nearer than ``max_range``; hits from inside a box do not
+    count. The bin counts only trade set-up time against per-ray work; results do not depend on them.
 
     >>> prims = {"centers": np.array([[10.0, 0.0, 1.0]]), "halves": np.array([[1.0, 1.0, 1.0]]),
     ...          "yaws": np.zeros(1)}
@@ -301,10 +308,13 @@ def cast_rays(
     if int(n_azimuth_bins) < 1 or int(n_elevation_bins) < 1:
         raise ValueError(f"bin counts must be >= 1, got {n_azimuth_bins!r}, {n_elevation_bins!r}")
     directions = np.ascontiguousarray(directions, np.float64).reshape(-1, 3)
-    if directions.shape[0] == 0:
+    n = directions.shape[0]
+    if n == 0:
         return RayHits(np.zeros(0, np.float32), np.zeros(0, np.int32), np.zeros(0, np.float32))
+    rotation = np.eye(3) if rotation is None else np.ascontiguousarray(rotation, np.float64).reshape(3, 3)
     dist, index, cosine = _cast(
         np.ascontiguousarray(origin, np.float64).reshape(3),
+        rotation,
         directions,
         float(max_range),
         np.ascontiguousarray(prims["centers"], np.float64).reshape(-1, 3),
