@@ -13,11 +13,14 @@ from __future__ import annotations
 from gymnasium.envs.registration import register
 
 from fog_gym.config import CAMERA_NAMES, TIMES_OF_DAY, TOWNS, CameraConfig, FogDriveConfig, Pose, RigConfig
+from fog_gym.lidar import LidarConfig, RadarConfig
+from fog_gym.points import unpack_points
 
 __version__ = "0.1.0"
 
 __all__ = [
     "CAMERA_NAMES", "TIMES_OF_DAY", "TOWNS", "CameraConfig", "FogDriveConfig", "Pose", "RigConfig", "FogDriveEnv",
+    "LidarConfig", "RadarConfig", "unpack_points",
 ]  # fmt: skip
 
 register(id="FogDrive-v0", entry_point="fog_gym.env:FogDriveEnv", max_episode_steps=None, disable_env_checker=False)

@@ -14,7 +14,10 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
+
+if TYPE_CHECKING:
+    from fog_gym.lidar import LidarConfig, RadarConfig
 
 #: FogDrive camera channel names (Table 3), in the order the rig lists them.
 CAMERA_NAMES: tuple[str, ...] = ("CAM_FRONT", "CAM_BACK", "CAM_LEFT", "CAM_RIGHT")
@@ -143,8 +146,13 @@ class RigConfig:
     """
 
     cameras: tuple[CameraConfig, ...] = field(default_factory=tuple)
+    lidar: LidarConfig | None = None  # LIDAR_TOP
+    semantic_lidar: LidarConfig | None = None  # SEM_LIDAR_TOP
+    radar: RadarConfig | None = None  # RADAR_FRONT
 
     def __post_init__(self) -> None:
+        from fog_gym.lidar import LidarConfig, RadarConfig
+
         cams = tuple(self.cameras)
         for cam in cams:
             if not isinstance(cam, CameraConfig):
@@ -153,6 +161,10 @@ class RigConfig:
         if len(set(names)) != len(names):
             raise ValueError(f"camera names must be unique, got {names}")
         object.__setattr__(self, "cameras", cams)
+        for name, kind in (("lidar", LidarConfig), ("semantic_lidar", LidarConfig), ("radar", RadarConfig)):
+            value = getattr(self, name)
+            if value is not None and not isinstance(value, kind):
+                raise ValueError(f"{name} must be a {kind.__name__} or None, got {type(value).__name__}")
 
     @classmethod
     def fogdrive(
@@ -161,8 +173,14 @@ class RigConfig:
         cameras: Sequence[str] | None = None,
         fov: float = 100.0,
         poses: Mapping[str, Any] | None = None,
+        lidar: bool = True,
+        semantic_lidar: bool = True,
+        radar: bool = True,
     ) -> RigConfig:
-        """The FogDrive rig, optionally at another resolution, with a subset of cameras or other poses."""
+        """The FogDrive rig (Table 2, D5), optionally at another resolution, with a subset of cameras, other camera
+        poses, or without the LiDAR, semantic LiDAR or radar."""
+        from fog_gym.lidar import LidarConfig, RadarConfig
+
         w, h = parse_resolution(resolution)
         names = CAMERA_NAMES if cameras is None else tuple(cameras)
         for n in names:
@@ -173,9 +191,10 @@ class RigConfig:
             if n not in CAMERA_NAMES:
                 raise ValueError(f"poses: camera name must be one of {CAMERA_NAMES}, got {n!r}")
         return cls(
-            tuple(
-                CameraConfig(n, Pose.coerce(poses.get(n, FOGDRIVE_CAMERA_POSES[n])), w, h, fov) for n in names
-            )
+            tuple(CameraConfig(n, Pose.coerce(poses.get(n, FOGDRIVE_CAMERA_POSES[n])), w, h, fov) for n in names),
+            lidar=LidarConfig.fogdrive() if lidar else None,
+            semantic_lidar=LidarConfig.fogdrive_semantic() if semantic_lidar else None,
+            radar=RadarConfig.fogdrive() if radar else None,
         )
 
     def with_resolution(self, resolution: Sequence[int]) -> RigConfig:

@@ -22,7 +22,8 @@ from fog_gym.config import FogDriveConfig, RigConfig
 from fog_gym.encoding import SEMANTIC_TAGS
 from fog_gym.scene import Lighting, Scene, StaticWorld, vehicle_primitives
 from fog_gym.scenery import STYLES, build_surface, place_props
-from fog_gym.sensors import CameraFrame, CameraRig
+from fog_gym.points import LIDAR, RADAR, SEMANTIC_LIDAR, lidar_space, pack_points, radar_space
+from fog_gym.sensors import CameraFrame, CameraRig, PointSensors
 from fog_gym.world import EGO_ID, TOWN_SPECS, TrafficWorld
 
 MAX_SPEED = 40.0  # highway-env's Vehicle.MAX_SPEED [m/s]: bounds where the ego can get in one episode
@@ -33,7 +34,10 @@ class FogDriveEnv(gym.Env):
     """The FogDrive rig in a highway-env world. Observation: a flat ``Dict`` keyed by FogDrive channel names.
 
     For each camera ``C`` of the rig: ``C`` (H, W, 3) uint8 RGB, ``C_DEPTH`` (H, W) float32 planar depth in
-    metres (sky = 1000), ``C_SEM`` (H, W) uint8 CARLA ≥ 0.9.14 tag ids. Instance ids per camera are in
+    metres (sky = 1000), ``C_SEM`` (H, W) uint8 CARLA ≥ 0.9.14 tag ids. Point sensors, as fixed-capacity float32
+    arrays (points first, zero rows after; :func:`fog_gym.unpack_points` gives the exact (N, C) array):
+    ``LIDAR_TOP`` (x, y, z, intensity), ``SEM_LIDAR_TOP`` (x, y, z, cos incidence, object id, tag),
+    ``RADAR_FRONT`` (velocity, azimuth, altitude, depth). Instance ids per camera are in
     :attr:`instance_buffers` (not a FogDrive channel). Actions, reward and termination are highway-env's.
 
     Arguments (all optional): ``town`` (one of :data:`fog_gym.TOWNS`), ``time_of_day`` ("day"/"night"),
@@ -43,7 +47,7 @@ class FogDriveEnv(gym.Env):
 
     >>> env = FogDriveEnv(town="merge", resolution=(32, 24), cameras=["CAM_FRONT"])
     >>> sorted(env.observation_space.spaces)
-    ['CAM_FRONT', 'CAM_FRONT_DEPTH', 'CAM_FRONT_SEM']
+    ['CAM_FRONT', 'CAM_FRONT_DEPTH', 'CAM_FRONT_SEM', 'LIDAR_TOP', 'RADAR_FRONT', 'SEM_LIDAR_TOP']
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
@@ -69,7 +73,7 @@ class FogDriveEnv(gym.Env):
         if cameras is not None:
             if isinstance(cameras, str):
                 raise ValueError(f"cameras must be a sequence of camera names, got the string {cameras!r}")
-            rig_cfg = RigConfig(tuple(_camera(rig_cfg, n) for n in cameras))
+            rig_cfg = replace(rig_cfg, cameras=tuple(_camera(rig_cfg, n) for n in cameras))
         if resolution is not None:
             rig_cfg = rig_cfg.with_resolution(resolution)
         updates = {
@@ -96,9 +100,18 @@ class FogDriveEnv(gym.Env):
             obs_spaces[cam.name] = spaces.Box(0, 255, shape + (3,), np.uint8)
             obs_spaces[f"{cam.name}_DEPTH"] = spaces.Box(0.0, c.far_distance, shape, np.float32)
             obs_spaces[f"{cam.name}_SEM"] = spaces.Box(0, MAX_TAG, shape, np.uint8)
+        self.point_sensors = PointSensors(c.rig, c.simulation_frequency)
+        f = c.simulation_frequency
+        if c.rig.lidar is not None:
+            obs_spaces[LIDAR] = lidar_space(c.rig.lidar, f, semantic=False)
+        if c.rig.semantic_lidar is not None:
+            obs_spaces[SEMANTIC_LIDAR] = lidar_space(c.rig.semantic_lidar, f, semantic=True)
+        if c.rig.radar is not None:
+            obs_spaces[RADAR] = radar_space(c.rig.radar, f)
         self.observation_space = spaces.Dict(obs_spaces)
         self.scene: Scene | None = None
         self.frames: dict[str, CameraFrame] = {}
+        self.points: dict[str, np.ndarray] = {}  # the latest sweep of each point sensor, (N, C) float32
         self._static: StaticWorld | None = None
         self._lighting: Lighting | None = None
         self._steps = 0
@@ -112,6 +125,7 @@ class FogDriveEnv(gym.Env):
         rng = np.random.default_rng(np.random.SeedSequence([world_seed, 0x5CE]))
         self._static = self._build_static(rng)
         self._lighting = Lighting.for_time_of_day(self.config.time_of_day, rng)
+        self._sensor_rng = np.random.default_rng(np.random.SeedSequence([world_seed, 0x11DA]))
         self._steps = 0
         obs = self._observe()
         return obs, self._info({})
@@ -159,12 +173,17 @@ class FogDriveEnv(gym.Env):
 
     def _observe(self) -> dict[str, np.ndarray]:
         self.scene = self.build_scene()
-        self.frames = self.cameras.render(self.scene)
+        prims = self.cameras.primitives(self.scene)
+        self.frames = self.cameras.render(self.scene, prims)
         obs: dict[str, np.ndarray] = {}
         for name, f in self.frames.items():
             obs[name] = f.rgb
             obs[f"{name}_DEPTH"] = f.depth
             obs[f"{name}_SEM"] = f.semantic
+        tick = max(int(self.world.hw.steps) - 1, 0)  # the simulation tick this keyframe closes
+        self.points = self.point_sensors.measure(self.scene, prims, self._sensor_rng, tick)
+        for name, pts in self.points.items():
+            obs[name] = pack_points(pts, self.observation_space[name].shape[0])
         return obs
 
     def _info(self, hw_info: dict) -> dict[str, Any]:

@@ -1,4 +1,4 @@
-"""Camera sensors: RGB, planar depth, semantic tags and instance ids for every camera of a rig.
+"""Sensors of the rig: cameras (RGB, planar depth, semantic tags, instance ids), LiDAR, semantic LiDAR, radar.
 
 A pure function of (:class:`~fog_gym.scene.Scene`, :class:`~fog_gym.config.RigConfig`): nothing here
 steps the world. Cameras that share a resolution are rendered in one batched kernel call.
@@ -18,6 +18,8 @@ import numpy as np
 
 from fog_gym import geometry
 from fog_gym.config import RigConfig
+from fog_gym.lidar import sensor_to_world, simulate_lidar, simulate_radar, simulate_semantic_lidar
+from fog_gym.points import LIDAR, RADAR, SEMANTIC_LIDAR
 from fog_gym.render.raster import render
 from fog_gym.scene import Scene, concat_primitives, prop_primitives, select_primitives
 from fog_gym.scenery import SURFACE_TAGS
@@ -47,7 +49,7 @@ class CameraRig:
         for c in rig.cameras:
             groups.setdefault((c.width, c.height), []).append(c)
         self._groups = list(groups.items())
-        self._props_cache: tuple[int, dict] | None = None
+        self._props_cache: tuple[object, dict] | None = None
 
     def world_to_camera(self, scene: Scene, name: str) -> np.ndarray:
         ego = geometry.yaw_transform(*scene.ego_pose)
@@ -55,14 +57,14 @@ class CameraRig:
 
     def primitives(self, scene: Scene) -> dict[str, np.ndarray]:
         """Render primitives near the ego: static props (cached per static world) + vehicles."""
-        key = id(scene.static)
-        if self._props_cache is None or self._props_cache[0] != key:
-            self._props_cache = (key, prop_primitives(scene.static.props))
+        if self._props_cache is None or self._props_cache[0] is not scene.static:
+            self._props_cache = (scene.static, prop_primitives(scene.static.props))
         props = select_primitives(self._props_cache[1], np.asarray(scene.ego_pose[:2]), self.render_radius)
         return concat_primitives(props, scene.primitives)
 
-    def render(self, scene: Scene) -> dict[str, CameraFrame]:
-        prims = self.primitives(scene)
+    def render(self, scene: Scene, prims: dict[str, np.ndarray] | None = None) -> dict[str, CameraFrame]:
+        """Every camera's buffers; ``prims`` defaults to :meth:`primitives` of the scene."""
+        prims = self.primitives(scene) if prims is None else prims
         light = scene.lighting
         lut = light.surface_lut()
         frames: dict[str, CameraFrame] = {}
@@ -76,3 +78,43 @@ class CameraRig:
             for i, c in enumerate(cams):
                 frames[c.name] = CameraFrame(out["rgb"][i], out["depth"][i], out["sem"][i], out["inst"][i])
         return frames
+
+
+class PointSensors:
+    """LiDAR (``LIDAR_TOP``), semantic LiDAR (``SEM_LIDAR_TOP``) and radar (``RADAR_FRONT``) of a rig.
+
+    :meth:`measure` returns each configured sensor's points for the tick that ends at the scene's instant,
+    in the sensor frame, with CARLA's semantics (see :mod:`fog_gym.lidar`).
+
+    >>> from fog_gym.config import RigConfig
+    >>> sorted(PointSensors(RigConfig.fogdrive(cameras=[])).channels)
+    ['LIDAR_TOP', 'RADAR_FRONT', 'SEM_LIDAR_TOP']
+    """
+
+    def __init__(self, rig: RigConfig, simulation_frequency: float = 20.0) -> None:
+        self.rig = rig
+        self.simulation_frequency = float(simulation_frequency)
+        self.channels = tuple(
+            name for name, cfg in ((LIDAR, rig.lidar), (SEMANTIC_LIDAR, rig.semantic_lidar), (RADAR, rig.radar)) if cfg
+        )
+
+    def _start_angle(self, cfg, tick: int) -> float:
+        # a head that turns less than a full sweep per tick resumes where the previous tick stopped
+        return (tick * cfg.tick_angle(self.simulation_frequency)) % cfg.horizontal_fov
+
+    def measure(self, scene: Scene, prims: dict[str, np.ndarray], rng: np.random.Generator, tick: int) -> dict[str, np.ndarray]:
+        """Points per channel for simulation tick ``tick`` (0-based); ``prims`` exclude the ego's own body."""
+        rig, f, out = self.rig, self.simulation_frequency, {}
+        surface = scene.static.surface
+        if rig.lidar is not None:
+            out[LIDAR] = simulate_lidar(rig.lidar, sensor_to_world(rig.lidar.pose, scene.ego_pose), prims, surface,
+                                        rng, f, self._start_angle(rig.lidar, tick))  # fmt: skip
+        if rig.semantic_lidar is not None:
+            cfg = rig.semantic_lidar
+            out[SEMANTIC_LIDAR] = simulate_semantic_lidar(cfg, sensor_to_world(cfg.pose, scene.ego_pose), prims,
+                                                          surface, rng, f, self._start_angle(cfg, tick))  # fmt: skip
+        if rig.radar is not None:
+            ego_velocity = scene.vehicles.velocities[scene.vehicles.ids == scene.ego_id][0]
+            out[RADAR] = simulate_radar(rig.radar, sensor_to_world(rig.radar.pose, scene.ego_pose), prims, rng,
+                                        scene.vehicles, ego_velocity, f)  # fmt: skip
+        return out

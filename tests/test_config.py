@@ -77,6 +77,8 @@ def test_make_forwards_kwargs():
     env = gym.make("FogDrive-v0", town="merge", time_of_day="night", resolution=(48, 32), cameras=["CAM_BACK"])
     u = env.unwrapped
     assert u.config.town == "merge" and u.config.time_of_day == "night"
-    assert set(env.observation_space.spaces) == {"CAM_BACK", "CAM_BACK_DEPTH", "CAM_BACK_SEM"}
+    assert set(env.observation_space.spaces) == {
+        "CAM_BACK", "CAM_BACK_DEPTH", "CAM_BACK_SEM", "LIDAR_TOP", "SEM_LIDAR_TOP", "RADAR_FRONT"
+    }
     assert env.observation_space["CAM_BACK"].shape == (32, 48, 3)
     env.close()

@@ -29,7 +29,7 @@ def test_observation_space_and_dtypes(small_env):
     obs = small_env.frames and {k: v for k, v in small_env._observe().items()}
     assert set(small_env.observation_space.spaces) == {
         f"{c}{s}" for c in fog_gym.CAMERA_NAMES for s in ("", "_DEPTH", "_SEM")
-    }
+    } | {"LIDAR_TOP", "SEM_LIDAR_TOP", "RADAR_FRONT"}
     assert small_env.observation_space.contains(obs)
     assert obs["CAM_FRONT"].shape == (120, 160, 3) and obs["CAM_FRONT"].dtype == np.uint8
     assert obs["CAM_FRONT_DEPTH"].dtype == np.float32 and obs["CAM_FRONT_SEM"].dtype == np.uint8
@@ -148,3 +148,35 @@ def test_full_fogdrive_rig():
     assert K[0, 0] == pytest.approx(537.09, abs=0.07) and (K[0, 2], K[1, 2]) == (640, 480)
     assert env.unwrapped.config.episode_steps == 200
     env.close()
+
+
+def test_point_channels_unpack_exactly(small_env):
+    obs = small_env._observe()
+    assert obs["LIDAR_TOP"].shape == (64 * 1016, 4) and obs["SEM_LIDAR_TOP"].shape == (64 * 586, 6)
+    assert obs["RADAR_FRONT"].shape == (900, 4)
+    for name, pts in small_env.points.items():
+        unpacked = fog_gym.unpack_points(obs, name)
+        assert unpacked.dtype == np.float32 and unpacked.tobytes() == pts.tobytes()
+    sem = small_env.points["SEM_LIDAR_TOP"]
+    ids = set(sem[:, 4].astype(int).tolist())
+    assert EGO_ID not in ids and ids <= set(small_env.scene.vehicles.ids.tolist()) | {0}
+    assert len(small_env.points["LIDAR_TOP"]) > 20000  # ≈ 65 k rays, 45 % general drop-off, ground everywhere near
+
+
+def test_unpack_points_rejects_bad_input(small_env):
+    obs = small_env._observe()
+    with pytest.raises(ValueError, match="point channel"):
+        fog_gym.unpack_points(obs, "CAM_FRONT")
+    with pytest.raises(ValueError, match="index a vector env"):
+        fog_gym.unpack_points(np.zeros((2, 10, 4), np.float32))
+    with pytest.raises(KeyError, match="RADAR_FRONT"):
+        fog_gym.unpack_points({}, "RADAR_FRONT")
+
+
+def test_rig_without_point_sensors():
+    rig = fog_gym.RigConfig.fogdrive(resolution=(16, 12), cameras=["CAM_FRONT"], lidar=False, radar=False)
+    env = FogDriveEnv(rig=rig)
+    obs, _ = env.reset(seed=0)
+    assert set(obs) == {"CAM_FRONT", "CAM_FRONT_DEPTH", "CAM_FRONT_SEM", "SEM_LIDAR_TOP"}
+    with pytest.raises(ValueError, match="lidar must be a LidarConfig or None"):
+        fog_gym.RigConfig(lidar="velodyne")

@@ -1,0 +1,98 @@
+"""Fixed-shape observation representation of point clouds, and :func:`unpack_points`.
+
+SB3 and vector envs need fixed shapes, while a LiDAR sweep has a variable number of points. Each point channel
+is a ``(capacity, C)`` float32 array whose capacity is the number of rays the sensor casts per tick (so no
+sweep can overflow it): the sweep's points come first, in the sensor's order (laser-major, as CARLA's
+``raw_data``), and the rest of the rows are zero. No real return is an all-zero row (a LiDAR point has a
+non-zero range, a radar detection a non-zero depth), so :func:`unpack_points` recovers the exact ``(N, C)``
+array — the one the recorder writes.
+
+Example:
+    >>> pts = np.array([[1.0, 2.0, 0.5, 0.9]], np.float32)
+    >>> obs = {"LIDAR_TOP": pack_points(pts, capacity=3)}
+    >>> unpack_points(obs, "LIDAR_TOP").tolist()
+    [[1.0, 2.0, 0.5, 0.8999999761581421]]
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+
+import numpy as np
+from gymnasium import spaces
+
+LIDAR = "LIDAR_TOP"
+SEMANTIC_LIDAR = "SEM_LIDAR_TOP"
+RADAR = "RADAR_FRONT"
+#: Columns of each point channel (FogDrive D8 / CARLA raw layouts).
+COLUMNS = {LIDAR: 4, SEMANTIC_LIDAR: 6, RADAR: 4}
+
+
+def channel_kind(channel: str) -> str:
+    """``LIDAR_TOP``, ``SEM_LIDAR_TOP`` or ``RADAR_FRONT`` for a channel name (fog variants ``LIDAR_TOP_FOG_*`` included)."""
+    if channel == SEMANTIC_LIDAR or channel.startswith(SEMANTIC_LIDAR + "_"):
+        return SEMANTIC_LIDAR
+    if channel == LIDAR or channel.startswith(LIDAR + "_"):
+        return LIDAR
+    if channel == RADAR or channel.startswith(RADAR + "_"):
+        return RADAR
+    raise ValueError(f"channel must be a point channel ({LIDAR}[_FOG_*], {SEMANTIC_LIDAR}, {RADAR}), got {channel!r}")
+
+
+def pack_points(points: np.ndarray, capacity: int) -> np.ndarray:
+    """Points ``(N, C)`` → ``(capacity, C)`` float32, zero rows after the N points."""
+    points = np.asarray(points, np.float32)
+    if points.ndim != 2 or len(points) > capacity:
+        raise ValueError(f"expected at most {capacity} points as an (N, C) array, got shape {points.shape}")
+    out = np.zeros((capacity, points.shape[1]), np.float32)
+    out[: len(points)] = points
+    return out
+
+
+def unpack_points(obs: Mapping[str, np.ndarray] | np.ndarray, channel: str | None = None) -> np.ndarray:
+    """The exact ``(N, 4)`` / ``(N, 6)`` / ``(N, 4)`` float32 points of ``LIDAR_TOP*``, ``SEM_LIDAR_TOP`` or
+    ``RADAR_FRONT`` from an observation dict (or from the channel's array itself)."""
+    if isinstance(obs, Mapping):
+        if channel is None:
+            raise ValueError("unpack_points needs the channel name when given an observation dict")
+        channel_kind(channel)
+        if channel not in obs:
+            raise KeyError(f"{channel!r} is not in the observation (keys: {sorted(obs)})")
+        array = np.asarray(obs[channel])
+    else:
+        array = np.asarray(obs)
+    if array.ndim != 2:
+        raise ValueError(
+            f"expected one (capacity, C) point array, got shape {array.shape} (index a vector env's batch first)"
+        )
+    valid = np.any(array != 0, axis=1)
+    n = int(valid.sum())
+    if n and not valid[:n].all():  # not packed: keep every non-zero row, in order
+        return np.ascontiguousarray(array[valid], np.float32)
+    return np.ascontiguousarray(array[:n], np.float32)
+
+
+def lidar_space(cfg, simulation_frequency: float, semantic: bool) -> spaces.Box:
+    """Box of a (semantic) LiDAR channel: one row per ray cast in a tick."""
+    capacity = cfg.channels * cfg.points_per_channel(simulation_frequency)
+    reach = cfg.range + 10.0 * cfg.noise_stddev + 1.0
+    if semantic:  # x, y, z, cos(incidence), object id, tag
+        low, high = [-reach, -reach, -reach, 0.0, 0.0, 0.0], [reach, reach, reach, 1.0, 65535.0, 255.0]
+    else:  # x, y, z, intensity
+        low, high = [-reach, -reach, -reach, 0.0], [reach, reach, reach, 1.0]
+    return _rows(capacity, low, high)
+
+
+def radar_space(cfg, simulation_frequency: float) -> spaces.Box:
+    """Box of the radar channel: velocity, azimuth, altitude, depth; one row per ray of a tick."""
+    h, v = math.radians(cfg.horizontal_fov) / 2, math.radians(cfg.vertical_fov) / 2
+    reach = cfg.range * math.sqrt(1 + math.tan(h) ** 2 + math.tan(v) ** 2) + 1.0
+    return _rows(cfg.rays_per_tick(simulation_frequency), [-500.0, -math.pi, -math.pi / 2, 0.0],
+                 [500.0, math.pi, math.pi / 2, reach])  # fmt: skip
+
+
+def _rows(capacity: int, low: list[float], high: list[float]) -> spaces.Box:
+    lo = np.tile(np.asarray(low, np.float32), (capacity, 1))
+    hi = np.tile(np.asarray(high, np.float32), (capacity, 1))
+    return spaces.Box(lo, hi, dtype=np.float32)
