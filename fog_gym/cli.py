@@ -33,9 +33,10 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
     demo = sub.add_parser(
         "demo",
-        help="drive a short episode and write a contact sheet of every camera (RGB, depth, semantic)",
+        help="drive a short episode; write a contact sheet of every camera and a LiDAR bird's-eye view",
         description="Drive a short FogDrive-v0 episode and write PNGs a person can look at: a contact sheet of all "
-        "cameras' RGB / depth / semantic views and the env's render (front camera + bird's-eye view).",
+        "cameras' RGB / depth / semantic views, the env's render (front camera + bird's-eye view) and one LiDAR sweep "
+        "seen from above (intensity; semantic LiDAR by tag).",
     )
     demo.add_argument("--town", choices=TOWNS, default="highway")
     demo.add_argument("--time-of-day", choices=TIMES_OF_DAY, default="day")
@@ -56,7 +57,7 @@ def run_demo(args: argparse.Namespace) -> list[Path]:
 
     import fog_gym  # noqa: F401
     from fog_gym.encoding import colorize_depth, colorize_semantic
-    from fog_gym.viz import contact_sheet
+    from fog_gym.viz import contact_sheet, lidar_panels
 
     if args.steps < 0:
         raise SystemExit("--steps must be >= 0")
@@ -78,10 +79,13 @@ def run_demo(args: argparse.Namespace) -> list[Path]:
     stem = f"{args.town}_{args.time_of_day}_seed{args.seed}"
     sheet = args.out / f"contact_sheet_{stem}.png"
     view = args.out / f"render_{stem}.png"
+    lidar = args.out / f"lidar_{stem}.png"
     cv2.imwrite(str(sheet), contact_sheet(rows, tile_width=min(480, args.resolution[0]))[..., ::-1])
     cv2.imwrite(str(view), env.render()[..., ::-1])
+    points = env.unwrapped.points
+    cv2.imwrite(str(lidar), lidar_panels(points.get("LIDAR_TOP"), points.get("SEM_LIDAR_TOP"))[..., ::-1])
     env.close()
-    return [sheet, view]
+    return [sheet, view, lidar]
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -79,3 +79,35 @@ def contact_sheet(rows: dict[str, list[np.ndarray]], tile_width: int = 320, labe
             cv2.putText(sheet, name, (6, r * tile_h + 18), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (0, 0, 0), 3, cv2.LINE_AA)
             cv2.putText(sheet, name, (6, r * tile_h + 18), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (255, 255, 255), 1, cv2.LINE_AA)
     return sheet
+
+
+def points_bev(points: np.ndarray, colors: np.ndarray, metres: float = 120.0, size_px: int = 720) -> np.ndarray:
+    """Top-down image of sensor-frame points (+x up, +y right), ``metres`` across, on a dark canvas."""
+    img = np.full((size_px, size_px, 3), 40, np.uint8)
+    scale = size_px / metres
+    for r in range(20, int(metres / 2) + 1, 20):  # range rings every 20 m
+        cv2.circle(img, (size_px // 2, size_px // 2), int(r * scale), (60, 60, 60), 1, cv2.LINE_AA)
+    if len(points):
+        order = np.argsort(-np.hypot(points[:, 0], points[:, 1]))
+        points, colors = points[order], np.asarray(colors)[order]
+        col = np.round(points[:, 1] * scale + size_px / 2).astype(np.int64)
+        row = np.round(-points[:, 0] * scale + size_px / 2).astype(np.int64)
+        for dr, dc in ((0, 0), (0, 1), (1, 0), (1, 1)):  # 2×2 dots, far points drawn first, near on top
+            r, c = row + dr, col + dc
+            ok = (c >= 0) & (c < size_px) & (r >= 0) & (r < size_px)
+            img[r[ok], c[ok]] = colors[ok]
+    cv2.drawMarker(img, (size_px // 2, size_px // 2), (255, 255, 255), cv2.MARKER_TRIANGLE_UP, 10, 2)
+    return img
+
+
+def lidar_panels(lidar: np.ndarray | None, semantic: np.ndarray | None, metres: float = 120.0) -> np.ndarray:
+    """LiDAR coloured by intensity beside semantic LiDAR coloured by tag (Cityscapes palette), top-down."""
+    from fog_gym.encoding import colorize_semantic
+
+    panels = []
+    if lidar is not None:
+        grey = (np.clip(lidar[:, 3], 0, 1) * 255).astype(np.uint8)
+        panels.append(points_bev(lidar, cv2.applyColorMap(grey[:, None], cv2.COLORMAP_VIRIDIS)[:, 0, ::-1], metres))
+    if semantic is not None:
+        panels.append(points_bev(semantic, colorize_semantic(semantic[:, 5].astype(np.int64)), metres))
+    return np.concatenate(panels, axis=1) if panels else np.zeros((1, 1, 3), np.uint8)
