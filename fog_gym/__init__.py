@@ -23,7 +23,7 @@ __all__ = [
     "LidarConfig", "RadarConfig", "unpack_points",
 ]  # fmt: skip
 
-register(id="FogDrive-v0", entry_point="fog_gym.env:FogDriveEnv", max_episode_steps=None, disable_env_checker=False)
+register(id="FogDrive-v0", entry_point="fog_gym.env:make_fogdrive", max_episode_steps=None, disable_env_checker=False)
 
 
 def __getattr__(name: str):

@@ -33,8 +33,9 @@ def build_parser() -> argparse.ArgumentParser:
     sub = parser.add_subparsers(dest="command", required=True)
     demo = sub.add_parser(
         "demo",
-        help="drive a short episode; write a contact sheet of every camera and a LiDAR bird's-eye view",
-        description="Drive a short FogDrive-v0 episode and write PNGs a person can look at: a contact sheet of all "
+        help="drive a short foggy episode; write the fog levels side by side, every camera, and a LiDAR view",
+        description="Drive a short FogDrive-v0 episode in paired fog and write PNGs a person can look at: the front camera and "
+        "a LiDAR bird's-eye view at clear/light/moderate/dense fog side by side, a contact sheet of all "
         "cameras' RGB / depth / semantic views, the env's render (front camera + bird's-eye view) and one LiDAR sweep "
         "seen from above (intensity; semantic LiDAR by tag).",
     )
@@ -57,13 +58,14 @@ def run_demo(args: argparse.Namespace) -> list[Path]:
 
     import fog_gym  # noqa: F401
     from fog_gym.encoding import colorize_depth, colorize_semantic
+    from fog_gym.points import unpack_points
     from fog_gym.viz import contact_sheet, lidar_panels
 
     if args.steps < 0:
         raise SystemExit("--steps must be >= 0")
-    env = gym.make(
-        "FogDrive-v0", town=args.town, time_of_day=args.time_of_day, resolution=args.resolution, render_mode="rgb_array"
-    )
+    levels = ["light", "moderate", "dense"]
+    env = gym.make("FogDrive-v0", town=args.town, time_of_day=args.time_of_day, resolution=args.resolution,
+                   render_mode="rgb_array", fog=levels)  # paired: clean + every level from one render  # fmt: skip
     obs, info = env.reset(seed=args.seed)
     env.action_space.seed(args.seed)
     idle = 1 if env.action_space.shape == () else np.zeros(env.action_space.shape, np.float32)
@@ -80,12 +82,24 @@ def run_demo(args: argparse.Namespace) -> list[Path]:
     sheet = args.out / f"contact_sheet_{stem}.png"
     view = args.out / f"render_{stem}.png"
     lidar = args.out / f"lidar_{stem}.png"
+    fog = args.out / f"fog_levels_{stem}.png"
     cv2.imwrite(str(sheet), contact_sheet(rows, tile_width=min(480, args.resolution[0]))[..., ::-1])
     cv2.imwrite(str(view), env.render()[..., ::-1])
     points = env.unwrapped.points
     cv2.imwrite(str(lidar), lidar_panels(points.get("LIDAR_TOP"), points.get("SEM_LIDAR_TOP"))[..., ::-1])
+    suffixes = [""] + [f"_FOG_{lv.upper()}" for lv in levels]
+    names = ["clear"] + [f"{lv} ({v:g} m)" for lv, v in zip(levels, (160, 100, 50))]
+    width = min(480, args.resolution[0])
+    fog_rows = {
+        "CAM_FRONT": [obs[f"CAM_FRONT{s}"] for s in suffixes],
+        "LIDAR_TOP (intensity)": [
+            cv2.resize(lidar_panels(unpack_points(obs, f"LIDAR_TOP{s}"), None, metres=100.0), (width, width))
+            for s in suffixes
+        ],
+    }
+    cv2.imwrite(str(fog), contact_sheet(fog_rows, tile_width=width, captions=names)[..., ::-1])
     env.close()
-    return [sheet, view, lidar]
+    return [fog, sheet, view, lidar]
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -66,18 +66,31 @@ def composite(front_rgb: np.ndarray | None, bev: np.ndarray, height: int = 480) 
     return np.concatenate([front, bev], axis=1)
 
 
-def contact_sheet(rows: dict[str, list[np.ndarray]], tile_width: int = 320, label: bool = True) -> np.ndarray:
-    """A grid of images: one row per key (labelled), tiles scaled to ``tile_width`` and padded to a common height."""
+def _caption(img: np.ndarray, text: str, y: int, x: int = 6) -> None:
+    cv2.putText(img, text, (x, y), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (0, 0, 0), 3, cv2.LINE_AA)
+    cv2.putText(img, text, (x, y), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (255, 255, 255), 1, cv2.LINE_AA)
+
+
+def contact_sheet(
+    rows: dict[str, list[np.ndarray]], tile_width: int = 320, label: bool = True, captions: list[str] | None = None
+) -> np.ndarray:
+    """A grid of images: one row per key, tiles scaled to ``tile_width``; each row's tiles share its height.
+
+    Each row is labelled with its key on the first tile; ``captions`` (one per column) label every tile.
+    """
     tiles = [[_fit(t if t.ndim == 3 else np.repeat(t[..., None], 3, -1), tile_width) for t in row] for row in rows.values()]
-    tile_h = max(t.shape[0] for row in tiles for t in row)
+    heights = [max(t.shape[0] for t in row) for row in tiles]
     ncol = max(len(r) for r in tiles)
-    sheet = np.full((tile_h * len(tiles), tile_width * ncol, 3), 255, np.uint8)
-    for r, (name, row) in enumerate(zip(rows, tiles)):
+    sheet = np.full((sum(heights), tile_width * ncol, 3), 255, np.uint8)
+    top = 0
+    for name, row, h in zip(rows, tiles, heights):
         for col, t in enumerate(row):
-            sheet[r * tile_h : r * tile_h + t.shape[0], col * tile_width : col * tile_width + t.shape[1]] = t
+            sheet[top : top + t.shape[0], col * tile_width : col * tile_width + t.shape[1]] = t
+            if captions is not None and col < len(captions):
+                _caption(sheet, captions[col], top + h - 10, col * tile_width + 6)
         if label:
-            cv2.putText(sheet, name, (6, r * tile_h + 18), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (0, 0, 0), 3, cv2.LINE_AA)
-            cv2.putText(sheet, name, (6, r * tile_h + 18), cv2.FONT_HERSHEY_SIMPLEX, 0.5, (255, 255, 255), 1, cv2.LINE_AA)
+            _caption(sheet, name, top + 18)
+        top += h
     return sheet
 
 

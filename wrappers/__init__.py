@@ -1,11 +1,11 @@
 """Gymnasium wrappers for FogDrive-v0, importable as ``fog_gym.wrappers`` (one wrapper per module).
 
-The fog, recording, curriculum and observation-shaping wrappers live here.
-
 Example:
-    >>> import fog_gym.wrappers
-    >>> fog_gym.wrappers.__name__
-    'fog_gym.wrappers'
+    >>> from fog_gym.wrappers import FogWrapper
+    >>> FogWrapper.__name__
+    'FogWrapper'
 """
 
-__all__: list[str] = []
+from fog_gym.wrappers.fog import FogWrapper, parse_fog_levels
+
+__all__ = ["FogWrapper", "parse_fog_levels"]

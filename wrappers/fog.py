@@ -1,0 +1,162 @@
+"""``FogWrapper``: calibrated fog on FogDrive-v0's cameras and LiDAR, in place or paired with the clean data."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+
+from fog_gym.fog import FogLevel, atmospheric_light, fog_image, fog_lidar, parse_fog, ray_length_factor
+from fog_gym.points import LIDAR, pack_points, unpack_points
+
+FogSpec = str | float | int | FogLevel
+
+
+def parse_fog_levels(fog: FogSpec | Sequence[FogSpec]) -> tuple[tuple[FogLevel, ...], bool]:
+    """``(levels, paired)``: one level (in place) or a list of distinct levels (paired). Errors before any work."""
+    if isinstance(fog, (list, tuple)):
+        if not fog:
+            raise ValueError("fog list must name at least one level, e.g. ['light', 'moderate', 'dense']")
+        levels = tuple(parse_fog(f) for f in fog)
+        names = [lv.name for lv in levels]
+        if len(set(names)) != len(names):
+            raise ValueError(f"fog list must not repeat a level, got {list(fog)!r}")
+        if any(lv.is_clear for lv in levels):
+            raise ValueError("fog list (paired mode) holds fog levels; the clean channels are kept anyway, drop 'clear'")
+        return levels, True
+    return (parse_fog(fog),), False
+
+
+class FogWrapper(gym.Wrapper):
+    """Fog on camera RGB (Koschmieder) and LiDAR (Hahner et al.) at any visibility; ground truth untouched.
+
+    * **In place** (``fog`` a single level: "clear", "light" 160 m, "moderate" 100 m, "dense" 50 m, or metres):
+      fogged ``CAM_*`` RGB and ``LIDAR_TOP`` replace the clean data under the same keys; the observation space
+      does not depend on the level, so :meth:`set_fog` can change it between episodes (curricula).
+    * **Paired** (``fog`` a list): the clean channels stay and ``CAM_*_FOG_<LEVEL>`` and ``LIDAR_TOP_FOG_<LEVEL>``
+      are added, all from the same render — FogDrive's pairing.
+
+    Depth, semantic camera, semantic LiDAR and radar are never changed. ``info["fog"]`` reports
+    ``{"visibility_m": V, "alpha": α}`` (paired: one such dict per level name). The atmospheric light is
+    estimated once per episode per camera from the first clean frame (dark channel, top 0.1 %, median grey),
+    or fixed with ``airlight=(r, g, b)``. LiDAR fog noise comes from a generator seeded by the episode and level.
+
+    >>> import fog_gym
+    >>> env = FogWrapper(fog_gym.FogDriveEnv(town="merge", resolution=(32, 24), cameras=["CAM_FRONT"]), "dense")
+    >>> obs, info = env.reset(seed=0)
+    >>> info["fog"]["visibility_m"]
+    50.0
+    """
+
+    def __init__(self, env: gym.Env, fog: FogSpec | Sequence[FogSpec] = "dense", airlight: str | Sequence[float] = "estimate",
+                 lidar_noise: float = 10.0) -> None:  # fmt: skip
+        levels, paired = parse_fog_levels(fog)
+        if isinstance(airlight, str):
+            if airlight != "estimate":
+                raise ValueError(f"airlight must be 'estimate' or an (r, g, b) triple in 0–255, got {airlight!r}")
+            fixed = None
+        else:
+            fixed = np.asarray(airlight, np.float64)
+            if fixed.shape != (3,) or not np.all(np.isfinite(fixed)) or fixed.min() < 0 or fixed.max() > 255:
+                raise ValueError(f"airlight must be 'estimate' or an (r, g, b) triple in 0–255, got {airlight!r}")
+        if not math.isfinite(lidar_noise) or lidar_noise < 0:
+            raise ValueError(f"lidar_noise must be >= 0 metres, got {lidar_noise!r}")
+        super().__init__(env)
+        base = env.unwrapped
+        if not hasattr(base, "cameras") or not hasattr(base, "episode_seed"):
+            raise ValueError("FogWrapper wraps a FogDrive-v0 environment")
+        self.levels, self.paired = levels, paired
+        self._fixed_airlight, self.lidar_noise = fixed, float(lidar_noise)
+        self._pending: FogLevel | None = None
+        self._last: dict | None = None
+        self.cameras = [n for n in base.cameras.names]
+        self._factors = {
+            c.name: ray_length_factor(c.width, c.height, base.cameras.intrinsics[c.name]) for c in base.config.rig.cameras
+        }
+        self.has_lidar = LIDAR in env.observation_space.spaces
+        self.airlight: dict[str, np.ndarray] = {}
+        self._rngs: dict[str, np.random.Generator] = {}
+        if paired:
+            spaces = dict(env.observation_space.spaces)
+            for lv in levels:
+                for cam in self.cameras:
+                    spaces[f"{cam}_{lv.channel_suffix}"] = env.observation_space[cam]
+                if self.has_lidar:
+                    spaces[f"{LIDAR}_{lv.channel_suffix}"] = env.observation_space[LIDAR]
+            self.observation_space = gym.spaces.Dict(spaces)
+
+    # -- API ------------------------------------------------------------------------------------------------
+    @property
+    def fog(self) -> FogLevel | tuple[FogLevel, ...]:
+        """The level in force (in place) or the levels (paired)."""
+        return self.levels if self.paired else self.levels[0]
+
+    def set_fog(self, fog: FogSpec) -> None:
+        """Change the level from the next ``reset`` on (in-place mode). Reachable via ``env_method``."""
+        if self.paired:
+            raise ValueError("set_fog works in in-place mode; a paired wrapper's channels are fixed at construction")
+        self._pending = parse_fog(fog)
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        if self._pending is not None:
+            self.levels, self._pending = (self._pending,), None
+        obs, info = self.env.reset(seed=seed, options=options)
+        base = self.env.unwrapped
+        self.airlight = {
+            cam: self._fixed_airlight if self._fixed_airlight is not None else atmospheric_light(obs[cam])
+            for cam in self.cameras
+        }
+        self._rngs = {
+            lv.name: np.random.default_rng(np.random.SeedSequence([base.episode_seed, 0xF06, _level_key(lv)]))
+            for lv in self.levels
+        }
+        return self._apply(obs), self._info(info)
+
+    def step(self, action: Any):
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        return self._apply(obs), reward, terminated, truncated, self._info(info)
+
+    def render(self):
+        """In place: the fogged front camera beside the bird's-eye view; paired: the base env's render."""
+        frame = self.env.render()
+        base = self.env.unwrapped
+        if frame is None or self.paired or self.levels[0].is_clear or self._last is None or base.scene is None:
+            return frame
+        from fog_gym.viz import birds_eye_view, composite
+
+        cam = "CAM_FRONT" if "CAM_FRONT" in self._last else (self.cameras[0] if self.cameras else None)
+        return composite(None if cam is None else self._last[cam], birds_eye_view(base.scene))
+
+    # -- internals ------------------------------------------------------------------------------------------
+    def _info(self, info: dict) -> dict:
+        info = dict(info)
+        info["fog"] = {lv.name: lv.info() for lv in self.levels} if self.paired else self.levels[0].info()
+        return info
+
+    def _fogged(self, obs: dict, level: FogLevel) -> dict[str, np.ndarray]:
+        base = self.env.unwrapped
+        out = {}
+        for cam in self.cameras:
+            out[cam] = fog_image(obs[cam], obs[f"{cam}_DEPTH"], base.cameras.intrinsics[cam], level.alpha,
+                                 self.airlight[cam], self._factors[cam])  # fmt: skip
+        if self.has_lidar:
+            clean = unpack_points(obs, LIDAR)
+            out[LIDAR] = pack_points(fog_lidar(clean, level, self._rngs[level.name], self.lidar_noise), obs[LIDAR].shape[0])
+        return out
+
+    def _apply(self, obs: dict) -> dict:
+        if not self.paired:
+            level = self.levels[0]
+            self._last = obs if level.is_clear else {**obs, **self._fogged(obs, level)}
+            return self._last
+        out = dict(obs)
+        for lv in self.levels:
+            out.update({f"{k}_{lv.channel_suffix}": v for k, v in self._fogged(obs, lv).items()})
+        return out
+
+
+def _level_key(level: FogLevel) -> int:
+    return 0 if level.is_clear else int(round(level.visibility_m * 1000))
