@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import functools
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import cv2
@@ -125,55 +126,96 @@ def atmospheric_light(rgb: np.ndarray, window: int = 15, top_fraction: float = 0
     img = np.ascontiguousarray(rgb)
     if img.ndim != 3 or img.shape[2] != 3:
         raise ValueError(f"expected an (H, W, 3) RGB image, got shape {img.shape}")
-    dark = cv2.erode(img.min(axis=2), np.ones((window, window), np.uint8))
+    channels = cv2.split(img)
+    dark = cv2.erode(cv2.min(cv2.min(channels[0], channels[1]), channels[2]), np.ones((window, window), np.uint8))
     k = max(1, int(math.floor(top_fraction * dark.size)))
     k += 1 - k % 2
     flat = dark.reshape(-1)
-    top = np.argpartition(flat, flat.size - k)[flat.size - k :]
+    # the k brightest dark-channel pixels: all above a threshold value, then ties in raster order
+    counts = np.bincount(flat, minlength=256)
+    above = np.cumsum(counts[::-1])[::-1]  # pixels >= value
+    threshold = int(np.nonzero(above >= k)[0].max())
+    strictly = np.flatnonzero(flat > threshold)
+    ties = np.flatnonzero(flat == threshold)[: k - len(strictly)]
+    top = np.concatenate([strictly, ties])
     pixels = img.reshape(-1, 3)[top].astype(np.float64)
     grey = pixels @ np.array([0.2989, 0.5870, 0.1140])
     return pixels[np.argsort(grey, kind="stable")[k // 2]]
 
 
-@functools.lru_cache(maxsize=32)
-def _transmittance_lut(alpha: float, step: float = 0.01, max_length: float = 2000.0) -> np.ndarray:
-    return np.exp(-alpha * np.arange(0.0, max_length + step, step)).astype(np.float32)
+_F32 = np.float32
 
 
-@njit(cache=True, parallel=True)
-def _koschmieder(rgb, depth, factor, lut, inv_step, airlight, out):
+@njit(cache=True, inline="always", fastmath=True)
+def _exp_neg(x):
+    """exp(x) for float32 x ≤ 0 without a libm call, so pixel loops vectorise: exp(x) = (exp(x/64))^64 with a
+    degree-5 Taylor polynomial on [−0.25, 0] (relative error < 2e-5); x is clamped at −16 (exp(−16) = 1.1e-7)."""
+    y = max(x, _F32(-16.0)) * _F32(0.015625)
+    p = _F32(1.0) + y * (_F32(1.0) + y * (_F32(0.5) + y * (_F32(1.0 / 6) + y * (_F32(1.0 / 24) + y * _F32(1.0 / 120)))))
+    p = p * p
+    p = p * p
+    p = p * p
+    p = p * p
+    p = p * p
+    return p * p
+
+
+@njit(cache=True, parallel=True, fastmath=True)
+def _koschmieder(rgb, depth, col_sq, row_sq, alphas, airlight_row, out):
+    # rgb (H, 3W) and out (L, H, 3W) are viewed flat per row so every inner loop is contiguous (SIMD)
     h, w = depth.shape
-    last = lut.shape[0] - 1
+    n_levels = alphas.shape[0]
     for i in prange(h):
+        b2 = np.float32(1.0) + row_sq[i]
+        ell = np.empty(w, np.float32)
         for j in range(w):
-            k = int(depth[i, j] * factor[i, j] * inv_step + 0.5)
-            t = lut[min(k, last)]
-            for c in range(3):
-                out[i, j, c] = np.uint8(rgb[i, j, c] * t + airlight[c] * (1.0 - t) + 0.5)
+            ell[j] = depth[i, j] * np.sqrt(b2 + col_sq[j])
+        diff = np.empty(3 * w, np.float32)
+        for k in range(3 * w):
+            diff[k] = np.float32(rgb[i, k]) - airlight_row[k]
+        t = np.empty(w, np.float32)
+        t3 = np.empty(3 * w, np.float32)
+        for lv in range(n_levels):
+            a = -alphas[lv]
+            for j in range(w):
+                t[j] = _exp_neg(a * ell[j])
+            for j in range(w):  # repeat each pixel's transmittance for its three channels
+                t3[3 * j] = t[j]
+                t3[3 * j + 1] = t[j]
+                t3[3 * j + 2] = t[j]
+            for k in range(3 * w):
+                out[lv, i, k] = np.uint8(airlight_row[k] + diff[k] * t3[k] + np.float32(0.5))
 
 
-def fog_image(rgb: np.ndarray, depth: np.ndarray, K: np.ndarray, alpha: float, airlight: np.ndarray,
-              factor: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
-    """Koschmieder fog on a uint8 RGB image with planar depth (metres) and intrinsic ``K``.
+def fog_images(rgb: np.ndarray, depth: np.ndarray, K: np.ndarray, alphas: Sequence[float], airlight: np.ndarray) -> np.ndarray:
+    """Koschmieder fog at several extinctions in one pass: ``(L, H, W, 3)`` uint8 for ``alphas`` (all > 0).
 
-    ``t = exp(−α·ℓ)`` is read from a table at 1 cm steps of ℓ (|error| < α·5 mm, far below 1/255).
-    ``alpha = 0`` returns a copy of the input. ``factor`` (from :func:`ray_length_factor`) may be passed to
-    save its computation.
+    ``ℓ = z · sqrt(1 + ((u − cx)/fx)² + ((v − cy)/fy)²)`` at pixel centres; ``t = exp(−α·ℓ)``;
+    ``I = A + (J − A)·t`` rounded. One read of image and depth serves every level.
+    """
+    h, w = depth.shape
+    if rgb.shape != (h, w, 3) or rgb.dtype != np.uint8:
+        raise ValueError(f"expected a uint8 (H, W, 3) image matching depth {depth.shape}, got {rgb.dtype} {rgb.shape}")
+    col = (((np.arange(w) + 0.5 - K[0, 2]) / K[0, 0]) ** 2).astype(np.float32)
+    row = (((np.arange(h) + 0.5 - K[1, 2]) / K[1, 1]) ** 2).astype(np.float32)
+    out = np.empty((len(alphas), h, w, 3), np.uint8)
+    airlight_row = np.tile(np.asarray(airlight, np.float32), w)
+    _koschmieder(np.ascontiguousarray(rgb).reshape(h, 3 * w), np.ascontiguousarray(depth, np.float32), col, row,
+                 np.asarray(alphas, np.float32), airlight_row, out.reshape(len(alphas), h, 3 * w))  # fmt: skip
+    return out
 
-    >>> img = np.full((2, 2, 3), 10, np.uint8); depth = np.full((2, 2), 50.0, np.float32)
+
+def fog_image(rgb: np.ndarray, depth: np.ndarray, K: np.ndarray, alpha: float, airlight: np.ndarray) -> np.ndarray:
+    """Koschmieder fog on a uint8 RGB image with planar depth (metres) and intrinsic ``K``; ``alpha = 0`` copies.
+
+    >>> img = np.zeros((2, 2, 3), np.uint8); depth = np.full((2, 2), 50.0, np.float32)
     >>> K = np.array([[1e6, 0, 1], [0, 1e6, 1], [0, 0, 1]])
     >>> fog_image(img, depth, K, alpha_from_visibility(50), np.array([200.0, 200, 200]))[0, 0].tolist()
     [190, 190, 190]
     """
     if alpha == 0.0:
         return rgb.copy()
-    h, w = depth.shape
-    if factor is None:
-        factor = ray_length_factor(w, h, K)
-    out = np.empty_like(rgb)
-    _koschmieder(rgb, np.ascontiguousarray(depth, np.float32), factor, _transmittance_lut(float(alpha)), 100.0,
-                 np.asarray(airlight, np.float64), out)  # fmt: skip
-    return out
+    return fog_images(rgb, depth, K, [alpha], airlight)[0]
 
 
 # ---------------------------------------------------------------------------------------------------------------
@@ -226,6 +268,31 @@ def lidar_crossover_range(level: FogLevel) -> float:
     return float(r[np.argmax(r**2 * I[-1] * beta / beta0 > np.exp(-2 * level.alpha * r))])
 
 
+@njit(cache=True, parallel=True)
+def _hahner(pts, table_i, table_r, alpha, beta_ratio, log_noise, u, out):
+    last = table_i.shape[0] - 1
+    for n in prange(pts.shape[0]):
+        x, y, z = np.float64(pts[n, 0]), np.float64(pts[n, 1]), np.float64(pts[n, 2])
+        r0 = np.sqrt(x * x + y * y + z * z)
+        i_orig = np.round(np.float64(pts[n, 3]) * 255.0)
+        i_hard = np.round(i_orig * np.exp(-2.0 * alpha * r0))
+        key = min(int(np.round(min(r0, 200.0) / TABLE_STEP)), last)
+        i_soft = min(255.0, table_i[key] * i_orig * r0 * r0 * beta_ratio)
+        if i_soft > i_hard:  # the fog's own return is stronger: a fog point on the same ray
+            scale = table_r[key] / max(r0, 1e-12) * np.exp(log_noise * u[n])
+            out[n, 0] = np.float32(x * scale)
+            out[n, 1] = np.float32(y * scale)
+            out[n, 2] = np.float32(z * scale)
+            out[n, 3] = np.float32(i_soft / 255.0)
+        else:
+            out[n, 0] = pts[n, 0]
+            out[n, 1] = pts[n, 1]
+            out[n, 2] = pts[n, 2]
+            out[n, 3] = np.float32(i_hard / 255.0)
+        for c in range(4, pts.shape[1]):
+            out[n, c] = pts[n, c]
+
+
 def fog_lidar(points: np.ndarray, level: FogLevel, rng: np.random.Generator, noise: float = 10.0) -> np.ndarray:
     """Hahner et al. fog on CARLA LiDAR points ``(N, 4)`` x, y, z, intensity ∈ [0, 1] → ``(N, 4)`` float32.
 
@@ -244,18 +311,8 @@ def fog_lidar(points: np.ndarray, level: FogLevel, rng: np.random.Generator, noi
     if level.is_clear:
         return pts.copy()
     table_i, table_r = soft_response_table(level.alpha)
-    xyz = pts[:, :3].astype(np.float64)
-    r0 = np.sqrt((xyz * xyz).sum(axis=1))
-    i_orig = np.round(pts[:, 3].astype(np.float64) * 255.0)
-    i_hard = np.round(i_orig * np.exp(-2.0 * level.alpha * r0))
-    key = np.minimum(np.round(np.minimum(r0, 200.0) / TABLE_STEP).astype(np.int64), len(table_i) - 1)
-    beta = BETA_PER_MOR / level.visibility_m
-    i_soft = np.minimum(255.0, table_i[key] * i_orig * r0 * r0 * beta / (GAMMA / math.pi))
-    replace = i_soft > i_hard
-    factor = max(1.0, noise / 5.0) ** rng.uniform(-1.0, 1.0, len(pts)) if noise > 0 else np.ones(len(pts))
-    out = pts.copy()
-    with np.errstate(divide="ignore", invalid="ignore"):
-        scale = np.where(replace, table_r[key] / np.maximum(r0, 1e-12) * factor, 1.0)
-    out[:, :3] = (xyz * scale[:, None]).astype(np.float32)
-    out[:, 3] = (np.where(replace, i_soft, i_hard) / 255.0).astype(np.float32)
+    u = rng.uniform(-1.0, 1.0, len(pts))
+    out = np.empty_like(pts)
+    _hahner(pts, table_i, table_r, level.alpha, BETA_PER_MOR / level.visibility_m / (GAMMA / math.pi),
+            math.log(max(1.0, noise / 5.0)) if noise > 0 else 0.0, u, out)  # fmt: skip
     return out

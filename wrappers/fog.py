@@ -9,7 +9,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from fog_gym.fog import FogLevel, atmospheric_light, fog_image, fog_lidar, parse_fog, ray_length_factor
+from fog_gym.fog import FogLevel, atmospheric_light, fog_images, fog_lidar, parse_fog
 from fog_gym.points import LIDAR, pack_points, unpack_points
 
 FogSpec = str | float | int | FogLevel
@@ -73,9 +73,6 @@ class FogWrapper(gym.Wrapper):
         self._pending: FogLevel | None = None
         self._last: dict | None = None
         self.cameras = [n for n in base.cameras.names]
-        self._factors = {
-            c.name: ray_length_factor(c.width, c.height, base.cameras.intrinsics[c.name]) for c in base.config.rig.cameras
-        }
         self.has_lidar = LIDAR in env.observation_space.spaces
         self.airlight: dict[str, np.ndarray] = {}
         self._rngs: dict[str, np.random.Generator] = {}
@@ -136,25 +133,31 @@ class FogWrapper(gym.Wrapper):
         info["fog"] = {lv.name: lv.info() for lv in self.levels} if self.paired else self.levels[0].info()
         return info
 
-    def _fogged(self, obs: dict, level: FogLevel) -> dict[str, np.ndarray]:
+    def _fogged(self, obs: dict, levels: tuple[FogLevel, ...]) -> dict[str, dict[str, np.ndarray]]:
+        """Fogged camera RGB and LiDAR per level name (all levels of a camera in one pass)."""
         base = self.env.unwrapped
-        out = {}
+        out: dict[str, dict[str, np.ndarray]] = {lv.name: {} for lv in levels}
+        alphas = [lv.alpha for lv in levels]
         for cam in self.cameras:
-            out[cam] = fog_image(obs[cam], obs[f"{cam}_DEPTH"], base.cameras.intrinsics[cam], level.alpha,
-                                 self.airlight[cam], self._factors[cam])  # fmt: skip
+            images = fog_images(obs[cam], obs[f"{cam}_DEPTH"], base.cameras.intrinsics[cam], alphas, self.airlight[cam])
+            for lv, img in zip(levels, images):
+                out[lv.name][cam] = img
         if self.has_lidar:
             clean = unpack_points(obs, LIDAR)
-            out[LIDAR] = pack_points(fog_lidar(clean, level, self._rngs[level.name], self.lidar_noise), obs[LIDAR].shape[0])
+            for lv in levels:
+                fogged = fog_lidar(clean, lv, self._rngs[lv.name], self.lidar_noise)
+                out[lv.name][LIDAR] = pack_points(fogged, obs[LIDAR].shape[0])
         return out
 
     def _apply(self, obs: dict) -> dict:
         if not self.paired:
             level = self.levels[0]
-            self._last = obs if level.is_clear else {**obs, **self._fogged(obs, level)}
+            self._last = obs if level.is_clear else {**obs, **self._fogged(obs, self.levels)[level.name]}
             return self._last
         out = dict(obs)
+        fogged = self._fogged(obs, self.levels)
         for lv in self.levels:
-            out.update({f"{k}_{lv.channel_suffix}": v for k, v in self._fogged(obs, lv).items()})
+            out.update({f"{k}_{lv.channel_suffix}": v for k, v in fogged[lv.name].items()})
         return out
 
 
