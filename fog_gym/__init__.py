@@ -12,6 +12,10 @@ from __future__ import annotations
 
 from gymnasium.envs.registration import register
 
+from fog_gym._memory import tune_malloc
+
+tune_malloc()
+
 from fog_gym.config import CAMERA_NAMES, TIMES_OF_DAY, TOWNS, CameraConfig, FogDriveConfig, Pose, RigConfig
 from fog_gym.lidar import LidarConfig, RadarConfig
 from fog_gym.points import unpack_points

@@ -53,10 +53,10 @@ def pack_points(points: np.ndarray, capacity: int) -> np.ndarray:
 def unpack_points(obs: Mapping[str, np.ndarray] | np.ndarray, channel: str | None = None) -> np.ndarray:
     """The exact ``(N, 4)`` / ``(N, 6)`` / ``(N, 4)`` float32 points of ``LIDAR_TOP*``, ``SEM_LIDAR_TOP`` or
     ``RADAR_FRONT`` from an observation dict (or from the channel's array itself)."""
+    kind = None if channel is None else channel_kind(channel)
     if isinstance(obs, Mapping):
         if channel is None:
             raise ValueError("unpack_points needs the channel name when given an observation dict")
-        channel_kind(channel)
         if channel not in obs:
             raise KeyError(f"{channel!r} is not in the observation (keys: {sorted(obs)})")
         array = np.asarray(obs[channel])
@@ -66,7 +66,12 @@ def unpack_points(obs: Mapping[str, np.ndarray] | np.ndarray, channel: str | Non
         raise ValueError(
             f"expected one (capacity, C) point array, got shape {array.shape} (index a vector env's batch first)"
         )
-    valid = np.any(array != 0, axis=1)
+    if kind == RADAR:  # a detection has a non-zero depth
+        valid = array[:, 3] != 0
+    elif kind is not None:  # a LiDAR return has a non-zero position
+        valid = (array[:, 0] != 0) | (array[:, 1] != 0) | (array[:, 2] != 0)
+    else:
+        valid = np.any(array != 0, axis=1)
     n = int(valid.sum())
     if n and not valid[:n].all():  # not packed: keep every non-zero row, in order
         return np.ascontiguousarray(array[valid], np.float32)

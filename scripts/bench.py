@@ -631,6 +631,55 @@ def render_point_sensors(ps: dict[str, Any], repeats: int) -> list[str]:
     return out
 
 
+def bench_fog(repeats: int) -> dict[str, Any]:
+    """Fog stages on one real full-rig frame: camera fog per 1280×960 image, LiDAR fog per 100 k points, and the
+    full paired frame (4 cameras × 3 levels + 3 LiDAR levels) as ``FogWrapper`` computes it."""
+    from fog_gym.env import FogDriveEnv
+    from fog_gym.fog import atmospheric_light, fog_image, fog_images, fog_lidar, parse_fog
+    from fog_gym.points import unpack_points
+    from fog_gym.wrappers import FogWrapper
+
+    levels = ("light", "moderate", "dense")
+    env = FogWrapper(FogDriveEnv(town="highway"), list(levels))
+    obs, _ = env.reset(seed=0)
+    base = env.unwrapped
+    K = base.cameras.intrinsics["CAM_FRONT"]
+    rgb, depth = base.frames["CAM_FRONT"].rgb, base.frames["CAM_FRONT"].depth
+    airlight = env.airlight["CAM_FRONT"]
+    clean_lidar = base.points["LIDAR_TOP"]
+    rng = np.random.default_rng(0)
+    r = rng.uniform(1.5, 120.0, 100_000)
+    az, el = rng.uniform(-np.pi, np.pi, r.size), rng.uniform(-0.35, 0.09, r.size)
+    cloud = np.c_[r * np.cos(el) * np.cos(az), r * np.cos(el) * np.sin(az), r * np.sin(el), np.exp(-0.004 * r)]
+    cloud = cloud.astype(np.float32)
+    alphas = [parse_fog(lv).alpha for lv in levels]
+    calls: dict[str, Callable[[], Any]] = {
+        **{f"camera fog, 1 image, {lv}": (lambda a=parse_fog(lv).alpha: fog_image(rgb, depth, K, a, airlight))
+           for lv in levels},
+        "camera fog, 1 image, 3 levels in one pass": lambda: fog_images(rgb, depth, K, alphas, airlight),
+        "LiDAR fog, 100 k points, dense": lambda: fog_lidar(cloud, parse_fog("dense"), rng),
+        f"LiDAR fog, this frame's sweep ({len(clean_lidar)} points), dense": lambda: fog_lidar(
+            clean_lidar, parse_fog("dense"), rng),
+        "atmospheric light estimate, 1 image (once per episode)": lambda: atmospheric_light(rgb),
+        "**full paired frame: 4 cameras × 3 levels + 3 LiDAR levels**": lambda: env._fogged(obs, env.levels),
+    }  # fmt: skip
+    for fn in calls.values():  # warm-up (compiles)
+        fn()
+    stats = {}
+    for name, fn in tqdm(calls.items(), desc="fog stages", unit="stage", file=sys.stderr):
+        stats[name] = summarize([timed(fn)[1] for _ in range(repeats)])
+    env.close()
+    assert unpack_points(obs, "LIDAR_TOP_FOG_DENSE").shape == clean_lidar.shape
+    return {"stages": stats, "lidar_points": int(len(clean_lidar)), "targets": {"LiDAR 100k": 5.0, "paired frame": 20.0}}
+
+
+def render_fog(fog: dict[str, Any], repeats: int) -> list[str]:
+    rows = [[name, fmt_ms(stat)] for name, stat in fog["stages"].items()]
+    return [f"## Fog (full rig, highway, seed 0): ms, median (p25–p75), {repeats} repeats", "",
+            markdown_table(["stage", "ms"], rows), "",
+            "Targets: LiDAR fog on 100 k points ≤ 5 ms; full paired frame ≤ 20 ms (2-core CPU)."]  # fmt: skip
+
+
 def render_report(results: dict[str, Any]) -> str:
     meta, rigs, base = results["meta"], results["rigs"], results["baseline"]
     keys = list(rigs)
@@ -803,11 +852,13 @@ def main(argv: list[str] | None = None) -> int:
     t0 = time.perf_counter()
     rigs = {key: bench_rig(args.town, key, repeats) for key in RIGS}
     point_sensors = bench_point_sensors(repeats)
+    fog = bench_fog(repeats)
     baseline = bench_baselines(args.town, repeats, profile_steps)
     meta.update(wall_s=time.perf_counter() - t0, loadavg_end=load_average(), numba_layer=numba.threading_layer())
-    results = {"meta": meta, "rigs": rigs, "point_sensors": point_sensors, "baseline": baseline}
+    results = {"meta": meta, "rigs": rigs, "point_sensors": point_sensors, "fog": fog, "baseline": baseline}
 
     print(render_report(results))
+    print("\n" + "\n".join(render_fog(fog, repeats)))
     if args.json is not None:
         args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(json.dumps(results, indent=2))
