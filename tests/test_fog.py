@@ -203,3 +203,11 @@ def test_fog_wrapper_in_async_vector_env():
         assert np.all(info["fog"]["visibility_m"] == 50.0)
     finally:
         envs.close()
+
+
+def test_malloc_tuning_is_applied_and_can_be_disabled(monkeypatch):
+    from fog_gym._memory import tune_malloc
+
+    assert tune_malloc() is True  # glibc on Linux: freed frame buffers are kept for reuse
+    monkeypatch.setenv("FOG_GYM_MALLOC_TUNING", "0")
+    assert tune_malloc() is False
