@@ -27,6 +27,9 @@ TIMES_OF_DAY: tuple[str, ...] = ("day", "night")
 
 
 def _finite(name: str, value: Any) -> float:
+    """``value`` as a finite float, or a ValueError naming ``name`` (booleans are not numbers here)."""
+    if isinstance(value, bool):
+        raise ValueError(f"{name} must be a finite number, got {value!r}")
     try:
         v = float(value)
     except (TypeError, ValueError):

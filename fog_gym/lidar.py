@@ -38,23 +38,12 @@ import numpy as np
 from numba import njit
 
 from fog_gym.config import Pose
+from fog_gym.config import _finite as _number  # one finite-number check for every config
 from fog_gym.geometry import transform_matrix, yaw_transform
 from fog_gym.render.raycast import MISS, cast_rays
 from fog_gym.scenery import SURFACE_TAGS, SurfaceMap
 
 _EPS = float(np.finfo(np.float32).eps)  # CARLA switches drop-off / noise on above float epsilon
-
-
-def _number(name: str, value: Any) -> float:
-    if isinstance(value, bool):
-        raise ValueError(f"{name} must be a finite number, got {value!r}")
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a finite number, got {value!r}") from None
-    if not math.isfinite(v):
-        raise ValueError(f"{name} must be a finite number, got {value!r}")
-    return v
 
 
 def _positive(name: str, value: Any) -> float:
