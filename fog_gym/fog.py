@@ -162,29 +162,32 @@ def _exp_neg(x):
 
 @njit(cache=True, parallel=True, fastmath=True)
 def _koschmieder(rgb, depth, col_sq, row_sq, alphas, airlight_row, out):
-    # rgb (H, 3W) and out (L, H, 3W) are viewed flat per row so every inner loop is contiguous (SIMD)
+    # rgb (H, 3W) and out (L, H, 3W) are viewed flat per row so every inner loop is contiguous (SIMD);
+    # rows go in 16 chunks so each task allocates its scratch rows once
     h, w = depth.shape
     n_levels = alphas.shape[0]
-    for i in prange(h):
-        b2 = np.float32(1.0) + row_sq[i]
+    n_chunks = 16
+    for chunk in prange(n_chunks):
         ell = np.empty(w, np.float32)
-        for j in range(w):
-            ell[j] = depth[i, j] * np.sqrt(b2 + col_sq[j])
-        diff = np.empty(3 * w, np.float32)
-        for k in range(3 * w):
-            diff[k] = np.float32(rgb[i, k]) - airlight_row[k]
         t = np.empty(w, np.float32)
+        diff = np.empty(3 * w, np.float32)
         t3 = np.empty(3 * w, np.float32)
-        for lv in range(n_levels):
-            a = -alphas[lv]
+        for i in range(chunk * h // n_chunks, (chunk + 1) * h // n_chunks):
+            b2 = np.float32(1.0) + row_sq[i]
             for j in range(w):
-                t[j] = _exp_neg(a * ell[j])
-            for j in range(w):  # repeat each pixel's transmittance for its three channels
-                t3[3 * j] = t[j]
-                t3[3 * j + 1] = t[j]
-                t3[3 * j + 2] = t[j]
+                ell[j] = depth[i, j] * np.sqrt(b2 + col_sq[j])
             for k in range(3 * w):
-                out[lv, i, k] = np.uint8(airlight_row[k] + diff[k] * t3[k] + np.float32(0.5))
+                diff[k] = np.float32(rgb[i, k]) - airlight_row[k]
+            for lv in range(n_levels):
+                a = -alphas[lv]
+                for j in range(w):
+                    t[j] = _exp_neg(a * ell[j])
+                for j in range(w):  # repeat each pixel's transmittance for its three channels
+                    t3[3 * j] = t[j]
+                    t3[3 * j + 1] = t[j]
+                    t3[3 * j + 2] = t[j]
+                for k in range(3 * w):
+                    out[lv, i, k] = np.uint8(airlight_row[k] + diff[k] * t3[k] + np.float32(0.5))
 
 
 def fog_images(rgb: np.ndarray, depth: np.ndarray, K: np.ndarray, alphas: Sequence[float], airlight: np.ndarray) -> np.ndarray:
