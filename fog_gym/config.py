@@ -17,6 +17,7 @@ from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
 if TYPE_CHECKING:
+    from fog_gym.labels import LabelConfig
     from fog_gym.lidar import LidarConfig, RadarConfig
 
 #: FogDrive camera channel names (Table 3), in the order the rig lists them.
@@ -232,6 +233,7 @@ class FogDriveConfig:
     highway_config: Mapping[str, Any] = field(default_factory=dict)
     surface_resolution: float = 0.1  # metres per cell of the road-surface map
     far_distance: float = 1000.0  # camera far plane; sky depth, as CARLA's depth camera saturates at 1 km
+    labels: LabelConfig | None = field(default_factory=lambda: _default_labels())  # None: no boxes in info
 
     def __post_init__(self) -> None:
         if self.town not in TOWNS:
@@ -260,6 +262,15 @@ class FogDriveConfig:
         far = _finite("far_distance", self.far_distance)
         if far <= 1.0:
             raise ValueError(f"far_distance must be > 1 m, got {self.far_distance!r}")
+        from fog_gym.labels import LabelConfig
+
+        if self.labels is not None and not isinstance(self.labels, LabelConfig):
+            raise ValueError(f"labels must be a LabelConfig or None, got {type(self.labels).__name__}")
+        if self.labels is not None and self.labels.visibility == "lidar" and self.rig.semantic_lidar is None:
+            raise ValueError(
+                "labels: visibility='lidar' (FogDrive's rule) needs the semantic LiDAR in the rig; "
+                "use visibility='camera', or labels=None for no boxes"
+            )
 
     @property
     def episode_steps(self) -> int:
@@ -270,3 +281,9 @@ class FogDriveConfig:
     def town_number(self) -> int:
         """FogDrive town number (``T<n>``), the 1-based position in :data:`TOWNS`."""
         return TOWNS.index(self.town) + 1
+
+
+def _default_labels():
+    from fog_gym.labels import LabelConfig
+
+    return LabelConfig()

@@ -19,7 +19,10 @@ import numpy as np
 from gymnasium import spaces
 
 from fog_gym.config import FogDriveConfig, RigConfig
+from fog_gym import geometry
 from fog_gym.encoding import SEMANTIC_TAGS
+from fog_gym.labels import EXTRINSIC_KEYS, CameraView, LabelConfig, annotate
+from fog_gym.lidar import sensor_to_world
 from fog_gym.scene import Lighting, Scene, StaticWorld, vehicle_primitives
 from fog_gym.scenery import STYLES, build_surface, place_props
 from fog_gym.points import LIDAR, RADAR, SEMANTIC_LIDAR, lidar_space, pack_points, radar_space
@@ -63,6 +66,8 @@ class FogDriveEnv(gym.Env):
         simulation_frequency: int | None = None,
         keyframe_frequency: int | None = None,
         highway_config: dict[str, Any] | None = None,
+        visibility: str | None = None,
+        labels: LabelConfig | None | str = "default",
         config: FogDriveConfig | None = None,
         render_mode: str | None = None,
     ) -> None:
@@ -76,6 +81,9 @@ class FogDriveEnv(gym.Env):
             rig_cfg = replace(rig_cfg, cameras=tuple(_camera(rig_cfg, n) for n in cameras))
         if resolution is not None:
             rig_cfg = rig_cfg.with_resolution(resolution)
+        label_cfg = cfg.labels if isinstance(labels, str) and labels == "default" else labels
+        if visibility is not None:
+            label_cfg = replace(label_cfg if label_cfg is not None else LabelConfig(), visibility=visibility)
         updates = {
             k: v
             for k, v in dict(
@@ -85,7 +93,7 @@ class FogDriveEnv(gym.Env):
             ).items()
             if v is not None
         }  # fmt: skip
-        self.config = replace(cfg, rig=rig_cfg, **updates)
+        self.config = replace(cfg, rig=rig_cfg, labels=label_cfg, **updates)
         if render_mode is not None and render_mode not in self.metadata["render_modes"]:
             raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
         self.render_mode = render_mode
@@ -101,6 +109,13 @@ class FogDriveEnv(gym.Env):
             obs_spaces[f"{cam.name}_DEPTH"] = spaces.Box(0.0, c.far_distance, shape, np.float32)
             obs_spaces[f"{cam.name}_SEM"] = spaces.Box(0, MAX_TAG, shape, np.uint8)
         self.point_sensors = PointSensors(c.rig, c.simulation_frequency)
+        # ground truth lives in the LiDAR frame (FogDrive's 3D boxes); the FogDrive roof pose if the rig has no LiDAR
+        label_lidar = c.rig.lidar or c.rig.semantic_lidar
+        self._label_lidar_to_vehicle = sensor_to_world(label_lidar.pose if label_lidar else (0.0, 0.0, 2.0))
+        self._extrinsics = {
+            cam.name: geometry.lidar_to_camera(self._label_lidar_to_vehicle, self.cameras.sensor_to_vehicle[cam.name])
+            for cam in c.rig.cameras
+        }
         f = c.simulation_frequency
         if c.rig.lidar is not None:
             obs_spaces[LIDAR] = lidar_space(c.rig.lidar, f, semantic=False)
@@ -201,7 +216,32 @@ class FogDriveEnv(gym.Env):
         }
         if "rewards" in hw_info:
             info["rewards"] = {k: float(v) for k, v in hw_info["rewards"].items()}
+        if self.config.labels is not None:
+            info.update(self.ground_truth())
         return info
+
+    def ground_truth(self) -> dict[str, Any]:
+        """``boxes_3d``, ``boxes_2d`` (per camera), ``intrinsics`` and ``extrinsics`` of the current frame."""
+        scene, rig = self.scene, self.config.rig
+        ego_to_world = geometry.yaw_transform(*scene.ego_pose)
+        world_to_lidar = np.linalg.inv(ego_to_world @ self._label_lidar_to_vehicle)
+        views = [
+            CameraView(c.name, self._extrinsics[c.name], self.cameras.intrinsics[c.name], c.width, c.height,
+                       self.frames[c.name].instance)  # fmt: skip
+            for c in rig.cameras
+        ]
+        v = scene.vehicles
+        others = v.ids != scene.ego_id
+        sem = self.points.get(SEMANTIC_LIDAR)
+        boxes_3d, boxes_2d = annotate(v.ids[others], v.classes[others], v.centers[others], v.sizes[others],
+                                      v.yaws[others], v.velocities[others], world_to_lidar, views, sem,
+                                      self.config.labels)  # fmt: skip
+        return {
+            "boxes_3d": boxes_3d,
+            "boxes_2d": boxes_2d,
+            "intrinsics": {c.name: self.cameras.intrinsics[c.name].copy() for c in rig.cameras},
+            "extrinsics": {EXTRINSIC_KEYS[c.name]: self._extrinsics[c.name].copy() for c in rig.cameras},
+        }
 
     @property
     def instance_buffers(self) -> dict[str, np.ndarray]:

@@ -39,7 +39,9 @@ class FogWrapper(gym.Wrapper):
     * **Paired** (``fog`` a list): the clean channels stay and ``CAM_*_FOG_<LEVEL>`` and ``LIDAR_TOP_FOG_<LEVEL>``
       are added, all from the same render — FogDrive's pairing.
 
-    Depth, semantic camera, semantic LiDAR and radar are never changed. ``info["fog"]`` reports
+    Depth, semantic camera, semantic LiDAR, radar and ground truth are never changed; each box gains a
+    ``transmittance``: ``exp(−α·d)`` camera → box centre in ``boxes_2d``, the LiDAR's two-way ``exp(−2α·d)`` in
+    ``boxes_3d`` (paired: one array per level name). ``info["fog"]`` reports
     ``{"visibility_m": V, "alpha": α}`` (paired: one such dict per level name). The atmospheric light is
     estimated once per episode per camera from the first clean frame (dark channel, top 0.1 %, median grey),
     or fixed with ``airlight=(r, g, b)``. LiDAR fog noise comes from a generator seeded by the episode and level.
@@ -131,6 +133,17 @@ class FogWrapper(gym.Wrapper):
     def _info(self, info: dict) -> dict:
         info = dict(info)
         info["fog"] = {lv.name: lv.info() for lv in self.levels} if self.paired else self.levels[0].info()
+        if "boxes_3d" in info:  # how much fog stands between each sensor and each box (ground truth is unchanged)
+            def transmittance(distance: np.ndarray, two_way: bool) -> np.ndarray | dict[str, np.ndarray]:
+                k = 2.0 if two_way else 1.0
+                values = {lv.name: np.exp(-k * lv.alpha * distance) for lv in self.levels}
+                return values if self.paired else values[self.levels[0].name]
+
+            b3 = info["boxes_3d"]
+            info["boxes_3d"] = b3.with_fields(transmittance=transmittance(b3["distance"], True))
+            info["boxes_2d"] = {
+                cam: b.with_fields(transmittance=transmittance(b["distance"], False)) for cam, b in info["boxes_2d"].items()
+            }
         return info
 
     def _fogged(self, obs: dict, levels: tuple[FogLevel, ...]) -> dict[str, dict[str, np.ndarray]]:
