@@ -221,13 +221,17 @@ def _pixel_counts(instance, rects, ids):
     own = np.zeros(n, np.int64)
     any_vehicle = np.zeros(n, np.int64)
     for b in range(n):
+        vid = ids[b]
+        o = 0
+        a = 0
         for i in range(rects[b, 1], rects[b, 3] + 1):
-            for j in range(rects[b, 0], rects[b, 2] + 1):
-                v = instance[i, j]
-                if v != 0:
-                    any_vehicle[b] += 1
-                    if v == ids[b]:
-                        own[b] += 1
+            row = instance[i, rects[b, 0] : rects[b, 2] + 1]
+            for j in range(row.shape[0]):  # branch-free so it vectorises
+                v = row[j]
+                a += v != 0
+                o += v == vid
+        own[b] = o
+        any_vehicle[b] = a
     return own, any_vehicle
 
 
@@ -264,13 +268,9 @@ def boxes_2d(corners_lidar: np.ndarray, extrinsic: np.ndarray, K: np.ndarray, wi
     in_view = inside > 0
     bboxes = np.zeros((len(rect), 2, 2), np.int64)
     if in_view.any():
-        r = np.round(rect[in_view])
-        bboxes[in_view, 0, 0] = np.clip(r[:, 0], 0, width - 1)
-        bboxes[in_view, 0, 1] = np.clip(r[:, 1], 0, height - 1)
-        bboxes[in_view, 1, 0] = np.clip(r[:, 2], 0, width - 1)
-        bboxes[in_view, 1, 1] = np.clip(r[:, 3], 0, height - 1)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        truncation = np.where(total > 0, 1.0 - inside / np.maximum(total, 1e-12), 1.0)
+        limits = np.array([width - 1, height - 1, width - 1, height - 1], np.float64)
+        bboxes[in_view] = np.minimum(np.maximum(np.round(rect[in_view]), 0.0), limits).reshape(-1, 2, 2)
+    truncation = np.where(total > 0, 1.0 - inside / np.maximum(total, 1e-12), 1.0)
     return {
         "rect": rect, "bboxes": bboxes, "in_view": in_view, "truncation": np.clip(truncation, 0.0, 1.0), "area": inside,
         "distance": np.linalg.norm(corners_cam.mean(axis=1), axis=1),
