@@ -685,6 +685,38 @@ def render_fog(fog: dict[str, Any], repeats: int) -> list[str]:
             "Targets: LiDAR fog on 100 k points ≤ 5 ms; full paired frame ≤ 20 ms (2-core CPU)."]  # fmt: skip
 
 
+def bench_labels(repeats: int) -> dict[str, Any]:
+    """Ground truth for all four 1280×960 cameras (``env.ground_truth()``), both visibility rules, packed traffic."""
+    from fog_gym.env import FogDriveEnv
+
+    out: dict[str, Any] = {}
+    for rule in ("lidar", "camera"):
+        env = FogDriveEnv(town="highway", visibility=rule, highway_config=POINT_SENSOR_TRAFFIC)
+        env.reset(seed=0)
+        samples, boxes, near = [], [], []
+        for _ in tqdm(range(repeats + WARMUP_STEPS), desc=f"labels ({rule})", unit="frame", leave=False, file=sys.stderr):
+            _, _, terminated, truncated, _ = env.step(idle_action(env.action_space))
+            if terminated or truncated:
+                env.reset()
+            gt, ms = timed(env.ground_truth)
+            samples.append(ms)
+            boxes.append(sum(len(b["vehicle_ids"]) for b in gt["boxes_2d"].values()))
+            v = env.scene.vehicles
+            near.append(int((np.hypot(*(v.centers[1:, :2] - np.asarray(env.scene.ego_pose[:2])).T) <= 120.0).sum()))
+        out[rule] = {"ms": summarize(samples[WARMUP_STEPS:]), "boxes_2d": float(np.median(boxes)),
+                     "vehicles_within_120m": float(np.median(near))}  # fmt: skip
+        env.close()
+    return out
+
+
+def render_labels(lab: dict[str, Any], repeats: int) -> list[str]:
+    rows = [[f"`visibility=\"{rule}\"`", f"{r['vehicles_within_120m']:.0f}", f"{r['boxes_2d']:.0f}", fmt_ms(r["ms"])]
+            for rule, r in lab.items()]  # fmt: skip
+    return [f"## Ground truth, 4 cameras × 1280×960 (highway, {POINT_SENSOR_TRAFFIC}): ms per frame, {repeats} frames", "",
+            markdown_table(["rule", "vehicles within 120 m", "2D boxes (all cameras)", "ms"], rows), "",
+            "Target: ≤ 2 ms per frame with ~50 vehicles."]  # fmt: skip
+
+
 def render_report(results: dict[str, Any]) -> str:
     meta, rigs, base = results["meta"], results["rigs"], results["baseline"]
     keys = list(rigs)
@@ -858,12 +890,14 @@ def main(argv: list[str] | None = None) -> int:
     rigs = {key: bench_rig(args.town, key, repeats) for key in RIGS}
     point_sensors = bench_point_sensors(repeats)
     fog = bench_fog(repeats)
+    labels = bench_labels(repeats)
     baseline = bench_baselines(args.town, repeats, profile_steps)
     meta.update(wall_s=time.perf_counter() - t0, loadavg_end=load_average(), numba_layer=numba.threading_layer())
-    results = {"meta": meta, "rigs": rigs, "point_sensors": point_sensors, "fog": fog, "baseline": baseline}
+    results = {"meta": meta, "rigs": rigs, "point_sensors": point_sensors, "fog": fog, "labels": labels, "baseline": baseline}
 
     print(render_report(results))
     print("\n" + "\n".join(render_fog(fog, repeats)))
+    print("\n" + "\n".join(render_labels(labels, repeats)))
     if args.json is not None:
         args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(json.dumps(results, indent=2))
