@@ -1,4 +1,4 @@
-"""The ``fog-gym`` command: ``fog-gym demo`` and ``fog-gym bench``.
+"""The ``fog-gym`` command: ``fog-gym demo``, ``fog-gym audit`` and ``fog-gym bench``.
 
 Example:
     >>> parser = build_parser()
@@ -45,6 +45,17 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--steps", type=int, default=20, help="env steps (0.1 s each) before the snapshot (default 20)")
     demo.add_argument("--seed", type=int, default=0)
     demo.add_argument("--out", type=Path, default=Path("out/demo"), help="output folder (default out/demo)")
+    audit = sub.add_parser(
+        "audit",
+        help="annotation audit of both visibility rules (precision, recall per distance bin); writes Markdown + PNG",
+        description="Drive every town by day and night, label each frame with FogDrive's LiDAR rule and the camera "
+        "rule, and report the paper's audit numbers: precision (boxes with >= 10%% vehicle pixels), recall (vehicle "
+        "blobs >= 100 px² covered >= 50%% by a box) overall and per distance bin.",
+    )
+    audit.add_argument("--frames", type=int, default=200, help="frames in all (default 200)")
+    audit.add_argument("--resolution", type=_resolution, default=(1280, 960))
+    audit.add_argument("--seed", type=int, default=0)
+    audit.add_argument("--out", type=Path, default=Path("out/audit"), help="output folder (default out/audit)")
     bench = sub.add_parser("bench", help="run scripts/bench.py (per-stage milliseconds)", add_help=False)
     bench.add_argument("args", nargs=argparse.REMAINDER)
     return parser
@@ -115,6 +126,18 @@ def main(argv: list[str] | None = None) -> int:
         runpy.run_path(str(script), run_name="__main__")
         return 0
     args = parser.parse_args(argv)
+    if args.command == "audit":
+        from fog_gym.audit import figure, report, run_audit
+
+        if args.frames < 1:
+            raise SystemExit("--frames must be >= 1")
+        result = run_audit(args.frames, args.resolution, args.seed)
+        text = report(result)
+        args.out.mkdir(parents=True, exist_ok=True)
+        (args.out / "audit.md").write_text(text + "\n")
+        figure(result, args.out / "audit.png")
+        print(text)
+        print(f"\nwrote {args.out / 'audit.md'} and {args.out / 'audit.png'}")
     if args.command == "demo":
         t0 = time.perf_counter()
         paths = run_demo(args)
