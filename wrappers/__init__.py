@@ -7,5 +7,6 @@ Example:
 """
 
 from fog_gym.wrappers.fog import FogWrapper, parse_fog_levels
+from fog_gym.wrappers.record import RecordFogDrive
 
-__all__ = ["FogWrapper", "parse_fog_levels"]
+__all__ = ["FogWrapper", "RecordFogDrive", "parse_fog_levels"]

@@ -1,0 +1,183 @@
+"""Write FogDrive scenes atomically and build the index (D6) from what is on disk.
+
+Every file is written to a temporary name and renamed into place, and a sample's ``BBOX_3D`` file is written
+last, so a sample is complete exactly when its ``BBOX_3D`` file exists. Tokens are uuid4-formatted but derived
+from the scene folder, sample index and channel, so the index can be rebuilt from the files alone (after a
+crash, or on a copy) and is identical every time.
+
+Example:
+    >>> token_for("scene", "data_collection_T1_day_run1_00ab")[14]  # the uuid version digit
+    '4'
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import os
+import struct
+import uuid
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+from fog_gym.dataset.layout import (
+    CAMERAS, CHANNELS, DATA_ROOT, EXTRINSIC_FILE, FOG_LEVELS, SAMPLE_PERIOD_US, channel_path, parse_scene_folder,
+    scene_name,
+)  # fmt: skip
+from fog_gym.encoding import encode_depth, semantic_to_carla_rgb
+
+PNG_COMPRESSION = 1  # zlib level for cv2's PNG writer: lossless at every level; 1 is the fastest (see bench)
+INDEX_TABLES = ("scene", "sample", "sample_data")
+
+
+def token_for(*parts: object) -> str:
+    """A deterministic uuid4-formatted token for ``parts``."""
+    digest = hashlib.sha256("|".join(str(p) for p in parts).encode()).digest()
+    return str(uuid.UUID(bytes=digest[:16], version=4))
+
+
+def _atomic_write(path: Path, data: bytes) -> None:
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp")
+    with open(tmp, "wb") as f:
+        f.write(data)
+    os.replace(tmp, path)
+
+
+def encode_png(rgb: np.ndarray) -> bytes:
+    """Lossless PNG of an (H, W, 3) RGB uint8 image (no alpha)."""
+    ok, buf = cv2.imencode(".png", np.ascontiguousarray(rgb[..., ::-1]), [cv2.IMWRITE_PNG_COMPRESSION, PNG_COMPRESSION])
+    if not ok:
+        raise RuntimeError("PNG encoding failed")
+    return buf.tobytes()
+
+
+def encode_npy(array: np.ndarray) -> bytes:
+    import io
+
+    buf = io.BytesIO()
+    np.save(buf, np.ascontiguousarray(array, np.float32))
+    return buf.getvalue()
+
+
+class SceneWriter:
+    """Writes one scene's samples in the FogDrive layout under ``root``.
+
+    ``write_sample`` takes a paired-fog observation (clean + ``*_FOG_{LIGHT,MODERATE,DENSE}``) and the env's
+    ``info`` (``boxes_2d``, ``boxes_3d``); ``write_extrinsics`` the ``info["extrinsics"]`` dict.
+    """
+
+    def __init__(self, root: str | Path, folder: str) -> None:
+        if parse_scene_folder(folder) is None:
+            raise ValueError(f"not a FogDrive scene folder name: {folder!r}")
+        self.root = Path(root)
+        self.folder = folder
+
+    def _path(self, channel: str, index: int) -> Path:
+        return self.root / channel_path(channel, self.folder, index)
+
+    def write_extrinsics(self, extrinsics: dict[str, np.ndarray]) -> None:
+        data = {k: np.asarray(v).tolist() for k, v in extrinsics.items()}
+        _atomic_write(self.root / DATA_ROOT / self.folder / EXTRINSIC_FILE, json.dumps(data).encode())
+
+    def encode_sample(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> dict[str, bytes]:
+        """Every channel's file contents for one sample (no I/O), in write order (``BBOX_3D`` last)."""
+        from fog_gym.points import unpack_points
+
+        files: dict[str, bytes] = {}
+        for cam in CAMERAS:
+            files[cam] = encode_png(obs[cam])
+            for lv in FOG_LEVELS:
+                files[f"{cam}_FOG_{lv}"] = encode_png(obs[f"{cam}_FOG_{lv}"])
+            files[f"{cam}_DEPTH"] = encode_png(encode_depth(obs[f"{cam}_DEPTH"]))
+            files[f"{cam}_SEM"] = encode_png(semantic_to_carla_rgb(obs[f"{cam}_SEM"]))
+            b = info["boxes_2d"][cam]
+            files[f"{cam}_BBOX"] = json.dumps({
+                "bboxes": np.asarray(b["bboxes"]).tolist(), "vehicle_ids": np.asarray(b["vehicle_ids"]).tolist(),
+                "vehicle_class": np.asarray(b["vehicle_class"]).tolist(),
+            }).encode()  # fmt: skip
+        files["LIDAR_TOP"] = encode_npy(unpack_points(obs, "LIDAR_TOP"))
+        for lv in FOG_LEVELS:
+            files[f"LIDAR_TOP_FOG_{lv}"] = encode_npy(unpack_points(obs, f"LIDAR_TOP_FOG_{lv}"))
+        files["SEM_LIDAR_TOP"] = encode_npy(unpack_points(obs, "SEM_LIDAR_TOP"))
+        files["RADAR_FRONT"] = encode_npy(unpack_points(obs, "RADAR_FRONT"))
+        b3 = info["boxes_3d"]
+        files["BBOX_3D"] = json.dumps({
+            "bboxes_3d": np.asarray(b3["corners"]).tolist(), "vehicle_ids": np.asarray(b3["vehicle_ids"]).tolist(),
+        }).encode()  # fmt: skip
+        assert list(files) == list(CHANNELS) or set(files) == set(CHANNELS)
+        return files
+
+    def write_files(self, index: int, files: dict[str, bytes]) -> None:
+        """Write encoded files; ``BBOX_3D`` goes last so its presence marks the sample complete."""
+        for channel, data in files.items():
+            if channel != "BBOX_3D":
+                _atomic_write(self._path(channel, index), data)
+        _atomic_write(self._path("BBOX_3D", index), files["BBOX_3D"])
+
+    def write_sample(self, index: int, obs: dict[str, np.ndarray], info: dict[str, Any]) -> None:
+        self.write_files(index, self.encode_sample(obs, info))
+
+
+def _png_size(path: Path) -> tuple[int, int]:
+    with open(path, "rb") as f:
+        head = f.read(24)
+    if head[:8] != b"\x89PNG\r\n\x1a\n":
+        raise ValueError(f"not a PNG file: {path}")
+    return struct.unpack(">II", head[16:24])
+
+
+def complete_samples(root: Path, folder: str) -> int:
+    """How many samples (0, 1, …, n−1 without gaps) of a scene are complete on disk."""
+    n = 0
+    while (root / channel_path("BBOX_3D", folder, n)).exists():
+        n += 1
+    return n
+
+
+def build_index(root: str | Path) -> dict[str, list]:
+    """Rebuild ``index/{scene,sample,sample_data}.json`` from the scene folders on disk; returns the tables.
+
+    Only complete samples count; scenes with none are left out. Scenes are ordered by (town, time of day, run).
+    """
+    root = Path(root)
+    data_root = root / DATA_ROOT
+    folders = sorted(
+        (p.name for p in data_root.iterdir() if p.is_dir() and parse_scene_folder(p.name)) if data_root.exists() else [],
+        key=lambda n: parse_scene_folder(n)[:3],
+    )
+    scenes, samples, sample_data = [], [], []
+    size_cache: dict[tuple[str, str], tuple[int, int]] = {}
+    for folder in folders:
+        town, tod, run, _ = parse_scene_folder(folder)
+        n = complete_samples(root, folder)
+        if n == 0:
+            continue
+        scene_token = token_for("scene", folder)
+        tokens = [token_for("sample", folder, i) for i in range(n)]
+        scenes.append({
+            "token": scene_token, "name": scene_name(town, tod, run),
+            "description": f"town=T{town}, time_of_day={tod}, run={run}",
+            "extrinsic_config_path": f"{DATA_ROOT}/{folder}/{EXTRINSIC_FILE}", "nbr_samples": n,
+            "first_sample_token": tokens[0], "last_sample_token": tokens[-1],
+        })  # fmt: skip
+        for i, tok in enumerate(tokens):
+            samples.append({"token": tok, "timestamp": float(i * SAMPLE_PERIOD_US), "scene_token": scene_token,
+                            "prev": tokens[i - 1] if i else "", "next": tokens[i + 1] if i + 1 < n else ""})  # fmt: skip
+            for channel, (_, ext) in CHANNELS.items():
+                rel = channel_path(channel, folder, i)
+                rec = {"token": token_for("sample_data", folder, i, channel), "sample_token": tok, "channel": channel,
+                       "filename": rel, "fileformat": ext}  # fmt: skip
+                if ext == "png":
+                    key = (folder, channel)
+                    if key not in size_cache:  # every image of a channel in a scene has one size
+                        size_cache[key] = _png_size(root / rel)
+                    rec["width"], rec["height"] = size_cache[key]
+                sample_data.append(rec)
+    tables = {"scene": scenes, "sample": samples, "sample_data": sample_data}
+    for name, table in tables.items():
+        _atomic_write(root / "index" / f"{name}.json", json.dumps(table).encode())
+    return tables

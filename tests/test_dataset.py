@@ -1,0 +1,131 @@
+"""Recording FogDrive scenes and reading them back through the access class."""
+
+import json
+
+import cv2
+import numpy as np
+import pytest
+
+import fog_gym
+from fog_gym.dataset import CHANNELS, FogDrive, build_index
+from fog_gym.encoding import decode_depth
+from fog_gym.wrappers import RecordFogDrive
+
+RES = (48, 36)
+
+
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory):
+    root = tmp_path_factory.mktemp("fogdrive")
+    kept = []  # (scene folder, [(obs, info), ...]) as the env returned them
+    for town, tod, seed in (("highway", "day", 0), ("roundabout", "night", 1)):
+        env = RecordFogDrive(fog_gym.FogDriveEnv(town=town, time_of_day=tod, resolution=RES, episode_seconds=0.3), root)
+        obs, info = env.reset(seed=seed)
+        frames = [(obs, info)]
+        done = False
+        while not done:
+            obs, _, term, trunc, info = env.step(1)
+            frames.append((obs, info))
+            done = term or trunc
+        kept.append((frames[0][1]["scene_folder"], frames))
+        env.close()
+    return root, kept
+
+
+def test_every_sample_has_35_channels_and_files(recorded):
+    root, kept = recorded
+    ds = FogDrive(root)
+    assert len(ds.scene) == 2 and len(ds.sample) == sum(len(f) for _, f in kept)
+    assert ds.list_channels() == sorted(CHANNELS)
+    for s in ds.sample:
+        paths = ds.get_sample_paths(s["token"])
+        assert len(paths) == 35 and all(p.exists() for p in paths.values())
+    for rec in ds.sample_data:
+        assert rec["filename"].startswith("data_root/")
+        if rec["fileformat"] == "png":
+            assert (rec["width"], rec["height"]) == RES
+    assert {sc["name"] for sc in ds.scene} == {"T1_day_scene001", "T3_night_scene001"}
+
+
+def test_clean_and_fog_files_come_from_one_render(recorded):
+    root, kept = recorded
+    ds = FogDrive(root)
+    folder, frames = kept[0]
+    scene = next(sc for sc in ds.scene if folder in sc["extrinsic_config_path"])
+    samples = ds.get_samples_for_scene(scene["token"])
+    assert [s["timestamp"] for s in samples] == [i * 1e5 for i in range(len(frames))]
+    for s, (obs, info) in zip(samples, frames):
+        p = ds.get_sample_paths(s["token"])
+        clean = cv2.imread(str(p["CAM_FRONT"]))[..., ::-1]
+        dense = cv2.imread(str(p["CAM_FRONT_FOG_DENSE"]))[..., ::-1]
+        np.testing.assert_array_equal(clean, obs["CAM_FRONT"])
+        np.testing.assert_array_equal(dense, obs["CAM_FRONT_FOG_DENSE"])
+        assert not np.array_equal(clean, dense)
+        depth = decode_depth(cv2.imread(str(p["CAM_FRONT_DEPTH"]))[..., ::-1])
+        np.testing.assert_allclose(depth, obs["CAM_FRONT_DEPTH"], atol=1e-3)  # within 1 mm
+        assert np.array_equal(cv2.imread(str(p["CAM_FRONT_SEM"]))[..., 2], obs["CAM_FRONT_SEM"])  # tag in red
+        lidar = np.load(p["LIDAR_TOP"])
+        assert lidar.dtype == np.float32 and lidar.shape[1] == 4
+        assert np.load(p["LIDAR_TOP_FOG_DENSE"]).shape == lidar.shape  # N out = N in
+        assert np.array_equal(np.load(p["SEM_LIDAR_TOP"]), fog_gym.unpack_points(obs, "SEM_LIDAR_TOP"))
+        b2 = json.loads(p["CAM_FRONT_BBOX"].read_text())
+        assert b2["bboxes"] == info["boxes_2d"]["CAM_FRONT"]["bboxes"].tolist()
+        assert b2["vehicle_ids"] == info["boxes_2d"]["CAM_FRONT"]["vehicle_ids"].tolist()
+        b3 = json.loads(p["BBOX_3D"].read_text())
+        np.testing.assert_allclose(np.array(b3["bboxes_3d"]).reshape(-1, 8, 3), info["boxes_3d"]["corners"])
+    ext = ds.load_extrinsic_config(scene["token"])
+    assert sorted(ext) == ["extrinsic_back", "extrinsic_front", "extrinsic_left", "extrinsic_right"]
+    np.testing.assert_allclose(ext["extrinsic_front"], frames[0][1]["extrinsics"]["extrinsic_front"])
+
+
+def test_access_class_methods(recorded):
+    root, _ = recorded
+    ds = FogDrive(root)
+    scene = ds.get_scene_by_name("T3_night_scene001")
+    assert ds.get("scene", scene["token"]) is scene and ds.get_idx("scene", scene["token"]) == 1
+    samples = ds.get_samples_for_scene(scene["token"])
+    assert samples[0]["token"] == scene["first_sample_token"] and samples[-1]["token"] == scene["last_sample_token"]
+    assert samples[0]["prev"] == "" and samples[-1]["next"] == "" and samples[1]["prev"] == samples[0]["token"]
+    assert len(samples) == scene["nbr_samples"]
+    recs = ds.get_sample_data_for_sample(samples[1]["token"], channels=["LIDAR_TOP", "CAM_BACK_SEM"])
+    assert [r["channel"] for r in recs] == ["LIDAR_TOP", "CAM_BACK_SEM"]
+    assert ds.get_sample_data_path(recs[0]["token"]) == root / recs[0]["filename"]
+    rel = ds.get_sample_paths(samples[1]["token"], ["RADAR_FRONT"], absolute=False)
+    assert rel["RADAR_FRONT"].startswith("data_root/data_collection_T3_night_run1_")
+    assert ds.field2token("sample", "scene_token", scene["token"]) == [s["token"] for s in samples]
+    tokens = [r["token"] for t in ("scene", "sample", "sample_data") for r in getattr(ds, t)]
+    assert len(set(tokens)) == len(tokens) and all(t[14] == "4" for t in tokens)  # uuid4 format
+    with pytest.raises(KeyError, match="no scene named"):
+        ds.get_scene_by_name("T9_day_scene001")
+    with pytest.raises(ValueError, match="table_name must be one of"):
+        ds.get("samples", "x")
+    with pytest.raises(FileNotFoundError, match="splits.json"):
+        ds.get_scenes_for_split("train")
+
+
+def test_index_rebuilds_identically_from_disk(recorded, tmp_path):
+    root, _ = recorded
+    before = {t: (root / "index" / f"{t}.json").read_bytes() for t in ("scene", "sample", "sample_data")}
+    build_index(root)
+    assert {t: (root / "index" / f"{t}.json").read_bytes() for t in before} == before
+
+
+def test_incomplete_sample_is_left_out(recorded, tmp_path):
+    import shutil
+
+    root, kept = recorded
+    copy = tmp_path / "copy"
+    shutil.copytree(root, copy)
+    folder = kept[0][0]
+    last = max((copy / "data_root" / folder / "out_3dbbox").iterdir())
+    last.unlink()  # as if the process died while writing the last sample
+    build_index(copy)
+    ds = FogDrive(copy)
+    assert len(ds.sample) == len(FogDrive(root).sample) - 1
+
+
+def test_record_refuses_partial_rigs_and_in_place_fog(tmp_path):
+    with pytest.raises(ValueError, match="full FogDrive rig"):
+        RecordFogDrive(fog_gym.FogDriveEnv(resolution=RES, cameras=["CAM_FRONT"]), tmp_path)
+    with pytest.raises(ValueError, match="paired levels"):
+        RecordFogDrive(fog_gym.wrappers.FogWrapper(fog_gym.FogDriveEnv(resolution=RES), "dense"), tmp_path)

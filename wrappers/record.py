@@ -1,0 +1,97 @@
+"""``RecordFogDrive``: write every episode of a FogDrive-v0 env as a FogDrive scene on disk."""
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+from typing import Any
+
+import gymnasium as gym
+
+from fog_gym.dataset.layout import CAMERAS, DATA_ROOT, parse_scene_folder, scene_folder_name
+from fog_gym.dataset.writer import SceneWriter, build_index
+from fog_gym.wrappers.fog import FogWrapper
+
+PAIRED_LEVELS = ["light", "moderate", "dense"]
+
+
+class RecordFogDrive(gym.Wrapper):
+    """Records each episode — clean data and the three fog levels paired from one render, depth, semantics,
+    point clouds and boxes — as ``data_root/data_collection_T<town>_<tod>_run<i>_<id>/`` under ``root``, and
+    rebuilds ``index/{scene,sample,sample_data}.json`` from disk when an episode ends and on ``close``.
+
+    Wrap a clean FogDrive-v0 env (the paired fog wrapper is added) or one already in paired fog with the three
+    FogDrive levels. The rig must be the full FogDrive rig (4 cameras, LiDAR, semantic LiDAR, radar) with
+    ground truth on. Runs are numbered after those already under ``root`` for the same town and time of day.
+
+    >>> import tempfile, fog_gym
+    >>> env = RecordFogDrive(fog_gym.FogDriveEnv(resolution=(32, 24), episode_seconds=0.2), tempfile.mkdtemp())
+    >>> _ = env.reset(seed=0); _ = env.step(1); _ = env.step(1)
+    >>> env.close(); len(fog_gym.dataset.FogDrive(env.root).sample)
+    3
+    """
+
+    def __init__(self, env: gym.Env, root: str | Path) -> None:
+        base = env.unwrapped
+        rig = getattr(base, "config", None) and base.config.rig
+        if rig is None:
+            raise ValueError("RecordFogDrive wraps a FogDrive-v0 environment")
+        missing = [c for c in CAMERAS if c not in base.cameras.names]
+        missing += [n for n in ("lidar", "semantic_lidar", "radar") if getattr(rig, n) is None]
+        if missing or base.config.labels is None:
+            raise ValueError(f"RecordFogDrive needs the full FogDrive rig with ground truth; missing: {missing or ['labels']}")
+        fog = _find_fog(env)
+        if fog is None:
+            env = FogWrapper(env, PAIRED_LEVELS)
+        elif not fog.paired or [lv.name for lv in fog.levels] != PAIRED_LEVELS:
+            raise ValueError("RecordFogDrive needs clean data plus the paired levels light, moderate, dense")
+        self.root = Path(root)
+        try:
+            (self.root / DATA_ROOT).mkdir(parents=True, exist_ok=True)
+        except OSError as e:
+            raise ValueError(f"cannot write the dataset root {self.root}: {e}") from None
+        super().__init__(env)
+        self._writer: SceneWriter | None = None
+        self._index = 0
+
+    def _next_run(self, town: int, tod: str) -> int:
+        runs = [p[2] for p in (parse_scene_folder(d.name) for d in (self.root / DATA_ROOT).iterdir()) if p and p[:2] == (town, tod)]
+        return max(runs, default=0) + 1
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        if self._writer is not None:
+            build_index(self.root)
+        obs, info = self.env.reset(seed=seed, options=options)
+        base = self.env.unwrapped
+        town, tod = base.config.town_number, base.config.time_of_day
+        run = self._next_run(town, tod)
+        scene_id = hashlib.sha256(f"{town}|{tod}|{run}|{base.episode_seed}".encode()).hexdigest()[:8]
+        self._writer = SceneWriter(self.root, scene_folder_name(town, tod, run, scene_id))
+        self._writer.write_extrinsics(info["extrinsics"])
+        self._writer.write_sample(0, obs, info)
+        self._index = 1
+        info["scene_folder"] = self._writer.folder
+        return obs, info
+
+    def step(self, action: Any):
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        if self._writer is None:
+            raise RuntimeError("call reset() before step()")
+        self._writer.write_sample(self._index, obs, info)
+        self._index += 1
+        if terminated or truncated:
+            build_index(self.root)
+        return obs, reward, terminated, truncated, info
+
+    def close(self) -> None:
+        if self._writer is not None:
+            build_index(self.root)
+        super().close()
+
+
+def _find_fog(env: gym.Env) -> FogWrapper | None:
+    while isinstance(env, gym.Wrapper):
+        if isinstance(env, FogWrapper):
+            return env
+        env = env.env
+    return None
