@@ -99,13 +99,16 @@ def test_access_class_methods(recorded):
         ds.get_scene_by_name("T9_day_scene001")
     with pytest.raises(ValueError, match="table_name must be one of"):
         ds.get("samples", "x")
-    with pytest.raises(FileNotFoundError, match="splits.json"):
-        ds.get_scenes_for_split("train")
+    assert [sc["name"] for sc in ds.get_scenes_for_split("train")] == ["T1_day_scene001", "T3_night_scene001"]
+    assert ds.get_sample_tokens_for_split("train") == [s["token"] for s in ds.get_samples_for_split("train")]
+    assert ds.get_scenes_for_split("val") == [] and len(ds.get_samples_for_split("train")) == len(ds.sample)
+    with pytest.raises(ValueError, match="split must be one of"):
+        ds.get_scenes_for_split("validation")
 
 
 def test_index_rebuilds_identically_from_disk(recorded, tmp_path):
     root, _ = recorded
-    before = {t: (root / "index" / f"{t}.json").read_bytes() for t in ("scene", "sample", "sample_data")}
+    before = {t: (root / "index" / f"{t}.json").read_bytes() for t in ("scene", "sample", "sample_data", "splits")}
     build_index(root)
     assert {t: (root / "index" / f"{t}.json").read_bytes() for t in before} == before
 
@@ -129,3 +132,17 @@ def test_record_refuses_partial_rigs_and_in_place_fog(tmp_path):
         RecordFogDrive(fog_gym.FogDriveEnv(resolution=RES, cameras=["CAM_FRONT"]), tmp_path)
     with pytest.raises(ValueError, match="paired levels"):
         RecordFogDrive(fog_gym.wrappers.FogWrapper(fog_gym.FogDriveEnv(resolution=RES), "dense"), tmp_path)
+
+
+def test_splits_rules_on_a_generated_set():
+    from fog_gym.dataset.splits import check_splits, make_splits
+
+    for towns, per in (([1], 10), ([1, 2, 3, 4, 5, 6], 20)):  # 20 scenes of one town; 240 over six towns
+        names = [f"T{t}_{d}_scene{i:03d}" for t in towns for d in ("day", "night") for i in range(1, per + 1)]
+        splits = make_splits(names, seed=3)
+        r = check_splits(splits, names)
+        assert r["duplicate_assignments"] == r["scenes_in_no_split"] == r["scenes_in_split_but_not_in_index"] == []
+        assert all(v == 0.5 for v in r["day_share"].values())
+        assert abs(r["fractions"]["train"] - 0.7) <= 0.05 and abs(r["fractions"]["test"] - 0.15) <= 0.05
+        assert max(r["max_town_share_deviation_points"].values()) <= 2.0 + 1e-9
+        assert make_splits(names, seed=3) == splits  # deterministic

@@ -138,10 +138,11 @@ def complete_samples(root: Path, folder: str) -> int:
     return n
 
 
-def build_index(root: str | Path) -> dict[str, list]:
-    """Rebuild ``index/{scene,sample,sample_data}.json`` from the scene folders on disk; returns the tables.
+def build_index(root: str | Path, split_seed: int = 0) -> dict[str, Any]:
+    """Rebuild ``index/{scene,sample,sample_data,splits}.json`` from the scene folders on disk; returns the tables.
 
     Only complete samples count; scenes with none are left out. Scenes are ordered by (town, time of day, run).
+    Splits come from :func:`fog_gym.dataset.splits.make_splits` over the scene names.
     """
     root = Path(root)
     data_root = root / DATA_ROOT
@@ -177,7 +178,11 @@ def build_index(root: str | Path) -> dict[str, list]:
                         size_cache[key] = _png_size(root / rel)
                     rec["width"], rec["height"] = size_cache[key]
                 sample_data.append(rec)
+    from fog_gym.dataset.splits import make_splits
+
     tables = {"scene": scenes, "sample": samples, "sample_data": sample_data}
+    splits = make_splits([sc["name"] for sc in scenes], seed=split_seed)
     for name, table in tables.items():
         _atomic_write(root / "index" / f"{name}.json", json.dumps(table).encode())
-    return tables
+    _atomic_write(root / "index" / "splits.json", json.dumps(splits).encode())
+    return {**tables, "splits": splits}
