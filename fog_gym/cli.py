@@ -1,4 +1,4 @@
-"""The ``fog-gym`` command: ``fog-gym demo``, ``fog-gym audit`` and ``fog-gym bench``.
+"""The ``fog-gym`` command: ``demo``, ``generate``, ``validate``, ``stats``, ``audit`` and ``bench``.
 
 Example:
     >>> parser = build_parser()
@@ -56,6 +56,26 @@ def build_parser() -> argparse.ArgumentParser:
     audit.add_argument("--resolution", type=_resolution, default=(1280, 960))
     audit.add_argument("--seed", type=int, default=0)
     audit.add_argument("--out", type=Path, default=Path("out/audit"), help="output folder (default out/audit)")
+    gen = sub.add_parser(
+        "generate",
+        help="generate a FogDrive dataset (clean + 3 paired fog levels) in parallel, with index and splits",
+        description="Render scenes in the FogDrive layout: per-town budgets in day/night pairs, seeds from (seed, "
+        "scene index) so any scene regenerates bit for bit; --resume continues an interrupted run.",
+    )
+    gen.add_argument("--root", type=Path, required=True, help="dataset root (must be empty unless --resume)")
+    gen.add_argument("--scenes", type=int, required=True, help="number of scenes (even: day/night pairs)")
+    gen.add_argument("--workers", type=int, default=1, help="worker processes (default 1)")
+    gen.add_argument("--resolution", type=_resolution, default=(1280, 960))
+    gen.add_argument("--seconds", type=float, default=20.0, help="scene length in seconds (default 20)")
+    gen.add_argument("--seed", type=int, default=0, help="base seed (default 0)")
+    gen.add_argument("--towns", nargs="+", choices=TOWNS, default=list(TOWNS), help="towns to use (default all)")
+    gen.add_argument("--resume", action="store_true", help="continue an interrupted run in --root")
+    gen.add_argument("--ray", metavar="ADDRESS", default=None, help="run scenes as Ray tasks on this cluster")
+    val = sub.add_parser("validate", help="check a dataset's index, files, shapes and split rules",
+                         description="Exit 0 if the dataset is valid, 1 with a list of problems otherwise.")
+    val.add_argument("root", type=Path)
+    st = sub.add_parser("stats", help="files and MB per modality of a dataset (and a PNG bar chart)")
+    st.add_argument("root", type=Path)
     bench = sub.add_parser("bench", help="run scripts/bench.py (per-stage milliseconds)", add_help=False)
     bench.add_argument("args", nargs=argparse.REMAINDER)
     return parser
@@ -113,6 +133,21 @@ def run_demo(args: argparse.Namespace) -> list[Path]:
     return [fog, sheet, view, lidar]
 
 
+def _stats_figure(rows: list[tuple[str, int, float]], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 0.3 * len(rows) + 1.2), dpi=120)
+    ax.barh([r[0] for r in rows][::-1], [r[2] for r in rows][::-1])
+    ax.set_xlabel("MB")
+    ax.set_title("disk footprint per modality")
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser()
@@ -126,6 +161,37 @@ def main(argv: list[str] | None = None) -> int:
         runpy.run_path(str(script), run_name="__main__")
         return 0
     args = parser.parse_args(argv)
+    if args.command == "generate":
+        from fog_gym.dataset.generate import generate, plan_scenes
+
+        if args.workers < 1:
+            raise SystemExit("--workers must be >= 1")
+        if not args.seconds > 0:
+            raise SystemExit("--seconds must be > 0")
+        try:
+            plan = plan_scenes(args.scenes, tuple(args.towns), args.seed, args.resolution, args.seconds)
+            tables = generate(args.root, plan, args.workers, args.resume, args.ray)
+        except ValueError as e:
+            raise SystemExit(f"fog-gym generate: {e}") from None
+        print(f"{len(tables['scene'])} scenes, {len(tables['sample'])} samples in {args.root}")
+    if args.command == "validate":
+        from fog_gym.dataset.generate import validate
+
+        problems = validate(args.root)
+        for p in problems:
+            print(p)
+        print("valid" if not problems else f"{len(problems)} problems")
+        return 1 if problems else 0
+    if args.command == "stats":
+        from fog_gym.dataset.generate import stats
+
+        rows = stats(args.root)
+        print("| modality | files | MB |\n|---|---|---|")
+        for kind, n, mb in rows:
+            print(f"| {kind} | {n} | {mb:.1f} |")
+        print(f"| total | {sum(r[1] for r in rows)} | {sum(r[2] for r in rows):.1f} |")
+        _stats_figure(rows, args.root / "stats.png")
+        print(f"\nwrote {args.root / 'stats.png'}")
     if args.command == "audit":
         from fog_gym.audit import figure, report, run_audit
 

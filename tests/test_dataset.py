@@ -146,3 +146,55 @@ def test_splits_rules_on_a_generated_set():
         assert abs(r["fractions"]["train"] - 0.7) <= 0.05 and abs(r["fractions"]["test"] - 0.15) <= 0.05
         assert max(r["max_town_share_deviation_points"].values()) <= 2.0 + 1e-9
         assert make_splits(names, seed=3) == splits  # deterministic
+
+
+def test_generate_resume_validate(tmp_path):
+    import hashlib
+    import subprocess
+    import sys
+
+    from fog_gym.dataset.generate import PROGRESS_DIR, check_root, generate, plan_scenes, validate
+
+    root = tmp_path / "gen"
+    plan = plan_scenes(4, towns=("merge", "roundabout"), seed=7, resolution=(32, 24), seconds=0.2)
+    generate(root, plan, workers=1, progress=False)
+    assert validate(root) == []
+
+    def digest(folder):
+        return {p.relative_to(root): hashlib.sha256(p.read_bytes()).hexdigest()
+                for p in sorted((root / "data_root" / folder).rglob("*")) if p.is_file()}  # fmt: skip
+
+    before = digest(plan[1].folder)
+    # a run killed mid-scene: the scene's marker is missing and half its files are gone
+    (root / PROGRESS_DIR / f"{plan[1].folder}.json").unlink()
+    for p in list((root / "data_root" / plan[1].folder / "lidar").iterdir())[:1]:
+        p.unlink()
+    for p in (root / "data_root" / plan[1].folder / "out_3dbbox").iterdir():
+        p.unlink()
+    with pytest.raises(ValueError, match="not empty; pass --resume"):
+        check_root(root, resume=False)
+    generate(root, plan, workers=1, resume=True, progress=False)
+    assert digest(plan[1].folder) == before  # regenerated bit for bit from (seed, scene index)
+    assert validate(root) == [] and len(FogDrive(root).scene) == 4
+    # validate reports problems and the command exits non-zero
+    (root / "data_root" / plan[0].folder / "radar" / "000001.npy").unlink()
+    problems = validate(root)
+    assert any("missing file" in p for p in problems)
+    out = subprocess.run([sys.executable, "-m", "fog_gym.cli", "validate", str(root)], capture_output=True, text=True)
+    assert out.returncode == 1 and "missing file" in out.stdout
+
+
+def test_generate_rejects_bad_input_before_rendering(tmp_path):
+    from fog_gym.dataset.generate import check_root, plan_scenes
+
+    with pytest.raises(ValueError, match="even number"):
+        plan_scenes(3)
+    with pytest.raises(ValueError, match="town must be one of"):
+        plan_scenes(2, towns=("Town01",))
+    blocker = tmp_path / "file"
+    blocker.write_text("x")
+    with pytest.raises(ValueError, match="not a folder"):
+        check_root(blocker, resume=False)
+    plan = plan_scenes(12, seed=1)
+    assert sum(p.time_of_day == "day" for p in plan) == 6 and len({p.folder for p in plan}) == 12
+    assert plan_scenes(12, seed=1) == plan and plan_scenes(12, seed=2)[0].seed != plan[0].seed

@@ -1,0 +1,239 @@
+"""Dataset generation: a plan of scenes (per-town budgets, exact day/night balance), one function per scene
+(run by worker processes or as Ray tasks), resume after a crash, and validation.
+
+A scene is fully determined by (base seed, scene index): its town, time of day, run number, env seed and folder
+name all derive from them, so any scene can be regenerated bit for bit and a resumed run redoes exactly the
+scenes that were not complete.
+
+Example:
+    >>> plan = plan_scenes(4, towns=("highway", "merge"), seed=0)
+    >>> [(p.town, p.time_of_day, p.run) for p in plan]
+    [('highway', 'day', 1), ('highway', 'night', 1), ('merge', 'day', 1), ('merge', 'night', 1)]
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import shutil
+from dataclasses import asdict, dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from fog_gym.config import TOWNS
+from fog_gym.dataset.layout import CHANNELS, DATA_ROOT, scene_folder_name
+from fog_gym.dataset.writer import SceneWriter, build_index
+
+PROGRESS_DIR = ".generate"  # completion markers, outside data_root so the layout stays exactly D2
+
+
+@dataclass(frozen=True)
+class SceneSpec:
+    """Everything that defines one scene of a generated dataset."""
+
+    index: int
+    town: str
+    time_of_day: str
+    run: int
+    seed: int
+    resolution: tuple[int, int]
+    seconds: float
+
+    @property
+    def folder(self) -> str:
+        number = TOWNS.index(self.town) + 1
+        scene_id = hashlib.sha256(f"{number}|{self.time_of_day}|{self.run}|{self.seed}".encode()).hexdigest()[:8]
+        return scene_folder_name(number, self.time_of_day, self.run, scene_id)
+
+    @property
+    def expected_samples(self) -> int:
+        return int(round(self.seconds * 10)) + 1  # the reset frame plus one per 0.1 s step
+
+
+def plan_scenes(n_scenes: int, towns: tuple[str, ...] = TOWNS, seed: int = 0, resolution: tuple[int, int] = (1280, 960),
+                seconds: float = 20.0) -> list[SceneSpec]:  # fmt: skip
+    """``n_scenes`` (even) spread over ``towns`` in day/night pairs, as evenly as possible, in a fixed order."""
+    if isinstance(n_scenes, bool) or not isinstance(n_scenes, int) or n_scenes < 2 or n_scenes % 2:
+        raise ValueError(f"scenes must be an even number >= 2 (day/night pairs), got {n_scenes!r}")
+    for t in towns:
+        if t not in TOWNS:
+            raise ValueError(f"town must be one of {TOWNS}, got {t!r}")
+    if not towns:
+        raise ValueError("towns must name at least one town")
+    pairs = n_scenes // 2
+    budget = [pairs // len(towns) + (k < pairs % len(towns)) for k in range(len(towns))]
+    plan: list[SceneSpec] = []
+    for town, n_pairs in zip(towns, budget):
+        for run in range(1, n_pairs + 1):
+            for tod in ("day", "night"):
+                index = len(plan)
+                scene_seed = int(np.random.SeedSequence([seed, index]).generate_state(1)[0] & 0x7FFFFFFF)
+                plan.append(SceneSpec(index, town, tod, run, scene_seed, tuple(resolution), float(seconds)))
+    return plan
+
+
+def generate_scene(root: str | Path, spec: SceneSpec | dict[str, Any]) -> str:
+    """Render and write one scene (clean + three paired fog levels); returns its folder name.
+
+    The ego drives with highway-env's IDLE meta-action (keep lane and speed); an episode that ends early
+    (collision) gives a shorter scene.
+    """
+    from fog_gym.env import FogDriveEnv
+    from fog_gym.wrappers.fog import FogWrapper
+
+    spec = spec if isinstance(spec, SceneSpec) else SceneSpec(**{**spec, "resolution": tuple(spec["resolution"])})
+    root = Path(root)
+    folder_path = root / DATA_ROOT / spec.folder
+    if folder_path.exists():
+        shutil.rmtree(folder_path)  # a partial scene from an interrupted run: redo it from its seed
+    env = FogWrapper(FogDriveEnv(town=spec.town, time_of_day=spec.time_of_day, resolution=spec.resolution,
+                                 episode_seconds=spec.seconds), ["light", "moderate", "dense"])  # fmt: skip
+    writer = SceneWriter(root, spec.folder)
+    obs, info = env.reset(seed=spec.seed)
+    writer.write_extrinsics(info["extrinsics"])
+    writer.write_sample(0, obs, info)
+    idle = 1 if env.action_space.shape == () else np.zeros(env.action_space.shape, np.float32)
+    index, done = 1, False
+    while not done:
+        obs, _, terminated, truncated, info = env.step(idle)
+        writer.write_sample(index, obs, info)
+        index += 1
+        done = terminated or truncated
+    env.close()
+    marker = root / PROGRESS_DIR / f"{spec.folder}.json"
+    marker.parent.mkdir(parents=True, exist_ok=True)
+    marker.write_text(json.dumps(asdict(spec)))
+    return spec.folder
+
+
+def pending_scenes(root: Path, plan: list[SceneSpec]) -> list[SceneSpec]:
+    """Scenes of the plan that are not completely on disk."""
+    return [s for s in plan if not (root / PROGRESS_DIR / f"{s.folder}.json").exists()]
+
+
+def check_root(root: Path, resume: bool) -> None:
+    """Clear errors before any rendering: unwritable root, or a non-empty one without ``resume``."""
+    if root.exists() and not root.is_dir():
+        raise ValueError(f"dataset root {root} exists and is not a folder")
+    if root.exists() and any(root.iterdir()) and not resume:
+        raise ValueError(f"dataset root {root} is not empty; pass --resume to continue an interrupted run")
+    try:
+        (root / DATA_ROOT).mkdir(parents=True, exist_ok=True)
+        probe = root / ".write_probe"
+        probe.write_text("ok")
+        probe.unlink()
+    except OSError as e:
+        raise ValueError(f"dataset root {root} is not writable: {e}") from None
+
+
+def validate(root: str | Path) -> list[str]:
+    """Every problem found in a dataset: index links, files, shapes, channels and split rules (empty list = valid)."""
+    import cv2
+
+    from fog_gym.dataset.access import FogDrive
+    from fog_gym.dataset.splits import check_splits
+
+    root = Path(root)
+    problems: list[str] = []
+    try:
+        ds = FogDrive(root)
+    except (FileNotFoundError, json.JSONDecodeError) as e:
+        return [f"cannot open the index: {e}"]
+    for sc in ds.scene:
+        samples = ds.get_samples_for_scene(sc["token"])
+        if len(samples) != sc["nbr_samples"]:
+            problems.append(f"{sc['name']}: nbr_samples {sc['nbr_samples']} but {len(samples)} linked samples")
+        if samples and (samples[0]["token"] != sc["first_sample_token"] or samples[-1]["token"] != sc["last_sample_token"]):
+            problems.append(f"{sc['name']}: first/last sample tokens do not match the prev/next chain")
+        if not ds.get_extrinsic_config_path(sc["token"]).exists():
+            problems.append(f"{sc['name']}: missing {sc['extrinsic_config_path']}")
+    for s in ds.sample:
+        recs = ds.get_sample_data_for_sample(s["token"])
+        channels = {r["channel"] for r in recs}
+        if channels != set(CHANNELS):
+            problems.append(f"sample {s['token']}: {len(channels)} channels, missing {sorted(set(CHANNELS) - channels)}")
+        for r in recs:
+            path = root / r["filename"]
+            if not path.exists():
+                problems.append(f"missing file {r['filename']}")
+                continue
+            if r["fileformat"] == "png":
+                img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
+                if img is None or img.ndim != 3 or img.shape[2] != 3 or (img.shape[1], img.shape[0]) != (r["width"], r["height"]):
+                    problems.append(f"{r['filename']}: not a {r['width']}×{r['height']} RGB PNG")
+            elif r["fileformat"] == "npy":
+                a = np.load(path)
+                cols = 6 if r["channel"] == "SEM_LIDAR_TOP" else 4
+                if a.dtype != np.float32 or a.ndim != 2 or a.shape[1] != cols:
+                    problems.append(f"{r['filename']}: expected float32 (N, {cols}), got {a.dtype} {a.shape}")
+            else:
+                data = json.loads(path.read_text())
+                keys = {"bboxes_3d", "vehicle_ids"} if r["channel"] == "BBOX_3D" else {"bboxes", "vehicle_ids", "vehicle_class"}
+                if not keys <= set(data):
+                    problems.append(f"{r['filename']}: missing keys {sorted(keys - set(data))}")
+    if ds.splits is None:
+        problems.append("index/splits.json is missing")
+    else:
+        checks = check_splits(ds.splits, [sc["name"] for sc in ds.scene])
+        for key in ("duplicate_assignments", "scenes_in_no_split", "scenes_in_split_but_not_in_index"):
+            if checks[key]:
+                problems.append(f"splits: {key}: {checks[key]}")
+        for split, share in checks["day_share"].items():
+            if ds.splits.get(split) and share != 0.5:
+                problems.append(f"splits: {split} is {share:.0%} day, not 50 %")
+    return problems
+
+
+def generate(root: str | Path, plan: list[SceneSpec], workers: int = 1, resume: bool = False,
+             ray_address: str | None = None, progress: bool = True) -> dict[str, Any]:  # fmt: skip
+    """Generate the plan's pending scenes in parallel, then rebuild the index; returns the index tables."""
+    from tqdm import tqdm
+
+    root = Path(root)
+    check_root(root, resume)
+    todo = pending_scenes(root, plan)
+    bar = tqdm(total=len(plan), initial=len(plan) - len(todo), desc="scenes", unit="scene", disable=not progress)
+    if ray_address is not None:
+        try:
+            import ray
+        except ImportError:
+            raise SystemExit("--ray needs the optional 'ray' extra: pip install -e '.[ray]'") from None
+        ray.init(address=ray_address)
+        task = ray.remote(generate_scene)
+        refs = [task.remote(str(root), asdict(s)) for s in todo]
+        while refs:
+            done, refs = ray.wait(refs)
+            ray.get(done)
+            bar.update(len(done))
+    elif workers <= 1:
+        for s in todo:
+            generate_scene(root, s)
+            bar.update()
+    else:
+        import multiprocessing as mp
+        from concurrent.futures import ProcessPoolExecutor, as_completed
+
+        with ProcessPoolExecutor(workers, mp_context=mp.get_context("spawn")) as pool:
+            for fut in as_completed([pool.submit(generate_scene, str(root), s) for s in todo]):
+                fut.result()
+                bar.update()
+    bar.close()
+    return build_index(root)
+
+
+def stats(root: str | Path) -> list[tuple[str, int, float]]:
+    """(modality, files, MB) per folder kind of the layout, as the paper's disk table (D7)."""
+    from collections import defaultdict
+
+    root = Path(root)
+    acc: dict[str, list[float]] = defaultdict(lambda: [0, 0.0])
+    for path in (root / DATA_ROOT).rglob("*"):
+        if path.is_file():
+            rel = path.relative_to(root / DATA_ROOT).parts[1:]
+            kind = "/".join(rel[:-1]) if rel[0].startswith("cam_") else rel[0]
+            kind = kind.split("/", 1)[1] if kind.startswith("cam_") else kind  # out_rgb etc., all cameras together
+            acc[kind][0] += 1
+            acc[kind][1] += path.stat().st_size / 1e6
+    return sorted(((k, int(v[0]), v[1]) for k, v in acc.items()), key=lambda r: -r[2])
