@@ -198,3 +198,35 @@ def test_generate_rejects_bad_input_before_rendering(tmp_path):
     plan = plan_scenes(12, seed=1)
     assert sum(p.time_of_day == "day" for p in plan) == 6 and len({p.folder for p in plan}) == 12
     assert plan_scenes(12, seed=1) == plan and plan_scenes(12, seed=2)[0].seed != plan[0].seed
+
+
+def test_load_sample_decodes_every_channel(recorded):
+    from fog_gym.dataset.torch import load_sample
+
+    root, kept = recorded
+    ds = FogDrive(root)
+    s = ds.sample[1]
+    data = load_sample(ds, s["token"])
+    assert set(data) == set(CHANNELS)
+    assert data["CAM_LEFT"].shape == (36, 48, 3) and data["CAM_LEFT"].dtype == np.uint8
+    assert data["CAM_LEFT_DEPTH"].dtype == np.float32 and data["CAM_LEFT_SEM"].dtype == np.uint8
+    assert data["SEM_LIDAR_TOP"].shape[1] == 6 and data["BBOX_3D"]["bboxes_3d"].shape[1:] == (8, 3)
+    assert data["CAM_FRONT_BBOX"]["bboxes"].shape[1:] == (2, 2)
+
+
+def test_torch_dataset_and_collate(recorded):
+    torch = pytest.importorskip("torch")
+    from fog_gym.dataset.torch import FogDriveDataset, collate
+
+    root, _ = recorded
+    ds = FogDriveDataset(root, split="train", channels=["CAM_FRONT_FOG_DENSE", "CAM_FRONT_DEPTH", "LIDAR_TOP", "BBOX_3D"])
+    assert len(ds) == len(FogDrive(root).sample)
+    loader = torch.utils.data.DataLoader(ds, batch_size=3, collate_fn=collate)
+    batch = next(iter(loader))
+    assert batch["CAM_FRONT_FOG_DENSE"].shape == (3, 3, 36, 48) and batch["CAM_FRONT_DEPTH"].shape == (3, 36, 48)
+    assert len(batch["LIDAR_TOP"]) == 3 and batch["LIDAR_TOP"][0].shape[1] == 4  # variable-size clouds stay a list
+    assert len(batch["BBOX_3D"]) == 3 and len(batch["sample_token"]) == 3
+    with pytest.raises(ValueError, match="channels must be FogDrive channel names"):
+        FogDriveDataset(root, channels=["CAM_TOP"])
+    with pytest.raises(ValueError, match="split must be one of"):
+        FogDriveDataset(root, split="dev")

@@ -1,0 +1,109 @@
+"""``FogDriveDataset``: a PyTorch dataset over a FogDrive root (needs the ``torch`` extra).
+
+Decoding lives in :func:`load_sample` (no torch needed): RGB → uint8 (H, W, 3), depth PNG → float32 metres,
+segmentation PNG → uint8 tag ids (red channel), ``.npy`` → float32 points, bbox JSON → arrays.
+:func:`collate` batches fixed-size images by stacking and keeps variable-size point clouds and box lists as
+lists (one entry per sample).
+
+Example:
+    >>> decode_bbox_json(b'{"bboxes": [[[1, 2], [3, 4]]], "vehicle_ids": [7], "vehicle_class": [0]}')["bboxes"].shape
+    (1, 2, 2)
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+from fog_gym.dataset.access import SPLITS, FogDrive
+from fog_gym.dataset.layout import CHANNELS
+from fog_gym.encoding import decode_depth
+
+try:  # the torch extra; everything but FogDriveDataset works without it
+    import torch
+    from torch.utils.data import Dataset as _TorchDataset
+except ImportError:  # pragma: no cover - exercised where torch is absent
+    torch = None
+    _TorchDataset = object
+
+
+def decode_bbox_json(data: bytes) -> dict[str, np.ndarray]:
+    d = json.loads(data)
+    if "bboxes_3d" in d:
+        return {"bboxes_3d": np.asarray(d["bboxes_3d"], np.float32).reshape(-1, 8, 3),
+                "vehicle_ids": np.asarray(d["vehicle_ids"], np.int64)}  # fmt: skip
+    return {"bboxes": np.asarray(d["bboxes"], np.int64).reshape(-1, 2, 2),
+            "vehicle_ids": np.asarray(d["vehicle_ids"], np.int64),
+            "vehicle_class": np.asarray(d["vehicle_class"], np.int64)}  # fmt: skip
+
+
+def load_channel(channel: str, path: str | Path) -> Any:
+    """Decode one file of ``channel``."""
+    _, fmt = CHANNELS[channel]
+    if fmt == "npy":
+        return np.load(path).astype(np.float32, copy=False)
+    if fmt == "json":
+        return decode_bbox_json(Path(path).read_bytes())
+    img = cv2.imread(str(path), cv2.IMREAD_COLOR)
+    if img is None:
+        raise OSError(f"cannot read image {path}")
+    rgb = img[..., ::-1]
+    if channel.endswith("_DEPTH"):
+        return decode_depth(rgb)
+    if channel.endswith("_SEM"):
+        return np.ascontiguousarray(rgb[..., 0])
+    return np.ascontiguousarray(rgb)
+
+
+def load_sample(ds: FogDrive, sample_token: str, channels: list[str] | None = None) -> dict[str, Any]:
+    """Every requested channel of one sample, decoded."""
+    return {c: load_channel(c, p) for c, p in ds.get_sample_paths(sample_token, channels).items()}
+
+
+class FogDriveDataset(_TorchDataset):
+    """Samples of a split (or all) with the chosen channels, decoded; images become tensors (C, H, W).
+
+    >>> # ds = FogDriveDataset("out/fogdrive", split="train", channels=["CAM_FRONT_FOG_DENSE", "BBOX_3D"])
+    >>> # loader = torch.utils.data.DataLoader(ds, batch_size=4, collate_fn=collate)
+    """
+
+    def __init__(self, dataroot: str | Path, split: str | None = None, channels: list[str] | None = None) -> None:
+        if torch is None:
+            raise ImportError("FogDriveDataset needs PyTorch: pip install -e '.[torch]'")
+        for c in channels or []:
+            if c not in CHANNELS:
+                raise ValueError(f"channels must be FogDrive channel names, got {c!r}")
+        if split is not None and split not in SPLITS:
+            raise ValueError(f"split must be one of {SPLITS} or None, got {split!r}")
+        self.fogdrive = FogDrive(dataroot)
+        self.channels = list(channels) if channels else sorted(CHANNELS)
+        self.tokens = (self.fogdrive.get_sample_tokens_for_split(split) if split
+                       else [s["token"] for s in self.fogdrive.sample])  # fmt: skip
+
+    def __len__(self) -> int:
+        return len(self.tokens)
+
+    def __getitem__(self, i: int) -> dict[str, Any]:
+        out: dict[str, Any] = {"sample_token": self.tokens[i]}
+        for c, value in load_sample(self.fogdrive, self.tokens[i], self.channels).items():
+            if isinstance(value, np.ndarray) and value.ndim == 3:  # RGB → (3, H, W) uint8
+                out[c] = torch.from_numpy(np.ascontiguousarray(value.transpose(2, 0, 1)))
+            elif isinstance(value, np.ndarray):
+                out[c] = torch.from_numpy(np.ascontiguousarray(value))
+            else:
+                out[c] = {k: torch.from_numpy(v) for k, v in value.items()}
+        return out
+
+
+def collate(batch: list[dict[str, Any]]) -> dict[str, Any]:
+    """Stack images and depth/semantic maps; keep point clouds, box dicts and tokens as per-sample lists."""
+    out: dict[str, Any] = {}
+    for key in batch[0]:
+        values = [b[key] for b in batch]
+        fmt = CHANNELS.get(key, ("", ""))[1]
+        out[key] = torch.stack(values) if fmt == "png" else values
+    return out
