@@ -717,6 +717,56 @@ def render_labels(lab: dict[str, Any], repeats: int) -> list[str]:
             "Target: ≤ 2 ms per frame with ~50 vehicles."]  # fmt: skip
 
 
+def bench_recording(repeats: int) -> dict[str, Any]:
+    """Recording one full paired frame: the PNG-encoder bound (the 24 images of D2) against the recorder's whole
+    per-frame cost (every file encoded and written atomically), and ``fog-gym generate`` scaling with workers."""
+    import tempfile
+
+    from fog_gym.dataset.generate import generate, plan_scenes
+    from fog_gym.dataset.writer import SceneWriter, encode_png
+    from fog_gym.encoding import encode_depth, semantic_to_carla_rgb
+    from fog_gym.env import FogDriveEnv
+    from fog_gym.wrappers import FogWrapper
+
+    env = FogWrapper(FogDriveEnv(town="highway"), ["light", "moderate", "dense"])
+    obs, info = env.reset(seed=0)
+    images = []
+    for cam in ("CAM_FRONT", "CAM_BACK", "CAM_LEFT", "CAM_RIGHT"):
+        images += [obs[cam]] + [obs[f"{cam}_FOG_{lv}"] for lv in ("LIGHT", "MODERATE", "DENSE")]
+        images += [encode_depth(obs[f"{cam}_DEPTH"]), semantic_to_carla_rgb(obs[f"{cam}_SEM"])]
+    with tempfile.TemporaryDirectory() as tmp:
+        writer = SceneWriter(tmp, "data_collection_T1_day_run1_00000000")
+        bound, record, sizes = [], [], []
+        for i in tqdm(range(max(3, repeats // 4)), desc="recording", unit="frame", leave=False, file=sys.stderr):
+            bound.append(timed(lambda: [encode_png(im) for im in images])[1])
+            files, ms_encode = timed(writer.encode_sample, obs, info)
+            _, ms_write = timed(writer.write_files, i, files)
+            record.append(ms_encode + ms_write)
+            sizes.append(sum(len(b) for b in files.values()) / 1e6)
+    env.close()
+    scaling = {}
+    plan = plan_scenes(4, towns=("merge", "roundabout"), seed=0, resolution=(640, 480), seconds=3.0)
+    for workers in (1, 2):
+        with tempfile.TemporaryDirectory() as tmp:
+            _, ms = timed(generate, tmp, plan, workers, False, None, False)
+            scaling[workers] = ms / 1000.0
+    return {"bound": summarize(bound), "recorder": summarize(record), "mb_per_frame": float(np.median(sizes)),
+            "generate_s": scaling}  # fmt: skip
+
+
+def render_recording(rec: dict[str, Any]) -> list[str]:
+    ratio = rec["recorder"]["median"] / rec["bound"]["median"]
+    s1, s2 = rec["generate_s"][1], rec["generate_s"][2]
+    return ["## Recording (full rig, clean + 3 paired fog levels)", "",
+            markdown_table(["stage", "ms per frame"], [
+                ["PNG-encoder bound: the 24 PNGs of one sample (cv2, zlib 1, no filter)", fmt_ms(rec["bound"])],
+                ["recorder: all 35 files encoded + written atomically", fmt_ms(rec["recorder"])],
+                ["**ratio recorder / bound**", f"**{ratio:.2f}×** (target ≤ 1.3×)"],
+                ["bytes per sample", f"{rec['mb_per_frame']:.1f} MB"]]), "",
+            f"`fog-gym generate`, 4 scenes × 3 s at 640×480 (incl. process start and kernel load): 1 worker "
+            f"{s1:.1f} s, 2 workers {s2:.1f} s ({s1 / s2:.2f}× faster)."]  # fmt: skip
+
+
 def render_report(results: dict[str, Any]) -> str:
     meta, rigs, base = results["meta"], results["rigs"], results["baseline"]
     keys = list(rigs)
@@ -891,13 +941,16 @@ def main(argv: list[str] | None = None) -> int:
     point_sensors = bench_point_sensors(repeats)
     fog = bench_fog(repeats)
     labels = bench_labels(repeats)
+    recording = bench_recording(repeats)
     baseline = bench_baselines(args.town, repeats, profile_steps)
     meta.update(wall_s=time.perf_counter() - t0, loadavg_end=load_average(), numba_layer=numba.threading_layer())
-    results = {"meta": meta, "rigs": rigs, "point_sensors": point_sensors, "fog": fog, "labels": labels, "baseline": baseline}
+    results = {"meta": meta, "rigs": rigs, "point_sensors": point_sensors, "fog": fog, "labels": labels, "recording": recording,
+               "baseline": baseline}
 
     print(render_report(results))
     print("\n" + "\n".join(render_fog(fog, repeats)))
     print("\n" + "\n".join(render_labels(labels, repeats)))
+    print("\n" + "\n".join(render_recording(recording)))
     if args.json is not None:
         args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(json.dumps(results, indent=2))

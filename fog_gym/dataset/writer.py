@@ -29,7 +29,10 @@ from fog_gym.dataset.layout import (
 )  # fmt: skip
 from fog_gym.encoding import encode_depth, semantic_to_carla_rgb
 
-PNG_COMPRESSION = 1  # zlib level for cv2's PNG writer: lossless at every level; 1 is the fastest (see bench)
+# PNG is lossless at every setting. Measured on one full frame (24 PNGs at 1280×960, 2-core CPU): zlib level 1
+# with no row filter 450 ms / 3.6 MB; level 1 with cv2's default filters 1 220 ms / 3.4 MB; level 3 1 390 ms /
+# 3.0 MB; level 6 1 880 ms / 2.3 MB; level 0 (stored) 310 ms / 89 MB; Pillow level 1 800 ms / 3.5 MB.
+PNG_PARAMS = [cv2.IMWRITE_PNG_COMPRESSION, 1, cv2.IMWRITE_PNG_FILTER, cv2.IMWRITE_PNG_FILTER_NONE]
 INDEX_TABLES = ("scene", "sample", "sample_data")
 
 
@@ -49,7 +52,7 @@ def _atomic_write(path: Path, data: bytes) -> None:
 
 def encode_png(rgb: np.ndarray) -> bytes:
     """Lossless PNG of an (H, W, 3) RGB uint8 image (no alpha)."""
-    ok, buf = cv2.imencode(".png", np.ascontiguousarray(rgb[..., ::-1]), [cv2.IMWRITE_PNG_COMPRESSION, PNG_COMPRESSION])
+    ok, buf = cv2.imencode(".png", np.ascontiguousarray(rgb[..., ::-1]), PNG_PARAMS)
     if not ok:
         raise RuntimeError("PNG encoding failed")
     return buf.tobytes()
