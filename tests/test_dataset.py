@@ -230,3 +230,45 @@ def test_torch_dataset_and_collate(recorded):
         FogDriveDataset(root, channels=["CAM_TOP"])
     with pytest.raises(ValueError, match="split must be one of"):
         FogDriveDataset(root, split="dev")
+
+
+def test_killed_generation_resumes_to_a_valid_set(tmp_path):
+    """A real ``kill -9`` in the middle of a run, then ``--resume``: the set validates and nothing is duplicated."""
+    import subprocess
+    import sys
+    import time
+
+    from fog_gym.dataset.generate import PROGRESS_DIR, validate
+
+    root = tmp_path / "killed"
+    cmd = [sys.executable, "-m", "fog_gym.cli", "generate", "--root", str(root), "--scenes", "4", "--resolution",
+           "24x16", "--seconds", "0.5", "--towns", "merge", "--seed", "5"]  # fmt: skip
+    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.time() + 120
+    while time.time() < deadline and not list((root / PROGRESS_DIR).glob("*.json")):
+        time.sleep(0.05)
+    proc.kill()
+    proc.wait()
+    done_before = len(list((root / PROGRESS_DIR).glob("*.json")))
+    assert 1 <= done_before < 4
+    out = subprocess.run(cmd + ["--resume"], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr
+    assert validate(root) == []
+    ds = FogDrive(root)
+    assert ds.list_scene_names() == sorted(f"T2_{d}_scene{r:03d}" for r in (1, 2) for d in ("day", "night"))
+    assert len(list((root / "data_root").iterdir())) == 4  # no duplicated scene folders
+    assert subprocess.run(cmd, capture_output=True, text=True).returncode != 0  # non-empty root without --resume
+
+
+def test_generated_set_of_20_scenes_meets_the_split_rules(tmp_path):
+    from fog_gym.dataset.generate import generate, plan_scenes
+    from fog_gym.dataset.splits import check_splits
+
+    plan = plan_scenes(20, towns=("roundabout",), seed=2, resolution=(16, 12), seconds=0.1)
+    generate(tmp_path / "g", plan, progress=False)
+    ds = FogDrive(tmp_path / "g")
+    assert len(ds.scene) == 20
+    r = check_splits(ds.splits, ds.list_scene_names())
+    assert r["duplicate_assignments"] == r["scenes_in_no_split"] == r["scenes_in_split_but_not_in_index"] == []
+    assert len(ds.splits["train"]) == 14 and sorted([len(ds.splits["val"]), len(ds.splits["test"])]) == [2, 4]
+    assert all(v == 0.5 for v in r["day_share"].values())
