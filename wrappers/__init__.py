@@ -6,7 +6,10 @@ Example:
     'FogWrapper'
 """
 
+from fog_gym.wrappers.curriculum import FogCurriculum
 from fog_gym.wrappers.fog import FogWrapper, parse_fog_levels
+from fog_gym.wrappers.observation import LidarBEV, ResizeCameras, SelectKeys, StackFrames
 from fog_gym.wrappers.record import RecordFogDrive
 
-__all__ = ["FogWrapper", "RecordFogDrive", "parse_fog_levels"]
+__all__ = ["FogCurriculum", "FogWrapper", "LidarBEV", "RecordFogDrive", "ResizeCameras", "SelectKeys", "StackFrames",
+           "parse_fog_levels"]

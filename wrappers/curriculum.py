@@ -1,0 +1,51 @@
+"""``FogCurriculum``: apply a fog schedule at every episode boundary of a fogged FogDrive-v0 env."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import gymnasium as gym
+
+from fog_gym.curriculum import FogSchedule
+
+
+class FogCurriculum(gym.Wrapper):
+    """Before each ``reset`` sets the fog of the coming episode from ``schedule`` (through the in-place
+    ``FogWrapper``'s ``set_fog``), and after each episode tells the schedule whether it succeeded (no crash).
+    Episodes are counted per env, so in a vector env every sub-env follows the schedule on its own episodes.
+    ``info["curriculum"]`` gives the episode index and the level in force.
+
+    >>> import fog_gym
+    >>> from fog_gym.curriculum import StepSchedule
+    >>> env = FogCurriculum(gym.make("FogDrive-v0", fog="clear", resolution=(16, 12), cameras=["CAM_FRONT"]),
+    ...                     StepSchedule(episodes_per_level=1))
+    >>> [env.reset(seed=0)[1]["fog"]["visibility_m"] for _ in range(3)]
+    [inf, 160.0, 100.0]
+    """
+
+    def __init__(self, env: gym.Env, schedule: FogSchedule) -> None:
+        super().__init__(env)
+        if not isinstance(schedule, FogSchedule):
+            raise ValueError(f"schedule must be a FogSchedule, got {type(schedule).__name__}")
+        try:
+            env.get_wrapper_attr("set_fog")
+        except AttributeError:
+            raise ValueError("FogCurriculum needs an in-place fog wrapper below it (gym.make(..., fog='clear'))") from None
+        self.schedule = schedule
+        self.episode = -1
+        self._running = False
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        self.episode += 1
+        level = self.schedule.level(self.episode)
+        self.env.get_wrapper_attr("set_fog")(level)
+        obs, info = self.env.reset(seed=seed, options=options)
+        self._running = True
+        return obs, {**info, "curriculum": {"episode": self.episode, "level": level}}
+
+    def step(self, action: Any):
+        obs, reward, terminated, truncated, info = self.env.step(action)
+        if (terminated or truncated) and self._running:
+            self.schedule.record(not info.get("crashed", False))
+            self._running = False
+        return obs, reward, terminated, truncated, {**info, "curriculum": {"episode": self.episode}}
