@@ -767,6 +767,59 @@ def render_recording(rec: dict[str, Any]) -> list[str]:
             f"{s1:.1f} s, 2 workers {s2:.1f} s ({s1 / s2:.2f}× faster)."]  # fmt: skip
 
 
+def bench_rl(repeats: int) -> dict[str, Any]:
+    """``FogDriveRL-v0`` (dense fog) steps/s — one env, and 2 async subprocess envs — next to bare highway-env of
+    the same scenario and frequencies (20 Hz sim, 5 Hz policy, 20 vehicles, 3 lanes), and the share of the step
+    spent on sensors + fog + observation shaping."""
+    import gymnasium as gym
+
+    import fog_gym  # noqa: F401
+    from fog_gym.rl import RL_TRAFFIC
+
+    n = max(40, repeats * 5)
+
+    def rate(env, batch: int = 1) -> float:
+        env.reset(seed=0)
+        action = np.ones(batch, np.int64) if batch > 1 else 1
+        for _ in range(3):
+            env.step(action)
+        t0 = time.perf_counter()
+        for _ in range(n):
+            out = env.step(action)
+            if batch == 1 and (out[2] or out[3]):
+                env.reset()
+        return batch * n / (time.perf_counter() - t0)
+
+    single = gym.make("FogDriveRL-v0", fog="dense")
+    fog_rate = rate(single)
+    base = single.unwrapped
+    world_ms = [timed(base.world.step, 1)[1] for _ in range(n)]
+    single.close()
+    vec = gym.make_vec("fog_gym:FogDriveRL-v0", num_envs=2, vectorization_mode="async", fog="dense")
+    vec_rate = rate(vec, 2)
+    vec.close()
+    hw = bare_highway_env("highway", **RL_TRAFFIC, policy_frequency=5)
+    bare_rate = rate(hw)
+    hw_vec = gym.vector.AsyncVectorEnv([lambda: bare_highway_env("highway", **RL_TRAFFIC, policy_frequency=5)] * 2)
+    bare_vec_rate = rate(hw_vec, 2)
+    hw_vec.close()
+    step_ms = 1000.0 / fog_rate
+    traffic_ms = float(np.median(world_ms))
+    return {"fog_steps_per_s": fog_rate, "fog_vec2_steps_per_s": vec_rate, "bare_steps_per_s": bare_rate,
+            "bare_vec2_steps_per_s": bare_vec_rate, "step_ms": step_ms, "traffic_ms": traffic_ms,
+            "sensor_share": max(0.0, 1.0 - traffic_ms / step_ms)}  # fmt: skip
+
+
+def render_rl(rl: dict[str, Any]) -> list[str]:
+    return ["## RL preset `FogDriveRL-v0` (dense fog; 64×64 camera + 32-channel LiDAR BEV; 20 Hz sim, 5 Hz policy)", "",
+            markdown_table(["", "1 env", "2 async subprocess envs"], [
+                ["FogDriveRL-v0 steps/s", f"{rl['fog_steps_per_s']:.1f}", f"{rl['fog_vec2_steps_per_s']:.1f}"],
+                ["bare highway-env steps/s (same scenario, 20/5 Hz, Kinematics obs)", f"{rl['bare_steps_per_s']:.1f}",
+                 f"{rl['bare_vec2_steps_per_s']:.1f}"]]), "",
+            f"Step {rl['step_ms']:.1f} ms, of which traffic {rl['traffic_ms']:.1f} ms: sensors + fog + shaping take "
+            f"{rl['sensor_share']:.0%} of the step (target ≤ 25 %)."]  # fmt: skip
+
+
 def render_report(results: dict[str, Any]) -> str:
     meta, rigs, base = results["meta"], results["rigs"], results["baseline"]
     keys = list(rigs)
@@ -942,15 +995,17 @@ def main(argv: list[str] | None = None) -> int:
     fog = bench_fog(repeats)
     labels = bench_labels(repeats)
     recording = bench_recording(repeats)
+    rl = bench_rl(repeats)
     baseline = bench_baselines(args.town, repeats, profile_steps)
     meta.update(wall_s=time.perf_counter() - t0, loadavg_end=load_average(), numba_layer=numba.threading_layer())
-    results = {"meta": meta, "rigs": rigs, "point_sensors": point_sensors, "fog": fog, "labels": labels, "recording": recording,
+    results = {"meta": meta, "rigs": rigs, "point_sensors": point_sensors, "fog": fog, "labels": labels, "recording": recording, "rl": rl,
                "baseline": baseline}
 
     print(render_report(results))
     print("\n" + "\n".join(render_fog(fog, repeats)))
     print("\n" + "\n".join(render_labels(labels, repeats)))
     print("\n" + "\n".join(render_recording(recording)))
+    print("\n" + "\n".join(render_rl(rl)))
     if args.json is not None:
         args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(json.dumps(results, indent=2))
