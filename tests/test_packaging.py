@@ -1,0 +1,71 @@
+"""The built wheel works on its own: installed without ``-e`` into a fresh virtual environment, it makes a foggy
+env, records a day/night pair of episodes and validates them with the installed ``fog-gym`` command."""
+
+import site
+import subprocess
+import sys
+import textwrap
+import venv
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+
+SCRIPT = textwrap.dedent(
+    """
+    import sys
+    import gymnasium as gym
+    import fog_gym, fog_gym.dataset, fog_gym.wrappers
+    from fog_gym.wrappers import RecordFogDrive
+
+    assert fog_gym.__file__.startswith(sys.prefix), fog_gym.__file__          # the wheel, not the source tree
+    assert fog_gym.wrappers.__file__.startswith(sys.prefix), fog_gym.wrappers.__file__
+    env = gym.make("FogDrive-v0", fog="dense", resolution=(32, 24))
+    obs, info = env.reset(seed=0)
+    obs, *_ = env.step(env.action_space.sample())
+    assert obs["CAM_FRONT"].shape == (24, 32, 3) and info["fog"]["visibility_m"] == 50.0
+    env.close()
+    for tod in ("day", "night"):
+        rec = RecordFogDrive(fog_gym.FogDriveEnv(time_of_day=tod, resolution=(32, 24), episode_seconds=0.2), "ds")
+        rec.reset(seed=1)
+        done = False
+        while not done:
+            _, _, term, trunc, _ = rec.step(1)
+            done = term or trunc
+        rec.close()
+    print("ok", len(fog_gym.dataset.FogDrive("ds").sample))
+    """
+)
+
+
+def test_wheel_installs_without_editable_mode_and_runs(tmp_path):
+    wheels = tmp_path / "wheels"
+    subprocess.run([sys.executable, "-m", "pip", "wheel", "--no-deps", "-q", "-w", str(wheels), str(ROOT)], check=True)
+    (wheel,) = wheels.glob("fog_gym-*.whl")
+    env_dir = tmp_path / "venv"
+    venv.create(env_dir, with_pip=False)
+    python = env_dir / "bin" / "python"
+    subprocess.run([sys.executable, "-m", "pip", "--python", str(python), "install", "--no-deps", "-q", str(wheel)], check=True)
+    # Dependencies come from this interpreter's site-packages, added as a plain path (a .pth line), so its
+    # editable install of fog-gym (a .pth finder processed only for site dirs) is not picked up.
+    purelib = next(env_dir.glob("lib/python*/site-packages"))
+    (purelib / "zz_deps.pth").write_text("\n".join(site.getsitepackages()) + "\n")
+    work = tmp_path / "work"  # not the repository root, so the source tree is not importable
+    work.mkdir()
+    out = subprocess.run([str(python), "-c", SCRIPT], cwd=work, capture_output=True, text=True, timeout=900)
+    assert out.returncode == 0, out.stderr[-3000:]
+    assert out.stdout.split()[-2:] == ["ok", "6"]  # 2 scenes × (reset + 2 steps)
+    val = subprocess.run([str(env_dir / "bin" / "fog-gym"), "validate", "ds"], cwd=work, capture_output=True, text=True)
+    assert val.returncode == 0, val.stdout + val.stderr
+    assert val.stdout.strip().endswith("valid")
+
+
+@pytest.mark.parametrize("package", ["fog_gym.dataset", "fog_gym.render", "fog_gym.wrappers"])
+def test_setup_discovers_every_subpackage(package):
+    out = subprocess.run([sys.executable, "-c", "import runpy, setuptools; setuptools.setup = lambda **kw: print("
+                          "' '.join(kw['packages'])); runpy.run_path('setup.py')"], cwd=ROOT, capture_output=True, text=True)
+    found = out.stdout.split()
+    assert package in found
+    folders = {p.parent for p in (ROOT / "fog_gym").rglob("__init__.py")} | {p.parent for p in (ROOT / "wrappers").rglob("__init__.py")}
+    assert len(found) == len(folders)
