@@ -16,6 +16,29 @@ from pathlib import Path
 from fog_gym.config import TIMES_OF_DAY, TOWNS
 
 
+def _fail(command: str, message: str) -> SystemExit:
+    """The one form of every command's error: ``fog-gym <command>: <message>`` on stderr, exit status 1."""
+    return SystemExit(f"fog-gym {command}: {message}")
+
+
+def _fog_level(text: str) -> str | float:
+    """A fog level for ``--fog``: a preset name or a visibility in metres."""
+    from fog_gym.fog import parse_fog
+
+    value: str | float = text
+    try:
+        value = float(text)
+    except ValueError:
+        pass
+    try:
+        level = parse_fog(value)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None
+    if level.is_clear:
+        raise argparse.ArgumentTypeError("--fog takes fog levels; clear is always shown")
+    return value
+
+
 def _resolution(text: str) -> tuple[int, int]:
     try:
         w, h = (int(v) for v in text.lower().split("x"))
@@ -39,44 +62,59 @@ def build_parser() -> argparse.ArgumentParser:
         "cameras' RGB / depth / semantic views, the env's render (front camera + bird's-eye view) and one LiDAR sweep "
         "seen from above (intensity; semantic LiDAR by tag).",
     )
-    demo.add_argument("--town", choices=TOWNS, default="highway")
-    demo.add_argument("--time-of-day", choices=TIMES_OF_DAY, default="day")
+    demo.add_argument("--town", choices=TOWNS, default="highway", help="town (default highway)")
+    demo.add_argument("--time-of-day", choices=TIMES_OF_DAY, default="day", help="day or night (default day)")
     demo.add_argument("--resolution", type=_resolution, default=(1280, 960), help="camera resolution WxH (default 1280x960)")
     demo.add_argument("--steps", type=int, default=20, help="env steps (0.1 s each) before the snapshot (default 20)")
-    demo.add_argument("--seed", type=int, default=0)
+    demo.add_argument("--seed", type=int, default=0, help="episode seed (default 0)")
+    demo.add_argument("--fog", type=_fog_level, nargs="+", default=["light", "moderate", "dense"], metavar="LEVEL",
+                      help="fog levels shown beside clear: light, moderate, dense or a visibility in metres "
+                      "(default: light moderate dense)")
     demo.add_argument("--out", type=Path, default=Path("out/demo"), help="output folder (default out/demo)")
     audit = sub.add_parser(
         "audit",
         help="annotation audit of both visibility rules (precision, recall per distance bin); writes Markdown + PNG",
         description="Drive every town by day and night, label each frame with FogDrive's LiDAR rule and the camera "
-        "rule, and report the paper's audit numbers: precision (boxes with >= 10%% vehicle pixels), recall (vehicle "
-        "blobs >= 100 px² covered >= 50%% by a box) overall and per distance bin.",
+        "rule, and report the paper's audit numbers: precision (boxes with >= 10 % vehicle pixels), recall (vehicle "
+        "blobs >= 100 px² covered >= 50 % by a box) overall and per distance bin.",
     )
     audit.add_argument("--frames", type=int, default=200, help="frames in all (default 200)")
-    audit.add_argument("--resolution", type=_resolution, default=(1280, 960))
-    audit.add_argument("--seed", type=int, default=0)
+    audit.add_argument("--resolution", type=_resolution, default=(1280, 960), help="camera resolution WxH (default 1280x960)")
+    audit.add_argument("--seed", type=int, default=0, help="base seed (default 0)")
     audit.add_argument("--out", type=Path, default=Path("out/audit"), help="output folder (default out/audit)")
     gen = sub.add_parser(
         "generate",
         help="generate a FogDrive dataset (clean + 3 paired fog levels) in parallel, with index and splits",
         description="Render scenes in the FogDrive layout: per-town budgets in day/night pairs, seeds from (seed, "
-        "scene index) so any scene regenerates bit for bit; --resume continues an interrupted run.",
+        "scene index) so any scene regenerates bit for bit. The settings are written to index/manifest.json first; "
+        "--resume continues an interrupted run and refuses settings that differ from the manifest.",
     )
     gen.add_argument("--root", type=Path, required=True, help="dataset root (must be empty unless --resume)")
     gen.add_argument("--scenes", type=int, required=True, help="number of scenes (even: day/night pairs)")
     gen.add_argument("--workers", type=int, default=1, help="worker processes (default 1)")
-    gen.add_argument("--resolution", type=_resolution, default=(1280, 960))
+    gen.add_argument("--resolution", type=_resolution, default=(1280, 960), help="camera resolution WxH (default 1280x960)")
     gen.add_argument("--seconds", type=float, default=20.0, help="scene length in seconds (default 20)")
     gen.add_argument("--seed", type=int, default=0, help="base seed (default 0)")
     gen.add_argument("--towns", nargs="+", choices=TOWNS, default=list(TOWNS), help="towns to use (default all)")
-    gen.add_argument("--resume", action="store_true", help="continue an interrupted run in --root")
+    gen.add_argument("--resume", action="store_true", help="continue an interrupted run in --root (same settings)")
     gen.add_argument("--ray", metavar="ADDRESS", default=None, help="run scenes as Ray tasks on this cluster")
-    val = sub.add_parser("validate", help="check a dataset's index, files, shapes and split rules",
-                         description="Exit 0 if the dataset is valid, 1 with a list of problems otherwise.")
-    val.add_argument("root", type=Path)
-    st = sub.add_parser("stats", help="files and MB per modality of a dataset (and a PNG bar chart)")
-    st.add_argument("root", type=Path)
-    bench = sub.add_parser("bench", help="run scripts/bench.py (per-stage milliseconds)", add_help=False)
+    val = sub.add_parser(
+        "validate", help="check a dataset's index, files, shapes and split rules",
+        description="Check a FogDrive dataset: the index tables, every file (decodes, shape, size; with a generation "
+        "manifest also against its settings), extrinsics and the split rules. Prints one line per problem naming "
+        "the file; exit status 0 if the dataset is valid, 1 otherwise.",
+    )  # fmt: skip
+    val.add_argument("root", type=Path, help="dataset root (holds data_root/ and index/)")
+    val.add_argument("--progress", action="store_true", help="show a progress bar over the files")
+    st = sub.add_parser(
+        "stats", help="files and MB per modality of a dataset (optionally a bar chart)",
+        description="Count the files and megabytes of each modality of a FogDrive dataset (the paper's disk table, "
+        "supplementary D7) and print a Markdown table; --plot PATH also writes a bar chart.",
+    )  # fmt: skip
+    st.add_argument("root", type=Path, help="dataset root (holds data_root/ and index/)")
+    st.add_argument("--plot", type=Path, default=None, metavar="PATH", help="write a bar chart PNG to PATH")
+    bench = sub.add_parser("bench", help="run scripts/bench.py (per-stage milliseconds; see fog-gym bench --help)",
+                           add_help=False)
     bench.add_argument("args", nargs=argparse.REMAINDER)
     return parser
 
@@ -90,11 +128,12 @@ def run_demo(args: argparse.Namespace) -> list[Path]:
     import fog_gym  # noqa: F401
     from fog_gym.encoding import colorize_depth, colorize_semantic
     from fog_gym.points import unpack_points
-    from fog_gym.viz import contact_sheet, lidar_panels
+    from fog_gym.fog import parse_fog
+    from fog_gym.viz import contact_sheet, exposure_preview, lidar_panels
 
     if args.steps < 0:
-        raise SystemExit("--steps must be >= 0")
-    levels = ["light", "moderate", "dense"]
+        raise _fail("demo", "--steps must be >= 0")
+    levels = list(dict.fromkeys(args.fog))
     env = gym.make("FogDrive-v0", town=args.town, time_of_day=args.time_of_day, resolution=args.resolution,
                    render_mode="rgb_array", fog=levels)  # paired: clean + every level from one render  # fmt: skip
     obs, info = env.reset(seed=args.seed)
@@ -114,20 +153,33 @@ def run_demo(args: argparse.Namespace) -> list[Path]:
     view = args.out / f"render_{stem}.png"
     lidar = args.out / f"lidar_{stem}.png"
     fog = args.out / f"fog_levels_{stem}.png"
+    if args.time_of_day == "night":
+        for name, row in rows.items():
+            row[0] = exposure_preview(row[0])[0]
     cv2.imwrite(str(sheet), contact_sheet(rows, tile_width=min(480, args.resolution[0]))[..., ::-1])
-    cv2.imwrite(str(view), env.render()[..., ::-1])
+    view_img = env.render()
+    if args.time_of_day == "night":
+        front_w = view_img.shape[1] - view_img.shape[0]  # the front camera left of the square bird's-eye view
+        view_img[:, :front_w] = exposure_preview(view_img[:, :front_w])[0]
+    cv2.imwrite(str(view), view_img[..., ::-1])
     points = env.unwrapped.points
     cv2.imwrite(str(lidar), lidar_panels(points.get("LIDAR_TOP"), points.get("SEM_LIDAR_TOP"))[..., ::-1])
-    suffixes = [""] + [f"_FOG_{lv.upper()}" for lv in levels]
-    names = ["clear"] + [f"{lv} ({v:g} m)" for lv, v in zip(levels, (160, 100, 50))]
+    fog_levels = [parse_fog(lv) for lv in levels]
+    suffixes = [""] + [f"_{lv.channel_suffix}" for lv in fog_levels]
+    names = ["clear"] + [f"{lv.name} ({lv.visibility_m:g} m)" if lv.name[0].isalpha() else f"{lv.visibility_m:g} m"
+                         for lv in fog_levels]  # fmt: skip
     width = min(480, args.resolution[0])
-    fog_rows = {
-        "CAM_FRONT": [obs[f"CAM_FRONT{s}"] for s in suffixes],
+    fronts = [obs[f"CAM_FRONT{s}"] for s in suffixes]
+    fog_rows = {"CAM_FRONT": fronts}
+    if args.time_of_day == "night":  # the data stays linear; a person needs an exposure-normalised copy to see it
+        _, gain = exposure_preview(fronts[0])
+        fog_rows[f"CAM_FRONT preview x{gain:.0f}"] = [np.clip(f.astype(np.float32) * gain, 0, 255).astype(np.uint8) for f in fronts]
+    fog_rows.update({
         "LIDAR_TOP (intensity)": [
             cv2.resize(lidar_panels(unpack_points(obs, f"LIDAR_TOP{s}"), None, metres=100.0), (width, width))
             for s in suffixes
         ],
-    }
+    })
     cv2.imwrite(str(fog), contact_sheet(fog_rows, tile_width=width, captions=names)[..., ::-1])
     env.close()
     return [fog, sheet, view, lidar]
@@ -156,58 +208,79 @@ def main(argv: list[str] | None = None) -> int:
 
         script = Path(__file__).resolve().parent.parent / "scripts" / "bench.py"
         if not script.exists():
-            raise SystemExit("fog-gym bench needs the source checkout (scripts/bench.py)")
-        sys.argv = [str(script), *argv[1:]]
+            raise _fail("bench", "needs the source checkout (scripts/bench.py); it is not part of the wheel")
+        sys.argv = ["fog-gym bench", *argv[1:]]
         runpy.run_path(str(script), run_name="__main__")
         return 0
     args = parser.parse_args(argv)
-    if args.command == "generate":
-        from fog_gym.dataset.generate import generate, plan_scenes
+    handler = {"generate": _generate, "validate": _validate, "stats": _stats, "audit": _audit, "demo": _demo}
+    return handler[args.command](args)
 
-        if args.workers < 1:
-            raise SystemExit("--workers must be >= 1")
-        if not args.seconds > 0:
-            raise SystemExit("--seconds must be > 0")
-        try:
-            plan = plan_scenes(args.scenes, tuple(args.towns), args.seed, args.resolution, args.seconds)
-            tables = generate(args.root, plan, args.workers, args.resume, args.ray)
-        except ValueError as e:
-            raise SystemExit(f"fog-gym generate: {e}") from None
-        print(f"{len(tables['scene'])} scenes, {len(tables['sample'])} samples in {args.root}")
-    if args.command == "validate":
-        from fog_gym.dataset.generate import validate
 
-        problems = validate(args.root)
-        for p in problems:
-            print(p)
-        print("valid" if not problems else f"{len(problems)} problems")
-        return 1 if problems else 0
-    if args.command == "stats":
-        from fog_gym.dataset.generate import stats
+def _generate(args: argparse.Namespace) -> int:
+    from fog_gym.dataset.generate import generate, plan_scenes
 
+    if args.workers < 1:
+        raise _fail("generate", "--workers must be >= 1")
+    if not args.seconds > 0:
+        raise _fail("generate", "--seconds must be > 0")
+    try:
+        plan = plan_scenes(args.scenes, tuple(args.towns), args.seed, args.resolution, args.seconds)
+        tables = generate(args.root, plan, args.workers, args.resume, args.ray)
+    except ValueError as e:
+        raise _fail("generate", str(e)) from None
+    print(f"{len(tables['scene'])} scenes, {len(tables['sample'])} samples in {args.root}")
+    return 0
+
+
+def _validate(args: argparse.Namespace) -> int:
+    from fog_gym.dataset.validate import validate
+
+    problems = validate(args.root, progress=args.progress)
+    for p in problems:
+        print(p)
+    n = len(problems)
+    print("valid" if not n else f"{n} problem{'s' if n > 1 else ''}")
+    return 1 if problems else 0
+
+
+def _stats(args: argparse.Namespace) -> int:
+    from fog_gym.dataset.validate import stats
+
+    try:
         rows = stats(args.root)
-        print("| modality | files | MB |\n|---|---|---|")
-        for kind, n, mb in rows:
-            print(f"| {kind} | {n} | {mb:.1f} |")
-        print(f"| total | {sum(r[1] for r in rows)} | {sum(r[2] for r in rows):.1f} |")
-        _stats_figure(rows, args.root / "stats.png")
-        print(f"\nwrote {args.root / 'stats.png'}")
-    if args.command == "audit":
-        from fog_gym.audit import figure, report, run_audit
+    except ValueError as e:
+        raise _fail("stats", str(e)) from None
+    print("| modality | files | MB |\n|---|---|---|")
+    for kind, n, mb in rows:
+        print(f"| {kind} | {n} | {mb:.1f} |")
+    print(f"| total | {sum(r[1] for r in rows)} | {sum(r[2] for r in rows):.1f} |")
+    if args.plot is not None:
+        args.plot.parent.mkdir(parents=True, exist_ok=True)
+        _stats_figure(rows, args.plot)
+        print(f"\nwrote {args.plot}")
+    return 0
 
-        if args.frames < 1:
-            raise SystemExit("--frames must be >= 1")
-        result = run_audit(args.frames, args.resolution, args.seed)
-        text = report(result)
-        args.out.mkdir(parents=True, exist_ok=True)
-        (args.out / "audit.md").write_text(text + "\n")
-        figure(result, args.out / "audit.png")
-        print(text)
-        print(f"\nwrote {args.out / 'audit.md'} and {args.out / 'audit.png'}")
-    if args.command == "demo":
-        t0 = time.perf_counter()
-        paths = run_demo(args)
-        print(f"wrote {', '.join(str(p) for p in paths)} in {time.perf_counter() - t0:.1f} s")
+
+def _audit(args: argparse.Namespace) -> int:
+    from fog_gym.audit import figure, report, run_audit
+
+    if args.frames < 1:
+        raise _fail("audit", "--frames must be >= 1")
+    result = run_audit(args.frames, args.resolution, args.seed)
+    text = report(result)
+    args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / "audit.md").write_text(text + "\n")
+    figure(result, args.out / "audit.png")
+    print(text)
+    print(f"\nwrote {args.out / 'audit.md'} and {args.out / 'audit.png'}")
+    return 0
+
+
+def _demo(args: argparse.Namespace) -> int:
+    t0 = time.perf_counter()
+    paths = run_demo(args)
+    print(f"wrote {', '.join(str(p) for p in paths)} in {time.perf_counter() - t0:.1f} s")
     return 0
 
 

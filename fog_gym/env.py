@@ -18,6 +18,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
+from fog_gym._kernels import announce_compilation
 from fog_gym.config import FogDriveConfig, RigConfig
 from fog_gym import geometry
 from fog_gym.encoding import SEMANTIC_TAGS
@@ -99,6 +100,7 @@ class FogDriveEnv(gym.Env):
         self.render_mode = render_mode
 
         c = self.config
+        announce_compilation()
         self.world = TrafficWorld(c.town, c.simulation_frequency, c.keyframe_frequency, c.episode_seconds, dict(c.highway_config))
         self.cameras = CameraRig(c.rig, far=c.far_distance)
         self.action_space = self.world.action_space

@@ -949,7 +949,7 @@ def positive_int(text: str) -> int:
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog="bench.py",
+        prog=None if os.path.basename(sys.argv[0]).startswith("fog-gym") else "bench.py",
         description="Per-stage milliseconds of FogDrive-v0 (traffic step, scene build, cameras batched and alone, "
         "point sensors, full env.step) for the full 4×1280×960 rig and a 1×128×128 RL rig (both with LiDAR, "
         "semantic LiDAR and radar), against a bare highway-env step; the point sensors alone on a 50-vehicle "

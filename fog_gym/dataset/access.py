@@ -15,11 +15,68 @@ Example:
 from __future__ import annotations
 
 import json
-from pathlib import Path
+from pathlib import Path, PurePosixPath
 from typing import Any
 
 TABLES = ("scene", "sample", "sample_data")
 SPLITS = ("train", "val", "test")
+
+
+class DatasetError(ValueError):
+    """A dataset file that cannot be used: unreadable, corrupt, or an index entry pointing outside the root."""
+
+
+def safe_relative_path(filename: object) -> PurePosixPath:
+    """``filename`` from an index as a relative path that stays inside the dataset root, or :class:`DatasetError`.
+
+    A dataset from elsewhere must not make the reader open other files: absolute paths, ``..`` components and
+    backslashes are refused.
+
+    >>> safe_relative_path("data_root/x/lidar/000000.npy").parts[0]
+    'data_root'
+    >>> safe_relative_path("../etc/passwd")
+    Traceback (most recent call last):
+    ...
+    fog_gym.dataset.access.DatasetError: index file name '../etc/passwd' escapes the dataset root
+    """
+    if not isinstance(filename, str) or not filename:
+        raise DatasetError(f"index file name must be a non-empty string, got {filename!r}")
+    path = PurePosixPath(filename)
+    if path.is_absolute() or "\\" in filename or filename.startswith("~") or ":" in path.parts[0]:
+        raise DatasetError(f"index file name {filename!r} is absolute; it must be relative to the dataset root")
+    if ".." in path.parts:
+        raise DatasetError(f"index file name {filename!r} escapes the dataset root")
+    return path
+
+
+def read_json(path: Path) -> Any:
+    """Parse a JSON file; a missing, unreadable or corrupt file raises :class:`DatasetError` naming it."""
+    try:
+        return json.loads(Path(path).read_bytes())
+    except FileNotFoundError:
+        raise DatasetError(f"{path}: missing") from None
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
+        raise DatasetError(f"{path}: not valid JSON ({e})") from None
+
+
+_REQUIRED = {
+    "scene": ("token", "name", "nbr_samples", "first_sample_token", "last_sample_token", "extrinsic_config_path"),
+    "sample": ("token", "timestamp", "scene_token", "prev", "next"),
+    "sample_data": ("token", "sample_token", "channel", "filename", "fileformat"),
+}
+
+
+def load_table(index: Path, name: str) -> list[dict]:
+    """One index table, checked to be a list of records with the D6 fields; :class:`DatasetError` otherwise."""
+    path = index / f"{name}.json"
+    table = read_json(path)
+    if not isinstance(table, list) or not all(isinstance(r, dict) for r in table):
+        raise DatasetError(f"{path}: expected a list of records")
+    for i, rec in enumerate(table):
+        missing = [k for k in _REQUIRED[name] if k not in rec]
+        if missing:
+            raise DatasetError(f"{path}: record {i} lacks {missing}")
+    return table
 
 
 class FogDrive:
@@ -31,24 +88,37 @@ class FogDrive:
     def __init__(self, dataroot: str | Path, verbose: bool = False) -> None:
         self.dataroot = Path(dataroot)
         index = self.dataroot / "index"
+        if not self.dataroot.is_dir():
+            raise FileNotFoundError(f"{self.dataroot} is not a folder: not a FogDrive dataset root")
         for name in TABLES:
             if not (index / f"{name}.json").exists():
                 raise FileNotFoundError(f"{index / (name + '.json')} is missing: not a FogDrive dataset root")
-        self.scene: list[dict] = json.loads((index / "scene.json").read_text())
-        self.sample: list[dict] = json.loads((index / "sample.json").read_text())
-        self.sample_data: list[dict] = json.loads((index / "sample_data.json").read_text())
+        self.scene: list[dict] = load_table(index, "scene")
+        self.sample: list[dict] = load_table(index, "sample")
+        self.sample_data: list[dict] = load_table(index, "sample_data")
+        for rec in self.sample_data:
+            safe_relative_path(rec["filename"])
+        for rec in self.scene:
+            safe_relative_path(rec["extrinsic_config_path"])
         splits_path = index / "splits.json"
-        self.splits: dict[str, list[str]] | None = json.loads(splits_path.read_text()) if splits_path.exists() else None
+        self.splits: dict[str, list[str]] | None = read_json(splits_path) if splits_path.exists() else None
         self._index = {name: {rec["token"]: i for i, rec in enumerate(getattr(self, name))} for name in TABLES}
         self._scene_by_name = {rec["name"]: rec for rec in self.scene}
         # joins: sample token → {channel: sample_data record}; scene token → sample records in time order
         self._sample_channels: dict[str, dict[str, dict]] = {rec["token"]: {} for rec in self.sample}
         for rec in self.sample_data:
+            if rec["sample_token"] not in self._sample_channels:
+                raise DatasetError(f"{index / 'sample_data.json'}: {rec['filename']} belongs to unknown sample "
+                                   f"{rec['sample_token']!r}")
             self._sample_channels[rec["sample_token"]][rec["channel"]] = rec
         self._scene_samples: dict[str, list[dict]] = {rec["token"]: [] for rec in self.scene}
         for rec in self.scene:
-            tok = rec["first_sample_token"]
+            tok, seen = rec["first_sample_token"], set()
             while tok:
+                if tok in seen or tok not in self._index["sample"]:
+                    raise DatasetError(f"{index / 'sample.json'}: the prev/next chain of scene {rec['name']!r} "
+                                       f"{'loops' if tok in seen else 'links to unknown sample ' + repr(tok)}")
+                seen.add(tok)
                 s = self.sample[self._index["sample"][tok]]
                 self._scene_samples[rec["token"]].append(s)
                 tok = s["next"]
@@ -85,7 +155,7 @@ class FogDrive:
         return self.dataroot / self.get("scene", scene_token)["extrinsic_config_path"]
 
     def load_extrinsic_config(self, scene_token: str) -> dict[str, Any]:
-        return json.loads(self.get_extrinsic_config_path(scene_token).read_text())
+        return read_json(self.get_extrinsic_config_path(scene_token))
 
     # -- linear in the output -----------------------------------------------------------------------------
     def get_sample_data_for_sample(self, sample_token: str, channels: list[str] | None = None) -> list[dict]:

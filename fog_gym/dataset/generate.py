@@ -23,7 +23,9 @@ from typing import Any
 import numpy as np
 
 from fog_gym.config import TOWNS
-from fog_gym.dataset.layout import CHANNELS, DATA_ROOT, scene_folder_name
+from fog_gym.dataset.layout import DATA_ROOT, scene_folder_name
+from fog_gym.dataset.manifest import MANIFEST_FILE, differences, make_manifest, read_manifest, write_manifest
+from fog_gym.dataset.validate import stats, validate  # noqa: F401  (kept importable from here)
 from fog_gym.dataset.writer import SceneWriter, build_index
 
 PROGRESS_DIR = ".generate"  # completion markers, outside data_root so the layout stays exactly D2
@@ -40,6 +42,7 @@ class SceneSpec:
     seed: int
     resolution: tuple[int, int]
     seconds: float
+    base_seed: int = 0
 
     @property
     def folder(self) -> str:
@@ -70,7 +73,7 @@ def plan_scenes(n_scenes: int, towns: tuple[str, ...] = TOWNS, seed: int = 0, re
             for tod in ("day", "night"):
                 index = len(plan)
                 scene_seed = int(np.random.SeedSequence([seed, index]).generate_state(1)[0] & 0x7FFFFFFF)
-                plan.append(SceneSpec(index, town, tod, run, scene_seed, tuple(resolution), float(seconds)))
+                plan.append(SceneSpec(index, town, tod, run, scene_seed, tuple(resolution), float(seconds), seed))
     return plan
 
 
@@ -113,6 +116,31 @@ def pending_scenes(root: Path, plan: list[SceneSpec]) -> list[SceneSpec]:
     return [s for s in plan if not (root / PROGRESS_DIR / f"{s.folder}.json").exists()]
 
 
+def plan_manifest(plan: list[SceneSpec]) -> dict[str, Any]:
+    """The manifest of a plan: scene count, resolution, seconds, base seed, towns in plan order."""
+    if not plan:
+        raise ValueError("the plan has no scenes")
+    towns = list(dict.fromkeys(s.town for s in plan))
+    first = plan[0]
+    return make_manifest(len(plan), first.resolution, first.seconds, first.base_seed, towns)
+
+
+def check_manifest(root: Path, manifest: dict[str, Any], resume: bool) -> None:
+    """Write the manifest of a new run; on resume, refuse settings that differ from the stored one."""
+    stored = read_manifest(root)
+    if stored is not None:
+        diff = differences(stored, manifest)
+        if diff:
+            raise ValueError("--resume with settings that differ from the dataset's manifest "
+                             f"({MANIFEST_FILE}): {'; '.join(diff)}")
+        return
+    started = any(p.is_dir() for p in (root / DATA_ROOT).iterdir()) if (root / DATA_ROOT).is_dir() else False
+    if resume and started:
+        raise ValueError(f"{root} has scenes but no {MANIFEST_FILE}: its settings cannot be checked, so it cannot "
+                         "be resumed safely")
+    write_manifest(root, manifest)
+
+
 def check_root(root: Path, resume: bool) -> None:
     """Clear errors before any rendering: unwritable root, or a non-empty one without ``resume``."""
     if root.exists() and not root.is_dir():
@@ -128,71 +156,18 @@ def check_root(root: Path, resume: bool) -> None:
         raise ValueError(f"dataset root {root} is not writable: {e}") from None
 
 
-def validate(root: str | Path) -> list[str]:
-    """Every problem found in a dataset: index links, files, shapes, channels and split rules (empty list = valid)."""
-    import cv2
-
-    from fog_gym.dataset.access import FogDrive
-    from fog_gym.dataset.splits import check_splits
-
-    root = Path(root)
-    problems: list[str] = []
-    try:
-        ds = FogDrive(root)
-    except (FileNotFoundError, json.JSONDecodeError) as e:
-        return [f"cannot open the index: {e}"]
-    for sc in ds.scene:
-        samples = ds.get_samples_for_scene(sc["token"])
-        if len(samples) != sc["nbr_samples"]:
-            problems.append(f"{sc['name']}: nbr_samples {sc['nbr_samples']} but {len(samples)} linked samples")
-        if samples and (samples[0]["token"] != sc["first_sample_token"] or samples[-1]["token"] != sc["last_sample_token"]):
-            problems.append(f"{sc['name']}: first/last sample tokens do not match the prev/next chain")
-        if not ds.get_extrinsic_config_path(sc["token"]).exists():
-            problems.append(f"{sc['name']}: missing {sc['extrinsic_config_path']}")
-    for s in ds.sample:
-        recs = ds.get_sample_data_for_sample(s["token"])
-        channels = {r["channel"] for r in recs}
-        if channels != set(CHANNELS):
-            problems.append(f"sample {s['token']}: {len(channels)} channels, missing {sorted(set(CHANNELS) - channels)}")
-        for r in recs:
-            path = root / r["filename"]
-            if not path.exists():
-                problems.append(f"missing file {r['filename']}")
-                continue
-            if r["fileformat"] == "png":
-                img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
-                if img is None or img.ndim != 3 or img.shape[2] != 3 or (img.shape[1], img.shape[0]) != (r["width"], r["height"]):
-                    problems.append(f"{r['filename']}: not a {r['width']}×{r['height']} RGB PNG")
-            elif r["fileformat"] == "npy":
-                a = np.load(path)
-                cols = 6 if r["channel"] == "SEM_LIDAR_TOP" else 4
-                if a.dtype != np.float32 or a.ndim != 2 or a.shape[1] != cols:
-                    problems.append(f"{r['filename']}: expected float32 (N, {cols}), got {a.dtype} {a.shape}")
-            else:
-                data = json.loads(path.read_text())
-                keys = {"bboxes_3d", "vehicle_ids"} if r["channel"] == "BBOX_3D" else {"bboxes", "vehicle_ids", "vehicle_class"}
-                if not keys <= set(data):
-                    problems.append(f"{r['filename']}: missing keys {sorted(keys - set(data))}")
-    if ds.splits is None:
-        problems.append("index/splits.json is missing")
-    else:
-        checks = check_splits(ds.splits, [sc["name"] for sc in ds.scene])
-        for key in ("duplicate_assignments", "scenes_in_no_split", "scenes_in_split_but_not_in_index"):
-            if checks[key]:
-                problems.append(f"splits: {key}: {checks[key]}")
-        for split, share in checks["day_share"].items():
-            if ds.splits.get(split) and share != 0.5:
-                problems.append(f"splits: {split} is {share:.0%} day, not 50 %")
-    return problems
-
-
 def generate(root: str | Path, plan: list[SceneSpec], workers: int = 1, resume: bool = False,
              ray_address: str | None = None, progress: bool = True) -> dict[str, Any]:  # fmt: skip
-    """Generate the plan's pending scenes in parallel, then rebuild the index; returns the index tables."""
+    """Generate the plan's pending scenes in parallel, then rebuild the index; returns the index tables.
+
+    The run's settings go to ``index/manifest.json`` before any rendering; ``resume`` with settings that differ
+    from the manifest is a ``ValueError`` naming them.
+    """
     from tqdm import tqdm
 
     root = Path(root)
     check_root(root, resume)
+    check_manifest(root, plan_manifest(plan), resume)
     todo = pending_scenes(root, plan)
     bar = tqdm(total=len(plan), initial=len(plan) - len(todo), desc="scenes", unit="scene", disable=not progress)
     if ray_address is not None:
@@ -221,19 +196,3 @@ def generate(root: str | Path, plan: list[SceneSpec], workers: int = 1, resume: 
                 bar.update()
     bar.close()
     return build_index(root)
-
-
-def stats(root: str | Path) -> list[tuple[str, int, float]]:
-    """(modality, files, MB) per folder kind of the layout, as the paper's disk table (D7)."""
-    from collections import defaultdict
-
-    root = Path(root)
-    acc: dict[str, list[float]] = defaultdict(lambda: [0, 0.0])
-    for path in (root / DATA_ROOT).rglob("*"):
-        if path.is_file():
-            rel = path.relative_to(root / DATA_ROOT).parts[1:]
-            kind = "/".join(rel[:-1]) if rel[0].startswith("cam_") else rel[0]
-            kind = kind.split("/", 1)[1] if kind.startswith("cam_") else kind  # out_rgb etc., all cameras together
-            acc[kind][0] += 1
-            acc[kind][1] += path.stat().st_size / 1e6
-    return sorted(((k, int(v[0]), v[1]) for k, v in acc.items()), key=lambda r: -r[2])

@@ -1,6 +1,6 @@
 """``FogDriveDataset``: a PyTorch dataset over a FogDrive root (needs the ``torch`` extra).
 
-Decoding lives in :func:`load_sample` (no torch needed): RGB → uint8 (H, W, 3), depth PNG → float32 metres,
+Decoding lives in :mod:`fog_gym.dataset.decode` and :func:`load_sample` (no torch needed): RGB → uint8 (H, W, 3), depth PNG → float32 metres,
 segmentation PNG → uint8 tag ids (red channel), ``.npy`` → float32 points, bbox JSON → arrays.
 :func:`collate` batches fixed-size images by stacking and keeps variable-size point clouds and box lists as
 lists (one entry per sample).
@@ -12,16 +12,14 @@ Example:
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
-import cv2
 import numpy as np
 
 from fog_gym.dataset.access import SPLITS, FogDrive
+from fog_gym.dataset.decode import decode_bbox_json, load_channel
 from fog_gym.dataset.layout import CHANNELS
-from fog_gym.encoding import decode_depth
 
 try:  # the torch extra; everything but FogDriveDataset works without it
     import torch
@@ -29,34 +27,6 @@ try:  # the torch extra; everything but FogDriveDataset works without it
 except ImportError:  # pragma: no cover - exercised where torch is absent
     torch = None
     _TorchDataset = object
-
-
-def decode_bbox_json(data: bytes) -> dict[str, np.ndarray]:
-    d = json.loads(data)
-    if "bboxes_3d" in d:
-        return {"bboxes_3d": np.asarray(d["bboxes_3d"], np.float32).reshape(-1, 8, 3),
-                "vehicle_ids": np.asarray(d["vehicle_ids"], np.int64)}  # fmt: skip
-    return {"bboxes": np.asarray(d["bboxes"], np.int64).reshape(-1, 2, 2),
-            "vehicle_ids": np.asarray(d["vehicle_ids"], np.int64),
-            "vehicle_class": np.asarray(d["vehicle_class"], np.int64)}  # fmt: skip
-
-
-def load_channel(channel: str, path: str | Path) -> Any:
-    """Decode one file of ``channel``."""
-    _, fmt = CHANNELS[channel]
-    if fmt == "npy":
-        return np.load(path).astype(np.float32, copy=False)
-    if fmt == "json":
-        return decode_bbox_json(Path(path).read_bytes())
-    img = cv2.imread(str(path), cv2.IMREAD_COLOR)
-    if img is None:
-        raise OSError(f"cannot read image {path}")
-    rgb = img[..., ::-1]
-    if channel.endswith("_DEPTH"):
-        return decode_depth(rgb)
-    if channel.endswith("_SEM"):
-        return np.ascontiguousarray(rgb[..., 0])
-    return np.ascontiguousarray(rgb)
 
 
 def load_sample(ds: FogDrive, sample_token: str, channels: list[str] | None = None) -> dict[str, Any]:

@@ -1,0 +1,75 @@
+"""The generation manifest: the settings a dataset was generated with, written at the start of ``fog-gym generate``.
+
+``index/manifest.json`` holds the scene count, resolution, scene length, base seed, towns, fog levels (name and
+visibility), the channel set and the fog-gym version. ``generate --resume`` refuses settings that differ from it
+(a resumed run must not mix resolutions or scene plans), and ``validate`` checks the files against it.
+
+Example:
+    >>> m = make_manifest(scenes=2, resolution=(64, 48), seconds=1.0, seed=0, towns=("highway",))
+    >>> differences(m, {**m, "resolution": [32, 24]})
+    ['resolution: [64, 48] in the dataset, [32, 24] now']
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+from fog_gym.dataset.access import DatasetError, read_json
+from fog_gym.dataset.layout import CHANNELS, FOG_LEVELS
+
+MANIFEST_FILE = "index/manifest.json"
+FORMAT = 1
+#: The settings that must agree between a run and the run it resumes.
+SETTINGS = ("scenes", "resolution", "seconds", "seed", "towns", "fog_levels", "channels")
+
+
+def make_manifest(scenes: int, resolution: Sequence[int], seconds: float, seed: int, towns: Sequence[str],
+                  channels: Sequence[str] | None = None) -> dict[str, Any]:  # fmt: skip
+    """The manifest of a generation run (JSON-ready)."""
+    from fog_gym import __version__
+    from fog_gym.fog import FOG_PRESETS
+
+    return {
+        "format": FORMAT,
+        "fog_gym_version": __version__,
+        "scenes": int(scenes),
+        "resolution": [int(v) for v in resolution],
+        "seconds": float(seconds),
+        "seed": int(seed),
+        "towns": list(towns),
+        "fog_levels": {lv.lower(): float(FOG_PRESETS[lv.lower()]) for lv in FOG_LEVELS},
+        "channels": list(channels if channels is not None else CHANNELS),
+    }
+
+
+def differences(stored: dict[str, Any], current: dict[str, Any]) -> list[str]:
+    """One line per setting in which ``current`` differs from ``stored``."""
+    return [f"{k}: {stored.get(k)} in the dataset, {current.get(k)} now" for k in SETTINGS if stored.get(k) != current.get(k)]
+
+
+def read_manifest(root: str | Path) -> dict[str, Any] | None:
+    """The manifest of a dataset, None if it has none (datasets recorded by hand or by the original pipeline).
+
+    A manifest that is unreadable or lacks a setting raises :class:`DatasetError` naming it.
+    """
+    path = Path(root) / MANIFEST_FILE
+    if not path.exists():
+        return None
+    data = read_json(path)
+    missing = [k for k in SETTINGS if not isinstance(data, dict) or k not in data]
+    if missing:
+        raise DatasetError(f"{path}: lacks {missing}")
+    res = data["resolution"]
+    if not (isinstance(res, list) and len(res) == 2 and all(isinstance(v, int) and v > 0 for v in res)):
+        raise DatasetError(f"{path}: resolution must be [width, height], got {res!r}")
+    return data
+
+
+def write_manifest(root: str | Path, manifest: dict[str, Any]) -> None:
+    """Write ``index/manifest.json`` atomically."""
+    from fog_gym.dataset.writer import _atomic_write
+
+    _atomic_write(Path(root) / MANIFEST_FILE, (json.dumps(manifest, indent=1) + "\n").encode())

@@ -1,0 +1,278 @@
+"""Checking a FogDrive dataset (``fog-gym validate``) and measuring its footprint (``fog-gym stats``).
+
+:func:`validate` never raises on a bad dataset: every unreadable, truncated, empty or wrongly shaped file (RGB,
+depth and semantic PNG, ``.npy`` point clouds, box JSON, extrinsics, index JSON) and every index entry that points
+at a missing file or outside the root becomes one line naming the file and the problem. Where the dataset has a
+generation manifest (``index/manifest.json``, written by ``fog-gym generate``) the files are also checked against
+it: image sizes, channel set and scene count.
+
+Example:
+    >>> import tempfile
+    >>> validate(tempfile.mkdtemp())[0].endswith("not a FogDrive dataset (no index/ folder)")
+    True
+"""
+
+from __future__ import annotations
+
+import json
+from collections import defaultdict
+from collections.abc import Iterable
+from pathlib import Path
+from typing import Any
+
+import cv2
+import numpy as np
+
+from fog_gym.dataset.access import TABLES, DatasetError, FogDrive, load_table, read_json, safe_relative_path
+from fog_gym.dataset.decode import decode_png
+from fog_gym.dataset.layout import CHANNELS, DATA_ROOT
+from fog_gym.dataset.manifest import MANIFEST_FILE, read_manifest
+
+EXTRINSIC_KEYS = ("extrinsic_front", "extrinsic_right", "extrinsic_left", "extrinsic_back")
+
+
+def dataset_root_problem(root: str | Path) -> str | None:
+    """Why ``root`` is not a FogDrive dataset root (one line), or None if it looks like one."""
+    root = Path(root)
+    if not root.exists():
+        return f"{root}: no such folder"
+    if not root.is_dir():
+        return f"{root}: not a folder; a FogDrive dataset root holds data_root/ and index/"
+    if not (root / "index").is_dir():
+        return f"{root}: not a FogDrive dataset (no index/ folder)"
+    missing = [f"index/{t}.json" for t in TABLES if not (root / "index" / f"{t}.json").is_file()]
+    if missing:
+        return f"{root}: not a FogDrive dataset (missing {', '.join(missing)})"
+    return None
+
+
+def _point_columns(channel: str) -> int:
+    from fog_gym.points import COLUMNS, channel_kind
+
+    return COLUMNS[channel_kind(channel)]
+
+
+def check_png(path: Path, width: int | None = None, height: int | None = None) -> str | None:
+    """The problem with one PNG of the layout (8-bit, 3 channels, the expected size), or None."""
+    try:
+        data = np.fromfile(path, np.uint8)
+    except OSError as e:
+        return f"unreadable ({e.strerror or e})"
+    if data.size == 0:
+        return "empty file"
+    img = decode_png(data, cv2.IMREAD_UNCHANGED)
+    if img is None:
+        return "truncated or corrupt PNG"
+    if img.dtype != np.uint8 or img.ndim != 3 or img.shape[2] != 3:
+        return f"expected an 8-bit RGB PNG without alpha, got {img.dtype} with shape {img.shape}"
+    if width is not None and (img.shape[1], img.shape[0]) != (width, height):
+        return f"image is {img.shape[1]}×{img.shape[0]}, expected {width}×{height}"
+    return None
+
+
+def check_npy(path: Path, columns: int) -> str | None:
+    """The problem with one point-cloud ``.npy`` (float32, (N, columns), finite), or None."""
+    try:
+        with open(path, "rb") as f:
+            a = np.load(f, allow_pickle=False)
+    except (OSError, ValueError, EOFError) as e:
+        return f"truncated or corrupt .npy ({e})" if Path(path).stat().st_size else "empty file"
+    if a.dtype != np.float32 or a.ndim != 2 or a.shape[1] != columns:
+        return f"expected float32 (N, {columns}), got {a.dtype} {a.shape}"
+    if not np.isfinite(a).all():
+        return "contains NaN or infinite values"
+    return None
+
+
+def _array(value: Any, shape_tail: tuple[int, ...], name: str) -> np.ndarray:
+    a = np.asarray(value, np.float64)
+    if a.size == 0:
+        return a.reshape((0, *shape_tail))
+    if a.shape[1:] != shape_tail:
+        raise ValueError(f"{name} has shape {a.shape}, expected (N, {', '.join(map(str, shape_tail))})")
+    return a
+
+
+def check_box_json(path: Path, three_d: bool) -> str | None:
+    """The problem with one box JSON (2D: ``bboxes`` (M, 2, 2), ``vehicle_ids``, ``vehicle_class``; 3D:
+    ``bboxes_3d`` (N, 8, 3), ``vehicle_ids``), or None."""
+    try:
+        data = json.loads(Path(path).read_bytes())
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
+        return f"corrupt JSON ({e})" if Path(path).stat().st_size else "empty file"
+    if not isinstance(data, dict):
+        return "expected a JSON object"
+    keys = ("bboxes_3d", "vehicle_ids") if three_d else ("bboxes", "vehicle_ids", "vehicle_class")
+    missing = [k for k in keys if k not in data]
+    if missing:
+        return f"missing keys {missing}"
+    try:
+        boxes = _array(data[keys[0]], (8, 3) if three_d else (2, 2), keys[0])
+        per_box = [np.asarray(data[k], np.float64) for k in keys[1:]]
+    except (ValueError, TypeError) as e:
+        return f"wrongly shaped boxes ({e})"
+    if any(a.ndim != 1 or len(a) != len(boxes) for a in per_box if a.size or len(boxes)):
+        return f"{', '.join(keys)} must have one entry per box"
+    if not np.isfinite(boxes).all():
+        return "boxes contain NaN or infinite values"
+    return None
+
+
+def check_extrinsics(path: Path) -> str | None:
+    """The problem with one ``extrinsic_config.json`` (four 4×4 finite matrices), or None."""
+    try:
+        data = read_json(path)
+    except DatasetError as e:
+        return str(e).removeprefix(f"{path}: ")
+    if not isinstance(data, dict):
+        return "expected a JSON object"
+    for key in EXTRINSIC_KEYS:
+        try:
+            m = np.asarray(data.get(key), np.float64)
+        except (ValueError, TypeError):
+            return f"{key} is not a 4×4 matrix"
+        if m.shape != (4, 4) or not np.isfinite(m).all():
+            return f"{key} is missing or not a finite 4×4 matrix"
+    return None
+
+
+def _check_file(root: Path, rec: dict, size: tuple[int, int] | None) -> str | None:
+    channel, fmt = rec["channel"], rec["fileformat"]
+    path = root / rec["filename"]
+    if not path.is_file():
+        return "missing file"
+    if fmt == "png":
+        w, h = size if size is not None else (rec.get("width"), rec.get("height"))
+        return check_png(path, w, h)
+    if fmt == "npy":
+        return check_npy(path, _point_columns(channel))
+    if fmt == "json":
+        return check_box_json(path, channel == "BBOX_3D")
+    return f"unknown file format {fmt!r}"
+
+
+def validate(root: str | Path, progress: bool = False) -> list[str]:
+    """Every problem found in a dataset, one line each (empty list = valid); never raises on a bad dataset.
+
+    Checks: the index tables parse and have the D6 fields; file names stay inside the root; scenes' sample chains
+    and counts; every sample has the expected channels; every file exists and decodes with the right shape and
+    size; extrinsics; the split rules (coverage, 50/50 day/night). With a manifest: image sizes, channel set and
+    scene count as generated.
+    """
+    root = Path(root)
+    problem = dataset_root_problem(root)
+    if problem is not None:
+        return [problem]
+    index = root / "index"
+    problems: list[str] = []
+    for name in TABLES:
+        try:
+            load_table(index, name)
+        except DatasetError as e:
+            problems.append(str(e))
+    try:
+        manifest = read_manifest(root)
+    except DatasetError as e:
+        problems.append(str(e))
+        manifest = None
+    if problems:
+        return problems
+    problems += _path_problems(index)
+    if problems:
+        return problems
+    try:
+        ds = FogDrive(root)
+    except (DatasetError, FileNotFoundError) as e:
+        return [str(e)]
+    channels = set(manifest["channels"]) if manifest else set(CHANNELS)
+    size = tuple(manifest["resolution"]) if manifest else None
+    if manifest and manifest["scenes"] != len(ds.scene):
+        problems.append(f"{index / 'scene.json'}: {len(ds.scene)} scenes, the manifest ({MANIFEST_FILE}) says "
+                        f"{manifest['scenes']}")
+    for sc in ds.scene:
+        samples = ds.get_samples_for_scene(sc["token"])
+        if len(samples) != sc["nbr_samples"]:
+            problems.append(f"{sc['name']}: nbr_samples {sc['nbr_samples']} but {len(samples)} linked samples")
+        if samples and (samples[0]["token"] != sc["first_sample_token"] or samples[-1]["token"] != sc["last_sample_token"]):
+            problems.append(f"{sc['name']}: first/last sample tokens do not match the prev/next chain")
+        ext = ds.get_extrinsic_config_path(sc["token"])
+        found = "missing file" if not ext.is_file() else check_extrinsics(ext)
+        if found:
+            problems.append(f"{sc['extrinsic_config_path']}: {found}")
+    records: Iterable[dict] = ds.sample_data
+    if progress:
+        from tqdm import tqdm
+
+        records = tqdm(records, desc="files", unit="file", total=len(ds.sample_data))
+    for rec in records:
+        if rec["channel"] not in CHANNELS:
+            problems.append(f"{rec['filename']}: unknown channel {rec['channel']!r}")
+            continue
+        found = _check_file(root, rec, size)
+        if found:
+            problems.append(f"{rec['filename']}: {found}")
+    for s in ds.sample:
+        have = {r["channel"] for r in ds.get_sample_data_for_sample(s["token"])}
+        if have != channels:
+            missing, extra = sorted(channels - have), sorted(have - channels)
+            problems.append(f"sample {s['token']}: {len(have)} channels" + (f", missing {missing}" if missing else "")
+                            + (f", unexpected {extra}" if extra else ""))  # fmt: skip
+    problems += _split_problems(ds)
+    return problems
+
+
+def _path_problems(index: Path) -> list[str]:
+    """Index entries whose file names are absolute or escape the root (one line each)."""
+    problems = []
+    for table, key in (("sample_data", "filename"), ("scene", "extrinsic_config_path")):
+        for rec in load_table(index, table):
+            try:
+                safe_relative_path(rec[key])
+            except DatasetError as e:
+                problems.append(f"{index / (table + '.json')}: {e}")
+    return problems
+
+
+def _split_problems(ds: FogDrive) -> list[str]:
+    from fog_gym.dataset.splits import SPLITS, check_splits
+
+    where = ds.dataroot / "index" / "splits.json"
+    if ds.splits is None:
+        return [f"{where}: missing"]
+    if not isinstance(ds.splits, dict) or not all(isinstance(ds.splits.get(k, []), list) for k in SPLITS):
+        return [f"{where}: expected an object with lists {list(SPLITS)}"]
+    try:
+        checks = check_splits(ds.splits, [sc["name"] for sc in ds.scene])
+    except (ValueError, TypeError) as e:
+        return [f"{where}: {e}"]
+    problems = [f"splits: {key}: {checks[key]}" for key in
+                ("duplicate_assignments", "scenes_in_no_split", "scenes_in_split_but_not_in_index") if checks[key]]  # fmt: skip
+    for split, share in checks["day_share"].items():
+        if ds.splits.get(split) and share != 0.5:
+            problems.append(f"splits: {split} is {share:.0%} day, not 50 %")
+    return problems
+
+
+def stats(root: str | Path) -> list[tuple[str, int, float]]:
+    """(modality, files, MB) per folder kind of the layout, as the paper's disk table (D7), largest first.
+
+    Raises ``ValueError`` when ``root`` is not a FogDrive dataset.
+    """
+    root = Path(root)
+    problem = dataset_root_problem(root)
+    if problem is not None:
+        raise ValueError(problem)
+    acc: dict[str, list[float]] = defaultdict(lambda: [0, 0.0])
+    for path in (root / DATA_ROOT).rglob("*"):
+        if path.is_file() and not path.name.startswith("."):
+            rel = path.relative_to(root / DATA_ROOT).parts[1:]
+            if len(rel) < 2:
+                continue
+            kind = "/".join(rel[1:-1]) if rel[0].startswith("cam_") else rel[0]  # out_rgb etc., all cameras together
+            acc[kind][0] += 1
+            acc[kind][1] += path.stat().st_size / 1e6
+    return sorted(((k, int(v[0]), v[1]) for k, v in acc.items()), key=lambda r: -r[2])
+
+
+__all__ = ["check_box_json", "check_extrinsics", "check_npy", "check_png", "dataset_root_problem", "safe_relative_path",
+           "stats", "validate"]
