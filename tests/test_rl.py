@@ -132,3 +132,23 @@ def test_eval_script_writes_the_matrix(tmp_path):
     text = (tmp_path / "matrix.md").read_text()
     assert "| clear |" in text and "| dense |" in text and "collision rate" in text
     assert (tmp_path / "matrix.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_eval_matrix_rows_follow_condition_order_and_one_episode_has_no_ci(tmp_path):
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parent.parent / "examples" / "eval_matrix.py"
+    spec = importlib.util.spec_from_file_location("eval_matrix", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    one = {"return": np.array([70.0]), "collision": np.array([0.0]), "speed": np.array([20.0])}
+    results = {m.stem: {t: one for t in mod.TEST_LEVELS}
+               for m in mod.model_order([Path(f"{c}.zip") for c in ("mixed", "curriculum", "light", "clear", "dense")])}  # fmt: skip
+    mod.write_matrix(results, tmp_path, episodes=1)
+    rows = [ln.split("|")[1].strip() for ln in (tmp_path / "matrix.md").read_text().splitlines()
+            if ln.startswith("| ") and "trained on" not in ln]  # fmt: skip
+    assert rows[:5] == ["clear", "light", "dense", "mixed", "curriculum"]
+    assert "70.00 ± n/a" in (tmp_path / "matrix.md").read_text() and "± 0.00" not in (tmp_path / "matrix.md").read_text()
+    two = mod.ci95(np.array([1.0, 3.0]))
+    assert two == (2.0, 1.96)
