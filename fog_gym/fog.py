@@ -190,15 +190,45 @@ def _koschmieder(rgb, depth, col_sq, row_sq, alphas, airlight_row, out):
                     out[lv, i, k] = np.uint8(airlight_row[k] + diff[k] * t3[k] + np.float32(0.5))
 
 
-def fog_images(rgb: np.ndarray, depth: np.ndarray, K: np.ndarray, alphas: Sequence[float], airlight: np.ndarray) -> np.ndarray:
+def check_fog_inputs(rgb: np.ndarray, depth: np.ndarray, K: np.ndarray, alphas: Sequence[float], airlight: np.ndarray) -> None:
+    """``ValueError`` naming the problem unless the inputs of :func:`fog_images` are usable.
+
+    rgb uint8 (H, W, 3); depth (H, W) finite and ≥ 0 (sky is a large finite depth, 1000 m in fog-gym);
+    K a 3×3 intrinsic matrix with finite positive focal lengths; every α finite and > 0; airlight three finite
+    values in [0, 255].
+    """
+    depth = np.asarray(depth)
+    if depth.ndim != 2:
+        raise ValueError(f"depth must be an (H, W) array of metres, got shape {depth.shape}")
+    h, w = depth.shape
+    if not isinstance(rgb, np.ndarray) or rgb.shape != (h, w, 3) or rgb.dtype != np.uint8:
+        raise ValueError(f"expected a uint8 (H, W, 3) image matching depth {depth.shape}, got "
+                         f"{getattr(rgb, 'dtype', type(rgb).__name__)} {getattr(rgb, 'shape', '')}")  # fmt: skip
+    low = float(np.min(depth)) if depth.size else 0.0
+    if not math.isfinite(low) or low < 0 or (depth.size and not math.isfinite(float(np.max(depth)))):
+        raise ValueError("depth must be finite and >= 0 metres everywhere (sky: a large finite depth such as 1000)")
+    K = np.asarray(K, np.float64)
+    if K.shape != (3, 3) or not np.isfinite(K).all() or K[0, 0] <= 0 or K[1, 1] <= 0:
+        raise ValueError(f"K must be a finite 3×3 intrinsic matrix with positive focal lengths, got {K.tolist()}")
+    a = np.asarray(alphas, np.float64)
+    if a.ndim != 1 or not len(a) or not np.isfinite(a).all() or (a <= 0).any():
+        raise ValueError(f"alphas must be finite extinctions > 0 [1/m], got {list(np.atleast_1d(a))}")
+    A = np.asarray(airlight, np.float64)
+    if A.shape != (3,) or not np.isfinite(A).all() or (A < 0).any() or (A > 255).any():
+        raise ValueError(f"airlight must be three values in [0, 255], got {A.tolist()}")
+
+
+def fog_images(rgb: np.ndarray, depth: np.ndarray, K: np.ndarray, alphas: Sequence[float], airlight: np.ndarray,
+               validate: bool = True) -> np.ndarray:  # fmt: skip
     """Koschmieder fog at several extinctions in one pass: ``(L, H, W, 3)`` uint8 for ``alphas`` (all > 0).
 
     ``ℓ = z · sqrt(1 + ((u − cx)/fx)² + ((v − cy)/fy)²)`` at pixel centres; ``t = exp(−α·ℓ)``;
-    ``I = A + (J − A)·t`` rounded. One read of image and depth serves every level.
+    ``I = A + (J − A)·t`` rounded. One read of image and depth serves every level. Inputs are checked
+    (:func:`check_fog_inputs`) unless ``validate=False`` (the env's own frames, on the hot path).
     """
+    if validate:
+        check_fog_inputs(rgb, depth, K, alphas, airlight)
     h, w = depth.shape
-    if rgb.shape != (h, w, 3) or rgb.dtype != np.uint8:
-        raise ValueError(f"expected a uint8 (H, W, 3) image matching depth {depth.shape}, got {rgb.dtype} {rgb.shape}")
     col = (((np.arange(w) + 0.5 - K[0, 2]) / K[0, 0]) ** 2).astype(np.float32)
     row = (((np.arange(h) + 0.5 - K[1, 2]) / K[1, 1]) ** 2).astype(np.float32)
     out = np.empty((len(alphas), h, w, 3), np.uint8)
@@ -217,6 +247,7 @@ def fog_image(rgb: np.ndarray, depth: np.ndarray, K: np.ndarray, alpha: float, a
     [190, 190, 190]
     """
     if alpha == 0.0:
+        check_fog_inputs(rgb, depth, K, [1.0], airlight)
         return rgb.copy()
     return fog_images(rgb, depth, K, [alpha], airlight)[0]
 
@@ -250,7 +281,8 @@ def soft_response_table(alpha: float, step: float = TABLE_STEP, max_range: float
     xi = np.clip((rp - XI_R1) / (XI_R2 - XI_R1), 0.0, 1.0)
     with np.errstate(divide="ignore", invalid="ignore"):
         inv_sq = np.where(rp > XI_R1, 1.0 / np.maximum(rp, 1e-12) ** 2, 0.0)
-    F = (pulse[None, :] * np.exp(-2.0 * alpha * rp) * xi * inv_sq) @ weights
+    # where rp <= r1 the overlap xi is 0; clamping there keeps exp finite for any alpha without changing F
+    F = (pulse[None, :] * np.exp(-2.0 * alpha * np.maximum(rp, XI_R1)) * xi * inv_sq) @ weights
     running = np.maximum.accumulate(F)
     arg = np.zeros(len(F), np.int64)
     best = 0
@@ -311,6 +343,10 @@ def fog_lidar(points: np.ndarray, level: FogLevel, rng: np.random.Generator, noi
     pts = np.asarray(points, np.float32)
     if pts.ndim != 2 or pts.shape[1] < 4:
         raise ValueError(f"expected LiDAR points of shape (N, 4), got {pts.shape}")
+    if not np.isfinite(pts).all():
+        raise ValueError("LiDAR points must be finite (no NaN or inf)")
+    if not math.isfinite(noise) or noise < 0:
+        raise ValueError(f"noise must be a finite number of metres >= 0, got {noise!r}")
     if level.is_clear:
         return pts.copy()
     table_i, table_r = soft_response_table(level.alpha)

@@ -262,6 +262,11 @@ def boxes_2d(corners_lidar: np.ndarray, extrinsic: np.ndarray, K: np.ndarray, wi
     (share of the projected box outside the image), ``area`` (N,) of its visible projection (px²) and
     ``distance`` (N,) camera → box centre.
     """
+    corners_lidar = np.asarray(corners_lidar, np.float64)
+    if corners_lidar.ndim != 3 or corners_lidar.shape[1:] != (8, 3) or not np.isfinite(corners_lidar).all():
+        raise ValueError(f"corners must be finite (N, 8, 3) LiDAR-frame points, got shape {corners_lidar.shape}")
+    if int(width) <= 0 or int(height) <= 0:
+        raise ValueError(f"width and height must be positive pixels, got {width}×{height}")
     corners_cam = geometry.transform_points(extrinsic, corners_lidar.reshape(-1, 3)).reshape(-1, 8, 3)
     rect, inside, total = _project_boxes(np.ascontiguousarray(corners_cam), K[0, 0], K[1, 1], K[0, 2], K[1, 2],
                                          int(width), int(height), float(near), _EDGES)  # fmt: skip

@@ -152,7 +152,8 @@ class FogWrapper(gym.Wrapper):
         out: dict[str, dict[str, np.ndarray]] = {lv.name: {} for lv in levels}
         alphas = [lv.alpha for lv in levels]
         for cam in self.cameras:
-            images = fog_images(obs[cam], obs[f"{cam}_DEPTH"], base.cameras.intrinsics[cam], alphas, self.airlight[cam])
+            images = fog_images(obs[cam], obs[f"{cam}_DEPTH"], base.cameras.intrinsics[cam], alphas, self.airlight[cam],
+                                validate=False)  # the env's own frames
             for lv, img in zip(levels, images):
                 out[lv.name][cam] = img
         if self.has_lidar:
