@@ -209,9 +209,7 @@ def main(argv: list[str] | None = None) -> int:
         script = Path(__file__).resolve().parent.parent / "scripts" / "bench.py"
         if not script.exists():
             raise _fail("bench", "needs the source checkout (scripts/bench.py); it is not part of the wheel")
-        sys.argv = ["fog-gym bench", *argv[1:]]
-        runpy.run_path(str(script), run_name="__main__")
-        return 0
+        return runpy.run_path(str(script), run_name="fog_gym_bench")["main"](argv[1:], prog="fog-gym bench")
     args = parser.parse_args(argv)
     handler = {"generate": _generate, "validate": _validate, "stats": _stats, "audit": _audit, "demo": _demo}
     return handler[args.command](args)

@@ -947,9 +947,9 @@ def positive_int(text: str) -> int:
     return v
 
 
-def build_parser() -> argparse.ArgumentParser:
+def build_parser(prog: str = "bench.py") -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
-        prog=None if os.path.basename(sys.argv[0]).startswith("fog-gym") else "bench.py",
+        prog=prog,
         description="Per-stage milliseconds of FogDrive-v0 (traffic step, scene build, cameras batched and alone, "
         "point sensors, full env.step) for the full 4×1280×960 rig and a 1×128×128 RL rig (both with LiDAR, "
         "semantic LiDAR and radar), against a bare highway-env step; the point sensors alone on a 50-vehicle "
@@ -966,8 +966,8 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def main(argv: list[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
+def main(argv: list[str] | None = None, prog: str = "bench.py") -> int:
+    args = build_parser(prog).parse_args(argv)
     repeats = args.repeats or (QUICK_REPEATS if args.quick else DEFAULT_REPEATS)
     profile_steps = 3 if args.quick else PROFILE_STEPS
 

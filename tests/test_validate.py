@@ -203,3 +203,14 @@ def test_stats_refuses_non_datasets_and_plots_only_where_asked(dataset, tmp_path
     out = subprocess.run([sys.executable, "-m", "fog_gym.cli", "stats", str(dataset), "--plot", str(plot)],
                          capture_output=True, text=True)  # fmt: skip
     assert out.returncode == 0 and plot.exists() and not (dataset / "stats.png").exists()
+
+
+def test_torch_dataset_refuses_index_entries_outside_the_root(dataset):
+    pytest.importorskip("torch")
+    from fog_gym.dataset.torch import FogDriveDataset
+
+    table = json.loads((dataset / "index" / "sample_data.json").read_text())
+    table[0]["filename"] = "/etc/hostname"
+    (dataset / "index" / "sample_data.json").write_text(json.dumps(table))
+    with pytest.raises(DatasetError, match="absolute"):
+        FogDriveDataset(dataset)
