@@ -55,7 +55,8 @@ def curriculum_callback(schedule: FogSchedule, verbose: int = 0):
     At every finished episode it counts the episode, reports success (no crash) to the schedule, and calls
     ``env_method("set_fog", level, indices=[i])`` for that sub-env (``SubprocVecEnv`` included). SB3 vector envs
     reset a sub-env inside ``step``, before callbacks run, so the level takes effect from that sub-env's *next*
-    episode boundary; use the ``FogCurriculum`` wrapper inside each env for per-env exact boundaries. The
+    episode boundary. For the level at the very next episode use :class:`fog_gym.sb3.VecFogCurriculum` (one
+    schedule over all sub-envs) or the ``FogCurriculum`` wrapper inside each env (one schedule per env). The
     visibility in force is logged as ``fog/visibility_m``.
     """
     from stable_baselines3.common.callbacks import BaseCallback

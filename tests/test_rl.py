@@ -152,3 +152,92 @@ def test_eval_matrix_rows_follow_condition_order_and_one_episode_has_no_ci(tmp_p
     assert "70.00 ± n/a" in (tmp_path / "matrix.md").read_text() and "± 0.00" not in (tmp_path / "matrix.md").read_text()
     two = mod.ci95(np.array([1.0, 3.0]))
     assert two == (2.0, 1.96)
+
+
+def _short_rl_env(rank: int):
+    def make():
+        import gymnasium as gym
+
+        import fog_gym  # noqa: F401
+
+        env = gym.make("FogDriveRL-v0", fog="clear", episode_seconds=0.6, camera_size=(16, 16), bev_size=16)
+        env.reset(seed=rank)
+        return env
+
+    return make
+
+
+def test_vec_curriculum_applies_each_level_from_the_very_next_episode_in_subproc_envs():
+    pytest.importorskip("stable_baselines3")
+    from stable_baselines3.common.vec_env import SubprocVecEnv
+
+    from fog_gym.curriculum import StepSchedule
+    from fog_gym.sb3 import VecFogCurriculum
+
+    schedule = StepSchedule(episodes_per_level=1)  # episode k of the run gets level k: clear, 160, 100, 50, 50, …
+    venv = VecFogCurriculum(SubprocVecEnv([_short_rl_env(0), _short_rl_env(1)]), schedule)
+    venv.reset()
+    expected = {i: venv.levels[i] for i in range(2)}
+    assert [expected[0], expected[1]] == ["clear", 160.0]
+    seen_new_episode = 0
+    for _ in range(16):  # 3 policy steps per episode: several episode boundaries per sub-env
+        _, _, dones, infos = venv.step(np.zeros(2, np.int64) + 1)
+        for i in range(2):
+            if dones[i]:
+                expected[i] = venv.levels[i]  # the level chosen at this boundary …
+                seen_new_episode += 1
+                continue
+            vis = infos[i]["fog"]["visibility_m"]  # … is the fog of every step of the next episode
+            want = float("inf") if expected[i] == "clear" else float(expected[i])
+            assert vis == want, (i, vis, want)
+            assert infos[i]["fog_level"] == expected[i]
+    assert seen_new_episode >= 6 and venv.episodes == seen_new_episode
+    venv.close()
+
+
+def _load_script(name):
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parent.parent / "scripts" / f"{name}.py"
+    spec = importlib.util.spec_from_file_location(name, path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_rl_benchmark_smoke_resumes_and_reports_cis_across_seeds(tmp_path):
+    pytest.importorskip("stable_baselines3")
+    import json
+
+    bench = _load_script("rl_benchmark")
+    argv = ["--conditions", "clear", "curriculum", "--seeds", "2", "--steps", "64", "--episodes", "2", "--envs", "1",
+            "--episode-seconds", "0.6", "--checkpoint", "32", "--device", "cpu", "--out", str(tmp_path)]  # fmt: skip
+    assert bench.main(argv) == 0
+    data = json.loads((tmp_path / "matrix.json").read_text())
+    cell = data["table"]["curriculum"]["dense"]["collision"]
+    assert cell["seeds"] == 2 and cell["episodes"] == 4 and cell["ci95"] is not None
+    assert {"clear", "light", "moderate", "dense"} == set(data["table"]["clear"])
+    text = (tmp_path / "matrix.md").read_text()
+    assert "distance driven [m]" in text and "Separated from the clear-trained agent?" in text
+    assert (tmp_path / "heatmap.png").exists() and (tmp_path / "curves.png").exists()
+    # killed after a checkpoint: the model is gone, the checkpoint stays -> training continues from it
+    (tmp_path / "models" / "curriculum_s1.zip").unlink()
+    evals = sorted((tmp_path / "eval").glob("*.json"))
+    (tmp_path / "eval" / "curriculum_s1_dense_2.json").unlink()
+    from stable_baselines3 import PPO
+
+    assert PPO.load(tmp_path / "checkpoints" / "curriculum_s1" / "model.zip").num_timesteps >= 32
+    assert bench.main(argv) == 0
+    assert PPO.load(tmp_path / "models" / "curriculum_s1.zip").num_timesteps >= 64
+    assert sorted((tmp_path / "eval").glob("*.json")) == evals
+
+
+def test_rl_benchmark_ci_is_student_t_across_seeds():
+    bench = _load_script("rl_benchmark")
+    assert round(bench.ci95_across([1.0, 2.0, 3.0]), 3) == 2.484  # t(0.975, 2) · 1 / √3
+    assert bench.ci95_across([5.0]) is None
+    table = bench.aggregate({"clear": {"dense": {0: {"collision": [0, 1], "return": [1, 3], "speed": [20, 22],
+                                                      "distance": [100, 120]}}}})  # fmt: skip
+    assert table["clear"]["dense"]["return"] == {"mean": 2.0, "ci95": None, "seeds": 1, "episode_std": pytest.approx(1.4142, 1e-4),
+                                                 "episodes": 2}  # fmt: skip

@@ -1,0 +1,375 @@
+"""The fog RL benchmark: train PPO per fog condition and training seed, evaluate every agent on every test fog in
+parallel vector envs, and report a train × test matrix with confidence intervals across training seeds.
+
+Conditions: clear, light, dense (fixed fog), mixed (a seeded level per episode), curriculum (clear → 160 → 100 →
+50 m in steps), success (advance when 80 % of the last 10 episodes were crash-free) and continuous (visibility
+sliding from clear to 50 m linearly in α). Schedules are applied by ``fog_gym.sb3.VecFogCurriculum`` at the very
+next episode of each sub-env. PPO runs on the GPU when one is present (``--device auto``).
+
+Per cell the matrix gives the mean over training seeds of each agent's mean over ``--episodes`` evaluation
+episodes, with a 95 % Student-t interval across training seeds (``n/a`` for one seed) and, in brackets, the
+episode-level standard deviation; metrics: collision rate, return, mean speed [m/s], distance driven [m].
+Evaluation seeds (10⁶ + k) are disjoint from training seeds. Outputs under ``--out``: ``matrix.md``,
+``matrix.json``, ``heatmap.png`` (collision rate and return), ``curves.png`` (learning curve per condition),
+TensorBoard logs in ``tb/``, models in ``models/``.
+
+Resumable: training checkpoints (model + schedule state) every ``--checkpoint`` steps and evaluation results per
+(agent, test fog) are kept; run the same command again and it continues where it stopped.
+
+The default budget (7 conditions × 1 seed × 2 048 steps, 8 episodes per cell, 2 envs) finishes in about 20
+minutes on a 2-core CPU — a smoke run, far too small for a finding. A study: ``--seeds 3 --steps 50000
+--episodes 32 --envs 16`` (about an hour on a 16-core machine with a GPU).
+
+Run: python scripts/rl_benchmark.py --help
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import pickle
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+CONDITIONS = ("clear", "light", "dense", "mixed", "curriculum", "success", "continuous")
+TEST_LEVELS = ("clear", "light", "moderate", "dense")
+METRICS = (("collision", "collision rate", "{:.0%}"), ("return", "return", "{:.1f}"),
+           ("speed", "mean speed [m/s]", "{:.1f}"), ("distance", "distance driven [m]", "{:.0f}"))  # fmt: skip
+EVAL_SEED = 1_000_000
+
+
+def schedule_for(condition: str, seed: int, steps: int):
+    """``(initial fog, schedule or None)`` of a training condition."""
+    from fog_gym.curriculum import ContinuousSchedule, MixedSampler, StepSchedule, SuccessSchedule
+
+    episodes = max(4, steps // 100)  # FogDriveRL-v0 episodes are 100 policy steps (fewer with crashes)
+    return {
+        "clear": ("clear", None), "light": ("light", None), "dense": ("dense", None),
+        "mixed": ("clear", MixedSampler(seed=seed)),
+        "curriculum": ("clear", StepSchedule(episodes_per_level=max(1, episodes // 5))),
+        "success": ("clear", SuccessSchedule()),
+        "continuous": ("clear", ContinuousSchedule(episodes=max(1, episodes * 4 // 5))),
+    }[condition]  # fmt: skip
+
+
+EPISODE_SECONDS = {"value": 20.0}  # FogDriveRL-v0's default; --episode-seconds shortens episodes for smoke runs
+
+
+def _make_env(fog: Any, seed: int):
+    seconds = EPISODE_SECONDS["value"]
+
+    def make():
+        import gymnasium as gym
+
+        import fog_gym  # noqa: F401  (registers the env in the worker)
+
+        env = gym.make("FogDriveRL-v0", fog=fog, episode_seconds=seconds)
+        env.reset(seed=seed)
+        return env
+
+    return make
+
+
+def vec_env(n: int, fog: Any, seed: int):
+    """``n`` FogDriveRL-v0 envs in subprocesses (one in-process env for ``n = 1``), seeded ``seed + rank``."""
+    from stable_baselines3.common.vec_env import DummyVecEnv, SubprocVecEnv
+
+    cls = SubprocVecEnv if n > 1 else DummyVecEnv
+    return cls([_make_env(fog, seed + r) for r in range(n)])
+
+
+def _atomic_save(obj: Any, path: Path) -> None:
+    tmp = path.with_name(f".{path.name}.tmp")
+    with open(tmp, "wb") as f:
+        pickle.dump(obj, f)
+    os.replace(tmp, path)
+
+
+def train(condition: str, seed: int, steps: int, out: Path, n_envs: int, device: str, checkpoint: int) -> Path:
+    """Train (or resume) one agent; returns its model path. Skips a finished one."""
+    from stable_baselines3 import PPO
+    from stable_baselines3.common.callbacks import BaseCallback
+    from stable_baselines3.common.vec_env import VecMonitor
+
+    from fog_gym.sb3 import VecFogCurriculum
+
+    name = f"{condition}_s{seed}"
+    final = out / "models" / f"{name}.zip"
+    if final.exists():
+        return final
+    ckpt_dir = out / "checkpoints" / name
+    ckpt_dir.mkdir(parents=True, exist_ok=True)
+    (out / "monitor").mkdir(parents=True, exist_ok=True)
+    fog, schedule = schedule_for(condition, seed, steps)
+    venv = vec_env(n_envs, fog, 1000 * seed)
+    state_path = ckpt_dir / "schedule.pkl"
+    if schedule is not None:  # resumed: the schedule (and its success history) continues from the checkpoint
+        state = pickle.loads(state_path.read_bytes()) if state_path.exists() else None
+        venv = VecFogCurriculum(venv, state["schedule"] if state else schedule)
+        if state:
+            venv.episodes, venv._started = state["episodes"], state["started"]
+    monitor_file = out / "monitor" / f"{name}_{len(list((out / 'monitor').glob(name + '_*')))}"
+    env = VecMonitor(venv, filename=str(monitor_file))
+    model_path = ckpt_dir / "model.zip"
+    if model_path.exists():
+        model = PPO.load(model_path, env=env, device=device, tensorboard_log=str(out / "tb"))
+    else:
+        model = PPO("MultiInputPolicy", env, n_steps=max(64, min(512, steps // (2 * n_envs))), batch_size=64,
+                    n_epochs=4, learning_rate=3e-4, gamma=0.95, seed=seed, device=device, verbose=0,
+                    tensorboard_log=str(out / "tb"))  # fmt: skip
+
+    class Checkpoint(BaseCallback):
+        def _on_step(self) -> bool:
+            if self.num_timesteps % checkpoint < n_envs:
+                self.model.save(ckpt_dir / ".model.tmp.zip")
+                os.replace(ckpt_dir / ".model.tmp.zip", model_path)
+                if schedule is not None:
+                    _atomic_save({"schedule": venv.schedule, "episodes": venv.episodes, "started": venv._started}, state_path)
+            return True
+
+    remaining = steps - model.num_timesteps
+    t0 = time.perf_counter()
+    if remaining > 0:
+        model.learn(remaining, callback=Checkpoint(), tb_log_name=name, reset_num_timesteps=False, progress_bar=True)
+    rate = max(remaining, 0) / max(time.perf_counter() - t0, 1e-9)
+    final.parent.mkdir(parents=True, exist_ok=True)
+    model.save(out / "models" / f".{name}.tmp.zip")
+    os.replace(out / "models" / f".{name}.tmp.zip", final)
+    env.close()
+    print(f"{name}: {steps} steps ({rate:.0f} steps/s) -> {final}")
+    return final
+
+
+def evaluate(model_path: Path, fog: str, episodes: int, n_envs: int, device: str) -> dict[str, list[float]]:
+    """``episodes`` deterministic episodes in a parallel vector env on seeds 10⁶ + k; per-episode metrics."""
+    from stable_baselines3 import PPO
+
+    model = PPO.load(model_path, device=device)
+    n = min(n_envs, episodes)
+    venv = vec_env(n, fog, EVAL_SEED)
+    venv.seed(EVAL_SEED)
+    obs = venv.reset()
+    dt = 1.0 / 5.0  # FogDriveRL-v0's policy period [s]
+    started = n
+    current = [{"return": 0.0, "speed": [], "crashed": False} for _ in range(n)]
+    active = [True] * n
+    results: dict[str, list[float]] = {"return": [], "collision": [], "speed": [], "distance": []}
+    while any(active):
+        action, _ = model.predict(obs, deterministic=True)
+        obs, rewards, dones, infos = venv.step(action)
+        for i in range(n):
+            if not active[i]:
+                continue
+            current[i]["return"] += float(rewards[i])
+            current[i]["speed"].append(float(infos[i].get("speed", 0.0)))
+            current[i]["crashed"] |= bool(infos[i].get("crashed", False))
+            if dones[i]:
+                c = current[i]
+                results["return"].append(c["return"])
+                results["collision"].append(float(c["crashed"]))
+                results["speed"].append(float(np.mean(c["speed"])))
+                results["distance"].append(float(np.sum(c["speed"]) * dt))
+                current[i] = {"return": 0.0, "speed": [], "crashed": False}
+                if started < episodes:
+                    started += 1
+                else:
+                    active[i] = False
+    venv.close()
+    return {k: v[:episodes] for k, v in results.items()}
+
+
+def ci95_across(values: list[float]) -> float | None:
+    """Half-width of the 95 % Student-t interval of the mean of ``values``; None for fewer than two.
+
+    >>> round(ci95_across([1.0, 2.0, 3.0]), 3)
+    2.484
+    >>> ci95_across([1.0]) is None
+    True
+    """
+    if len(values) < 2:
+        return None
+    from scipy import stats
+
+    return float(stats.t.ppf(0.975, len(values) - 1) * np.std(values, ddof=1) / math.sqrt(len(values)))
+
+
+def aggregate(results: dict[str, dict[str, dict[int, dict[str, list[float]]]]]) -> dict[str, Any]:
+    """``results[condition][test][seed][metric]`` → per cell mean over seeds, CI across seeds, episode spread."""
+    table: dict[str, Any] = {}
+    for cond, tests in results.items():
+        for test, seeds in tests.items():
+            for metric, *_ in METRICS:
+                per_seed = [float(np.mean(seeds[s][metric])) for s in sorted(seeds)]
+                episodes = [v for s in sorted(seeds) for v in seeds[s][metric]]
+                table.setdefault(cond, {}).setdefault(test, {})[metric] = {
+                    "mean": float(np.mean(per_seed)), "ci95": ci95_across(per_seed), "seeds": len(per_seed),
+                    "episode_std": float(np.std(episodes, ddof=1)) if len(episodes) > 1 else 0.0,
+                    "episodes": len(episodes),
+                }  # fmt: skip
+    return table
+
+
+def render_matrix(table: dict[str, Any], meta: dict[str, Any]) -> str:
+    lines = [f"# FogDriveRL-v0 fog benchmark: train × test matrix", "",
+             f"{meta['seeds']} training seed(s) × {meta['steps']} steps per condition, {meta['episodes']} evaluation "
+             f"episodes per agent and test fog (seeds {EVAL_SEED}+). Cells: mean over training seeds ± 95 % CI across "
+             "seeds (n/a for one seed) [episode-level SD].", ""]  # fmt: skip
+    for metric, label, fmt in METRICS:
+        lines += [f"## {label}", "", "| trained on \\ tested on | " + " | ".join(TEST_LEVELS) + " |",
+                  "|---|" + "---|" * len(TEST_LEVELS)]  # fmt: skip
+        for cond in [c for c in CONDITIONS if c in table]:
+            cells = []
+            for test in TEST_LEVELS:
+                c = table[cond][test][metric]
+                ci = "n/a" if c["ci95"] is None else fmt.format(c["ci95"])
+                cells.append(f"{fmt.format(c['mean'])} ± {ci} [{fmt.format(c['episode_std'])}]")
+            lines.append(f"| {cond} | " + " | ".join(cells) + " |")
+        lines.append("")
+    lines += significance(table)
+    return "\n".join(lines)
+
+
+def significance(table: dict[str, Any]) -> list[str]:
+    """Plain statements: is each condition's dense-fog collision rate separated from clear-trained's (CIs)?"""
+    out = ["## Separated from the clear-trained agent? (collision rate, 95 % CIs across seeds)", ""]
+    if "clear" not in table:
+        return out + ["(no clear-trained agent)"]
+    for test in ("clear", "dense"):
+        ref = table["clear"][test]["collision"]
+        for cond in [c for c in CONDITIONS if c in table and c != "clear"]:
+            c = table[cond][test]["collision"]
+            if ref["ci95"] is None or c["ci95"] is None:
+                verdict = "not testable (one seed)"
+            else:
+                lo, hi = c["mean"] - c["ci95"], c["mean"] + c["ci95"]
+                rlo, rhi = ref["mean"] - ref["ci95"], ref["mean"] + ref["ci95"]
+                verdict = "separated" if hi < rlo or lo > rhi else "CIs overlap"
+            out.append(f"- tested {test}: {cond} {c['mean']:.0%} vs clear {ref['mean']:.0%} — {verdict}")
+    return out
+
+
+def figures(table: dict[str, Any], out: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    conds = [c for c in CONDITIONS if c in table]
+    fig, axes = plt.subplots(1, 2, figsize=(11, 0.55 * len(conds) + 2), dpi=120)
+    for ax, (metric, label, fmt) in zip(axes, METRICS[:2]):
+        grid = np.array([[table[c][t][metric]["mean"] for t in TEST_LEVELS] for c in conds])
+        im = ax.imshow(grid, cmap="magma_r" if metric == "collision" else "viridis")
+        ax.set_xticks(range(len(TEST_LEVELS)), TEST_LEVELS)
+        ax.set_yticks(range(len(conds)), conds)
+        ax.set_xlabel("tested on")
+        ax.set_ylabel("trained on")
+        for i in range(len(conds)):
+            for j in range(len(TEST_LEVELS)):
+                ax.text(j, i, fmt.format(grid[i, j]), ha="center", va="center", color="w", fontsize=8)
+        fig.colorbar(im, ax=ax, label=label)
+        ax.set_title(label)
+    fig.tight_layout()
+    fig.savefig(out / "heatmap.png")
+    plt.close(fig)
+
+
+def learning_curves(out: Path, conditions: list[str], seeds: list[int]) -> None:
+    """Episode return vs timesteps per condition (mean over seeds of a moving average; VecMonitor logs)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(7, 4), dpi=120)
+    for cond in conditions:
+        grid = np.linspace(0, 1, 50)
+        curves = []
+        for seed in seeds:
+            files = sorted((out / "monitor").glob(f"{cond}_s{seed}_*.monitor.csv"))
+            rows = [np.loadtxt(f, delimiter=",", skiprows=2, ndmin=2) for f in files]
+            rows = [r for r in rows if r.size]
+            if not rows:
+                continue
+            data = np.concatenate(rows)  # r, l, t per episode
+            steps = np.cumsum(data[:, 1])
+            ret = np.convolve(data[:, 0], np.ones(min(10, len(data))) / min(10, len(data)), mode="same")
+            curves.append((steps / steps[-1], ret, steps[-1]))
+        if curves:
+            mean = np.mean([np.interp(grid, s, r) for s, r, _ in curves], axis=0)
+            ax.plot(grid * curves[0][2], mean, label=cond)
+    ax.set_xlabel("training steps")
+    ax.set_ylabel("episode return (moving average of 10)")
+    ax.legend()
+    ax.set_title("FogDriveRL-v0 learning curves")
+    fig.tight_layout()
+    fig.savefig(out / "curves.png")
+    plt.close(fig)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="rl_benchmark.py", description=__doc__,
+                                formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
+    p.add_argument("--conditions", nargs="+", choices=CONDITIONS, default=list(CONDITIONS),
+                   help="training conditions (default: all)")
+    p.add_argument("--seeds", type=int, default=1, help="training seeds per condition (default 1; a study: >= 3)")
+    p.add_argument("--steps", type=int, default=2048, help="training steps per agent (default 2048; a study: >= 50000)")
+    p.add_argument("--episodes", type=int, default=8, help="evaluation episodes per agent and test fog (default 8; a study: >= 32)")
+    p.add_argument("--envs", type=int, default=os.cpu_count() or 1, help="subprocess envs (default: the CPU count)")
+    p.add_argument("--device", default="auto", help="PPO device: auto (GPU when present), cpu or cuda")
+    p.add_argument("--checkpoint", type=int, default=10_000, help="checkpoint every N steps (default 10000)")
+    p.add_argument("--episode-seconds", type=float, default=20.0,
+                   help="episode length in seconds (default 20, FogDriveRL-v0's; shorter only for smoke runs)")
+    p.add_argument("--out", type=Path, default=Path("out/rl_bench"), help="output folder (default out/rl_bench)")
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    from tqdm import tqdm
+
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if args.seeds < 1 or args.steps < 64 or args.episodes < 1 or args.envs < 1 or args.checkpoint < 1:
+        parser.error("--seeds, --episodes, --envs and --checkpoint must be >= 1 and --steps >= 64")
+    if not 0 < args.episode_seconds < 1e4:
+        parser.error("--episode-seconds must be > 0")
+    EPISODE_SECONDS["value"] = args.episode_seconds
+    args.out.mkdir(parents=True, exist_ok=True)
+    seeds = list(range(args.seeds))
+    agents = [(c, s) for c in args.conditions for s in seeds]
+    t0 = time.perf_counter()
+    for k, (cond, seed) in enumerate(agents):
+        elapsed = time.perf_counter() - t0
+        eta = "" if not k else f", ETA for training {elapsed / k * (len(agents) - k) / 60:.0f} min"
+        print(f"[{k + 1}/{len(agents)}] training {cond} seed {seed}{eta}")
+        train(cond, seed, args.steps, args.out, args.envs, args.device, args.checkpoint)
+    evals = args.out / "eval"
+    evals.mkdir(exist_ok=True)
+    results: dict = {}
+    cells = [(c, s, t) for c, s in agents for t in TEST_LEVELS]
+    for cond, seed, test in tqdm(cells, desc="evaluating", unit="cell"):
+        path = evals / f"{cond}_s{seed}_{test}_{args.episodes}.json"
+        if not path.exists():
+            r = evaluate(args.out / "models" / f"{cond}_s{seed}.zip", test, args.episodes, args.envs, args.device)
+            tmp = path.with_name(f".{path.name}.tmp")
+            tmp.write_text(json.dumps(r))
+            os.replace(tmp, path)
+        results.setdefault(cond, {}).setdefault(test, {})[seed] = json.loads(path.read_text())
+    table = aggregate(results)
+    meta = {"seeds": args.seeds, "steps": args.steps, "episodes": args.episodes, "envs": args.envs,
+            "conditions": args.conditions, "wall_s": time.perf_counter() - t0}  # fmt: skip
+    (args.out / "matrix.json").write_text(json.dumps({"meta": meta, "table": table}, indent=1))
+    (args.out / "matrix.md").write_text(render_matrix(table, meta) + "\n")
+    figures(table, args.out)
+    learning_curves(args.out, args.conditions, seeds)
+    print((args.out / "matrix.md").read_text())
+    print(f"wrote {args.out / 'matrix.md'}, heatmap.png, curves.png in {(time.perf_counter() - t0) / 60:.1f} min")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
