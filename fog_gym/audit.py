@@ -108,7 +108,7 @@ def run_audit(frames: int = 200, resolution: tuple[int, int] = (1280, 960), seed
     for i, (town, tod) in enumerate(combos):
         env = FogDriveEnv(town=town, time_of_day=tod, resolution=resolution)
         env.reset(seed=seed + i)
-        idle = 1 if env.action_space.shape == () else np.zeros(env.action_space.shape, np.float32)
+        idle = env.idle_action
         for _ in range(per_combo):
             _, _, terminated, truncated, _ = env.step(idle)
             for name, cfg in rules.items():

@@ -1,4 +1,4 @@
-"""The ``fog-gym`` command: ``demo``, ``generate``, ``validate``, ``stats``, ``audit`` and ``bench``.
+"""The ``fog-gym`` command: ``demo``, ``generate``, ``validate``, ``stats``, ``audit``, ``view``, ``minari`` and ``bench``.
 
 Example:
     >>> parser = build_parser()
@@ -113,6 +113,8 @@ def build_parser() -> argparse.ArgumentParser:
     )  # fmt: skip
     st.add_argument("root", type=Path, help="dataset root (holds data_root/ and index/)")
     st.add_argument("--plot", type=Path, default=None, metavar="PATH", help="write a bar chart PNG to PATH")
+    _add_view_parser(sub)
+    _add_minari_parser(sub)
     bench = sub.add_parser("bench", help="run scripts/bench.py (per-stage milliseconds; see fog-gym bench --help)",
                            add_help=False)
     bench.add_argument("args", nargs=argparse.REMAINDER)
@@ -138,7 +140,7 @@ def run_demo(args: argparse.Namespace) -> list[Path]:
                    render_mode="rgb_array", fog=levels)  # paired: clean + every level from one render  # fmt: skip
     obs, info = env.reset(seed=args.seed)
     env.action_space.seed(args.seed)
-    idle = 1 if env.action_space.shape == () else np.zeros(env.action_space.shape, np.float32)
+    idle = env.unwrapped.idle_action
     for _ in tqdm(range(args.steps), desc=f"driving {args.town} ({args.time_of_day})", unit="step"):
         obs, reward, terminated, truncated, info = env.step(idle)
         if terminated or truncated:
@@ -200,6 +202,92 @@ def _stats_figure(rows: list[tuple[str, int, float]], path: Path) -> None:
     plt.close(fig)
 
 
+def _add_view_parser(sub) -> None:
+    view = sub.add_parser(
+        "view", help="look at a recorded scene or a live foggy episode in the Rerun viewer (or save an .rrd)",
+        description="Log every sensor to Rerun on a timeline of sample timestamps: the four cameras clean and at each "
+        "fog level, depth and semantic images, 2D boxes, LiDAR per fog level coloured by intensity, semantic LiDAR by "
+        "tag, radar, 3D boxes in the LiDAR frame, camera frusta and (live) the ego trajectory. Give --root for a "
+        "recorded dataset or --town for a live episode; --save FILE.rrd writes a recording without a display "
+        "(open it later with `rerun FILE.rrd`), otherwise the viewer opens. Needs the viz extra (rerun-sdk).",
+    )  # fmt: skip
+    src = view.add_mutually_exclusive_group(required=True)
+    src.add_argument("--root", type=Path, help="a recorded FogDrive dataset")
+    src.add_argument("--town", choices=TOWNS, help="drive a live paired-fog episode in this town")
+    view.add_argument("--scene", default=None, help="scene name of the dataset, e.g. T1_day_scene001 (default: the first)")
+    view.add_argument("--fog", type=_fog_level, nargs="+", default=["light", "moderate", "dense"], metavar="LEVEL",
+                      help="live: fog levels beside clear (default: light moderate dense)")
+    view.add_argument("--steps", type=int, default=50, help="live: keyframes to log (default 50)")
+    view.add_argument("--time-of-day", choices=TIMES_OF_DAY, default="day", help="live: day or night (default day)")
+    view.add_argument("--resolution", type=_resolution, default=(320, 240), help="live: camera resolution (default 320x240)")
+    view.add_argument("--seed", type=int, default=0, help="live: episode seed (default 0)")
+    view.add_argument("--save", type=Path, default=None, metavar="FILE.rrd", help="write an .rrd instead of opening the viewer")
+
+
+def _add_minari_parser(sub) -> None:
+    mi = sub.add_parser(
+        "minari", help="record random-policy episodes of the RL preset into a Minari dataset (offline RL)",
+        description="Record --episodes episodes of FogDriveRL-v0 (random actions) in the given fog and town into the "
+        "Minari dataset --dataset-id (under MINARI_DATASETS_PATH, default ~/.minari/datasets), losslessly, with "
+        "fog level, town, time of day and fog-gym version in its metadata. For a trained policy use "
+        "fog_gym.minari.collect from Python. Needs the minari extra.",
+    )  # fmt: skip
+    mi.add_argument("--dataset-id", required=True, help="Minari id, e.g. fog-gym/highway-dense-random-v0")
+    mi.add_argument("--episodes", type=int, default=10, help="episodes to record (default 10)")
+    mi.add_argument("--fog", type=str, default="clear", help="fog level: clear, light, moderate, dense or metres (default clear)")
+    mi.add_argument("--town", choices=TOWNS, default="highway", help="town (default highway)")
+    mi.add_argument("--time-of-day", choices=TIMES_OF_DAY, default="day", help="day or night (default day)")
+    mi.add_argument("--episode-seconds", type=float, default=20.0, help="episode length in seconds (default 20)")
+    mi.add_argument("--keys", nargs="+", default=None, help="observation keys to keep (default all: CAM_FRONT LIDAR_BEV)")
+    mi.add_argument("--seed", type=int, default=0, help="seed of the first episode (default 0)")
+    mi.add_argument("--overwrite", action="store_true", help="replace an existing dataset of that id")
+
+
+def _view(args: argparse.Namespace) -> int:
+    from fog_gym import viewer
+
+    if args.save is not None and args.save.suffix != ".rrd":
+        raise _fail("view", f"--save must name an .rrd file, got {args.save}")
+    try:
+        if args.root is not None:
+            n = viewer.view_dataset(args.root, scene=args.scene, save=args.save)
+        else:
+            if args.steps < 1:
+                raise _fail("view", "--steps must be >= 1")
+            n = viewer.view_live(args.town, list(dict.fromkeys(args.fog)), args.steps, args.resolution,
+                                 args.time_of_day, args.seed, save=args.save)  # fmt: skip
+    except (ValueError, KeyError, FileNotFoundError, ImportError) as e:
+        raise _fail("view", str(e).strip("'\"")) from None
+    print(f"logged {n} samples" + (f" to {args.save}" if args.save is not None else ""))
+    return 0
+
+
+def _minari(args: argparse.Namespace) -> int:
+    import gymnasium as gym
+
+    from fog_gym.fog import parse_fog
+    from fog_gym.minari import collect
+
+    fog: str | float = args.fog
+    try:
+        fog = float(args.fog)
+    except ValueError:
+        pass
+    try:
+        parse_fog(fog)
+        if args.episode_seconds <= 0:
+            raise ValueError("--episode-seconds must be > 0")
+        env = gym.make("FogDriveRL-v0", fog=fog, town=args.town, time_of_day=args.time_of_day,
+                       episode_seconds=args.episode_seconds)  # fmt: skip
+        ds = collect(env, None, episodes=args.episodes, dataset_id=args.dataset_id, keys=args.keys, seed=args.seed,
+                     overwrite=args.overwrite)  # fmt: skip
+    except (ValueError, FileExistsError, ImportError) as e:
+        raise _fail("minari", str(e)) from None
+    print(f"{args.dataset_id}: {ds.total_episodes} episodes, {ds.total_steps} steps; "
+          f"load it with minari.load_dataset({args.dataset_id!r})")  # fmt: skip
+    return 0
+
+
 def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser()
@@ -211,7 +299,8 @@ def main(argv: list[str] | None = None) -> int:
             raise _fail("bench", "needs the source checkout (scripts/bench.py); it is not part of the wheel")
         return runpy.run_path(str(script), run_name="fog_gym_bench")["main"](argv[1:], prog="fog-gym bench")
     args = parser.parse_args(argv)
-    handler = {"generate": _generate, "validate": _validate, "stats": _stats, "audit": _audit, "demo": _demo}
+    handler = {"generate": _generate, "validate": _validate, "stats": _stats, "audit": _audit, "demo": _demo,
+               "view": _view, "minari": _minari}  # fmt: skip
     return handler[args.command](args)
 
 

@@ -246,6 +246,12 @@ class FogDriveEnv(gym.Env):
         }
 
     @property
+    def idle_action(self) -> Any:
+        """The action that keeps lane and speed: highway-env's ``IDLE`` meta-action (1), zeros if continuous."""
+        space = self.action_space
+        return 1 if space.shape == () else np.zeros(space.shape, space.dtype)
+
+    @property
     def instance_buffers(self) -> dict[str, np.ndarray]:
         """Per-camera instance ids of the latest frame (vehicle id; 0 = static world and sky)."""
         return {name: f.instance for name, f in self.frames.items()}
