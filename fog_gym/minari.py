@@ -16,6 +16,7 @@ Example (where the datasets go: ``MINARI_DATASETS_PATH``, default ``~/.minari/da
 from __future__ import annotations
 
 import math
+import os
 import re
 import warnings
 from collections.abc import Callable, Sequence
@@ -73,7 +74,8 @@ def collect(env: gym.Env, policy: Any = None, episodes: int = 1, dataset_id: str
 
     Episode ``i`` is reset with ``seed + i`` (random actions are drawn from the action space seeded by ``seed``),
     so a call is reproducible. Returns the ``minari.MinariDataset``. An existing ``dataset_id`` is an error unless
-    ``overwrite``. Bad arguments fail before the first episode.
+    ``overwrite``. Bad arguments fail before the first episode. A relative ``MINARI_DATASETS_PATH`` is made
+    absolute (against the working folder) first: Minari 0.5 mishandles relative roots.
     """
     minari = _require_minari()
     from minari.data_collector import EpisodeBuffer
@@ -85,6 +87,9 @@ def collect(env: gym.Env, policy: Any = None, episodes: int = 1, dataset_id: str
         raise ValueError(f"episodes must be a positive integer, got {episodes!r}")
     if not isinstance(dataset_id, str) or not _DATASET_ID.match(dataset_id):
         raise ValueError(f"dataset_id must look like 'namespace/name-v0' (letters, digits, _ . -), got {dataset_id!r}")
+    root = os.environ.get("MINARI_DATASETS_PATH")
+    if root and not os.path.isabs(root):  # Minari 0.5 writes a relative root's episodes into a nested wrong path
+        os.environ["MINARI_DATASETS_PATH"] = os.path.abspath(root)
     space = _select_space(env.observation_space, keys)
     act = _policy_fn(policy, env.action_space)
     if dataset_id in minari.list_local_datasets():

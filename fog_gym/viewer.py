@@ -5,13 +5,17 @@ One sample is a ``{channel: array}`` dict with the dataset's channel names (``CA
 dataset (:func:`sample_from_dataset`) or from a live paired-fog episode (:func:`sample_from_env`), and logged by
 :func:`log_sample` on the ``sample_time`` timeline (seconds from the scene's first sample). Entities:
 
-* ``world/ego/lidar``: the LiDAR frame (CARLA's: +x forward, +y right, +z up). Below it ``points/clean`` and
+* ``world/ego/lidar``: the LiDAR frame. Below it ``points/clean`` and
   ``points/fog_<level>`` (coloured by intensity), ``semantic`` (class = CARLA tag, Cityscapes colours),
   ``boxes`` (3D boxes, labelled by vehicle id) and one pinhole per camera (``CAM_FRONT`` …: its frustum in 3D)
   holding ``rgb``, ``fog_<level>``, ``depth``, ``semantic`` and ``boxes`` (2D boxes).
 * ``world/ego/radar``: the front radar's detections, coloured by radial velocity (red approaching).
 * ``world/trajectory``: the ego's path so far (live episodes only: a recorded FogDrive scene stores no ego poses,
   so there the world frame is the ego's own at every sample).
+
+Rerun draws right-handed frames only (and a camera only under a rotation), while fog-gym's frames are CARLA's
+left-handed ones (+x forward, +y right, +z up); the viewer therefore shows every 3D quantity mirrored to +x forward,
+**+y left**, +z up (y negated: :data:`DISPLAY`). Files and observations are untouched; images are not mirrored.
 
 Needs the ``viz`` extra (``rerun-sdk``). :func:`view_dataset` and :func:`view_live` write an ``.rrd`` file with
 ``save=`` (no display needed; open it later with ``rerun FILE.rrd``) or else open the viewer.
@@ -39,6 +43,9 @@ from fog_gym.encoding import CITYSCAPES_PALETTE, TAG_NAMES
 LIDAR_PATH = "world/ego/lidar"
 RADAR_PATH = "world/ego/radar"
 TIMELINE = "sample_time"
+BOX_COLOR = (255, 200, 0)
+#: CARLA's left-handed frames → Rerun's right-handed display frame (x forward, y left, z up): negate y.
+DISPLAY = np.diag([1.0, -1.0, 1.0, 1.0])
 #: Gradient for intensities in [0, 1] (dark blue → teal → yellow), interpolated linearly.
 _INTENSITY_STOPS = np.array([[40, 30, 110], [30, 120, 160], [60, 190, 110], [250, 230, 40]], np.float64)
 
@@ -126,17 +133,24 @@ def log_static(rec: Any, cameras: Mapping[str, tuple[np.ndarray, np.ndarray, int
     """Frames, the semantic colour table and one pinhole per camera: ``{name: (extrinsic E, K, width, height)}``,
     E mapping LiDAR-frame points to the camera's (x right, y down, z forward) frame."""
     rr = _require_rerun()
-    rec.log("world", rr.ViewCoordinates.FRU, static=True)  # CARLA: forward, right, up (left-handed)
+    rec.log("world", rr.ViewCoordinates.RIGHT_HAND_Z_UP, static=True)  # display frame: forward, left, up
     rec.log("world", rr.AnnotationContext([(t, TAG_NAMES[t], tuple(int(v) for v in CITYSCAPES_PALETTE[t]))
                                            for t in sorted(TAG_NAMES)]), static=True)  # fmt: skip
-    rec.log(LIDAR_PATH, _transform(rr, lidar_to_vehicle), static=True)
-    rec.log(RADAR_PATH, _transform(rr, radar_to_vehicle), static=True)
+    rec.log(LIDAR_PATH, _transform(rr, DISPLAY @ lidar_to_vehicle @ DISPLAY), static=True)
+    rec.log(RADAR_PATH, _transform(rr, DISPLAY @ radar_to_vehicle @ DISPLAY), static=True)
     for name, (extrinsic, K, width, height) in cameras.items():
-        cam_to_lidar = np.linalg.inv(np.asarray(extrinsic, np.float64))
+        cam_to_lidar = DISPLAY @ np.linalg.inv(np.asarray(extrinsic, np.float64))  # a rotation: det +1
         path = f"{LIDAR_PATH}/{name}"
         rec.log(path, _transform(rr, cam_to_lidar), static=True)
         rec.log(path, rr.Pinhole(image_from_camera=np.asarray(K, np.float64), resolution=[width, height],
                                  camera_xyz=rr.ViewCoordinates.RDF, image_plane_distance=2.0), static=True)  # fmt: skip
+
+
+def _show(points: np.ndarray) -> np.ndarray:
+    """Points ``(N, 3)`` in a CARLA frame → the display frame (y negated)."""
+    p = np.array(points, np.float64).reshape(-1, 3)
+    p[:, 1] *= -1.0
+    return p
 
 
 def _transform(rr: Any, matrix: np.ndarray):
@@ -151,31 +165,31 @@ def log_sample(rec: Any, t: float, sample: Mapping[str, Any], ego_pose: Sequence
     rec.set_time(TIMELINE, duration=float(t))
     if ego_pose is not None:
         x, y, yaw = (float(v) for v in ego_pose)
-        c, s = math.cos(yaw), math.sin(yaw)
-        rec.log("world/ego", rr.Transform3D(translation=[x, y, 0.0], mat3x3=[[c, -s, 0], [s, c, 0], [0, 0, 1]]))
+        c, s = math.cos(-yaw), math.sin(-yaw)
+        rec.log("world/ego", rr.Transform3D(translation=[x, -y, 0.0], mat3x3=[[c, -s, 0], [s, c, 0], [0, 0, 1]]))
     if trajectory is not None and len(trajectory) > 1:
-        rec.log("world/trajectory", rr.LineStrips3D([np.asarray(trajectory, np.float64)], colors=[(255, 140, 0)]))
+        rec.log("world/trajectory", rr.LineStrips3D([_show(trajectory)], colors=[(255, 140, 0)]))
     channels = list(sample)
     if "LIDAR_TOP" in sample:
         for level, ch in {"clean": "LIDAR_TOP", **fog_channels(channels, "LIDAR_TOP")}.items():
             pts = np.asarray(sample[ch])
             rec.log(f"{LIDAR_PATH}/points/{level if level == 'clean' else 'fog_' + level}",
-                    rr.Points3D(pts[:, :3], colors=intensity_colors(pts[:, 3]), radii=0.04))  # fmt: skip
+                    rr.Points3D(_show(pts[:, :3]), colors=intensity_colors(pts[:, 3]), radii=0.04))  # fmt: skip
     if "SEM_LIDAR_TOP" in sample:
         pts = np.asarray(sample["SEM_LIDAR_TOP"])
-        rec.log(f"{LIDAR_PATH}/semantic", rr.Points3D(pts[:, :3], class_ids=pts[:, 5].astype(np.uint16), radii=0.04))
+        rec.log(f"{LIDAR_PATH}/semantic", rr.Points3D(_show(pts[:, :3]), class_ids=pts[:, 5].astype(np.uint16), radii=0.04))
     if "RADAR_FRONT" in sample:
         r = np.asarray(sample["RADAR_FRONT"])
         vel = r[:, 0] if len(r) else np.zeros(0)
         colors = np.where((vel < 0)[:, None], [[230, 40, 40]], [[40, 120, 230]]).astype(np.uint8)
-        rec.log(RADAR_PATH, rr.Points3D(radar_to_xyz(r), colors=colors, radii=0.15))
+        rec.log(RADAR_PATH, rr.Points3D(_show(radar_to_xyz(r)), colors=colors, radii=0.15))
     if "BBOX_3D" in sample:
         b = sample["BBOX_3D"]
         centers, half, yaw = box_params(b["bboxes_3d"])
-        quats = [(0.0, 0.0, math.sin(a / 2), math.cos(a / 2)) for a in yaw]  # xyzw, about +z
-        rec.log(f"{LIDAR_PATH}/boxes", rr.Boxes3D(centers=centers, half_sizes=half, quaternions=quats,
+        quats = [(0.0, 0.0, math.sin(-a / 2), math.cos(-a / 2)) for a in yaw]  # xyzw about +z, mirrored yaw
+        rec.log(f"{LIDAR_PATH}/boxes", rr.Boxes3D(centers=_show(centers), half_sizes=half, quaternions=quats,
                                                    labels=[str(int(i)) for i in b["vehicle_ids"]],
-                                                   class_ids=np.full(len(centers), 14, np.uint16)))  # fmt: skip
+                                                   colors=[BOX_COLOR] * len(centers)))  # fmt: skip
     for cam in CAMERAS:
         if cam not in sample:
             continue
@@ -192,19 +206,34 @@ def log_sample(rec: Any, t: float, sample: Mapping[str, Any], ego_pose: Sequence
             boxes = np.asarray(b2["bboxes"], np.float64).reshape(-1, 4)  # (x0, y0), (x1, y1)
             rec.log(f"{path}/boxes", rr.Boxes2D(array=boxes, array_format=rr.Box2DFormat.XYXY,
                                                 labels=[str(int(i)) for i in b2["vehicle_ids"]],
-                                                class_ids=np.full(len(boxes), 14, np.uint16)))  # fmt: skip
+                                                colors=[BOX_COLOR] * len(boxes)))  # fmt: skip
 
 
-def blueprint(cameras: Sequence[str], levels: Sequence[str]):
-    """A layout: the 3D scene beside one tab per fog level (clean first), each a grid of the cameras."""
+def blueprint(cameras: Sequence[str], levels: Sequence[str], active: str = "clean"):
+    """The layout: on the left one 3D tab per fog level (that level's LiDAR, semantic LiDAR in its own tab, boxes,
+    radar, frusta, trajectory; the camera follows the ego), on the right one tab per fog level with a grid of the
+    cameras and their 2D boxes, and a tab of depth and semantic images. ``active`` (``clean`` or a level) opens."""
     import rerun.blueprint as rrb
 
-    tabs = []
-    for level in ["rgb", *(f"fog_{lv}" for lv in levels)]:
-        views = [rrb.Spatial2DView(origin=f"{LIDAR_PATH}/{cam}", name=f"{cam} {level}",
-                                   contents=[f"$origin/{level}", "$origin/boxes"]) for cam in cameras]  # fmt: skip
-        tabs.append(rrb.Grid(*views, name="clean" if level == "rgb" else level))
-    return rrb.Blueprint(rrb.Horizontal(rrb.Spatial3DView(origin="world", name="3D"), rrb.Tabs(*tabs)),
+    names = ["clean", *levels]
+    eye = rrb.EyeControls3D(position=(-24.0, 0.0, 16.0), look_target=(14.0, 0.0, 0.0), eye_up=(0.0, 0.0, 1.0))
+    common = ["+ world/trajectory", "+ world/ego/radar/**", f"+ {LIDAR_PATH}/boxes"] + [
+        f"+ {LIDAR_PATH}/{cam}" for cam in cameras] + [f"+ {LIDAR_PATH}/{cam}/rgb" for cam in cameras]  # fmt: skip
+    scenes = [rrb.Spatial3DView(origin="world/ego", name=f"3D {n}", eye_controls=eye, contents=[
+        *common, f"+ {LIDAR_PATH}/points/{'clean' if n == 'clean' else 'fog_' + n}"]) for n in names]  # fmt: skip
+    scenes.append(rrb.Spatial3DView(origin="world/ego", name="3D semantic", eye_controls=eye,
+                                    contents=[*common, f"+ {LIDAR_PATH}/semantic"]))  # fmt: skip
+    grids = []
+    for n in names:
+        image = "rgb" if n == "clean" else f"fog_{n}"
+        grids.append(rrb.Grid(*[rrb.Spatial2DView(origin=f"{LIDAR_PATH}/{cam}", name=f"{cam} {n}",
+                                                  contents=[f"$origin/{image}", "$origin/boxes"]) for cam in cameras],
+                              name=n))  # fmt: skip
+    grids.append(rrb.Grid(*[rrb.Spatial2DView(origin=f"{LIDAR_PATH}/{cam}", name=f"{cam} {kind}",
+                                              contents=[f"$origin/{kind}"])
+                            for cam in cameras[:2] for kind in ("depth", "semantic")], name="depth & semantic"))
+    at = names.index(active) if active in names else 0
+    return rrb.Blueprint(rrb.Horizontal(rrb.Tabs(*scenes, active_tab=at), rrb.Tabs(*grids, active_tab=at)),
                          collapse_panels=True)  # fmt: skip
 
 
@@ -221,11 +250,12 @@ def _open(application: str, save: str | Path | None):
 
 # -- entry points ---------------------------------------------------------------------------------------------------
 def view_dataset(root: str | Path, scene: str | None = None, save: str | Path | None = None,
-                 progress: bool = True) -> int:  # fmt: skip
+                 progress: bool = True, tab: str = "clean") -> int:  # fmt: skip
     """Log one scene of a recorded dataset (the first by name when ``scene`` is None); returns the samples logged.
 
     Camera intrinsics follow the FogDrive rig (100° horizontal FOV, CARLA's pinhole) at each image's size; the
-    LiDAR and radar mounts are the FogDrive rig's. A scene that does not exist raises ``KeyError`` naming the
+    LiDAR and radar mounts are the FogDrive rig's; ``tab`` (``clean`` or a fog level) is the tab the layout opens
+    on. A scene that does not exist raises ``KeyError`` naming the
     scenes there are, before anything is written.
     """
     from tqdm import tqdm
@@ -255,7 +285,7 @@ def view_dataset(root: str | Path, scene: str | None = None, save: str | Path | 
             cams[cam] = (np.asarray(extrinsics[EXTRINSIC_KEYS[cam]]), intrinsic_matrix(w, h, fov[cam]), w, h)
     rec = _open("fog-gym", save)
     levels = list(fog_channels(first, "LIDAR_TOP")) or list(fog_channels(first, CAMERAS[0]))
-    rec.send_blueprint(blueprint(list(cams), levels))
+    rec.send_blueprint(blueprint(list(cams), levels, active=tab))
     log_static(rec, cams, sensor_to_world(rig.lidar.pose), sensor_to_world(rig.radar.pose))
     t0 = samples[0]["timestamp"]
     for s in tqdm(samples, desc=f"logging {rec_scene['name']}", unit="sample", disable=not progress):
@@ -269,7 +299,7 @@ def view_dataset(root: str | Path, scene: str | None = None, save: str | Path | 
 def view_live(town: str = "highway", fog: Sequence[Any] = ("light", "moderate", "dense"), steps: int = 20,
               resolution: Sequence[int] = (320, 240), time_of_day: str = "day", seed: int = 0,
               save: str | Path | None = None, policy: Callable[[Any], Any] | None = None,
-              progress: bool = True) -> int:  # fmt: skip
+              progress: bool = True, tab: str = "clean") -> int:  # fmt: skip
     """Drive ``steps`` keyframes of a live paired-fog FogDrive-v0 episode and log them; returns the samples logged.
 
     ``policy`` maps an observation to an action (default: highway-env's idle action, keep lane and speed). The
@@ -292,7 +322,7 @@ def view_live(town: str = "highway", fog: Sequence[Any] = ("light", "moderate", 
             for c in rig.cameras}  # fmt: skip
     lidar_pose = (rig.lidar or rig.semantic_lidar).pose
     rec = _open("fog-gym", save)
-    rec.send_blueprint(blueprint(list(cams), [lv.name.lower() for lv in levels]))
+    rec.send_blueprint(blueprint(list(cams), [lv.name.lower() for lv in levels], active=tab))
     log_static(rec, cams, sensor_to_world(lidar_pose), sensor_to_world(rig.radar.pose) if rig.radar else np.eye(4))
     path: list[tuple[float, float, float]] = []
     n = 0

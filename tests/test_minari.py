@@ -108,3 +108,63 @@ def test_cli_minari_records_a_random_policy_dataset(datasets_path):
     assert again.returncode == 1 and again.stderr.startswith("fog-gym minari: Minari dataset 'fog-gym/cli-light-v0' exists")
     bad = subprocess.run(cmd[:6] + ["--fog", "soup"], capture_output=True, text=True, env=env)
     assert bad.returncode == 1 and bad.stderr.startswith("fog-gym minari: fog")
+
+
+def _example():
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parent.parent / "examples" / "bc_minari.py"
+    spec = importlib.util.spec_from_file_location("bc_minari", path)
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+class _Scene:
+    def __init__(self, ego_xy, others_xy):
+        from types import SimpleNamespace
+
+        xy = np.array([ego_xy, *others_xy], float)
+        self.ego_id, self.ego_pose = 1, (xy[0, 0], xy[0, 1], 0.0)
+        self.vehicles = SimpleNamespace(ids=np.arange(1, len(xy) + 1), centers=np.c_[xy, np.full(len(xy), 0.75)])
+
+
+@pytest.mark.parametrize("others, action", [
+    ([(112.0, 4.0)], 0),                   # blocked, left lane free → LANE_LEFT
+    ([(112.0, 4.0), (105.0, 0.0)], 2),     # blocked, left taken, right free → LANE_RIGHT
+    ([(112.0, 4.0), (105.0, 0.0), (100.0, 8.0)], 4),  # boxed in → SLOWER
+    ([(160.0, 4.0), (100.0, 8.0)], 3),     # clear road, right lane taken → FASTER
+    ([], 2),                               # nothing around, a lane to the right → keep right
+])  # fmt: skip
+def test_rule_driver_of_the_bc_example_overtakes_left_and_keeps_right(others, action):
+    from types import SimpleNamespace
+
+    bc = _example()
+    env = SimpleNamespace(unwrapped=SimpleNamespace(config=SimpleNamespace(highway_config={"lanes_count": 3})))
+    driver = bc.RuleDriver(env)
+    driver.base.scene = _Scene((100.0, 4.0), others)  # ego in the middle lane (y = 4 m)
+    assert driver(None) == action
+
+
+def test_bc_example_learns_from_the_dataset_it_loads():
+    bc = _example()
+    env = gym.make("FogDriveRL-v0", fog="light", episode_seconds=2.0)
+    driver = bc.RuleDriver(env)
+    seen = []
+    collect(env, lambda o: seen.append(driver(o)) or seen[-1], episodes=2, dataset_id="fog-gym/bc-v0", progress=False)
+    obs, acts = bc.load_pairs(minari.load_dataset("fog-gym/bc-v0"))
+    assert obs["CAM_FRONT"].shape == (20, 3, 64, 64) and acts.tolist() == seen  # every (observation, action) pair
+    model, accuracy = bc.train_bc(minari.load_dataset("fog-gym/bc-v0"), epochs=25, progress=False)
+    majority = np.bincount(acts).max() / len(acts)
+    assert accuracy[-1] >= majority  # at least as good as always predicting the commonest action
+    assert bc.bc_policy(model)(env.reset(seed=0)[0]) in range(5)
+
+
+def test_a_relative_datasets_path_is_made_absolute(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("MINARI_DATASETS_PATH", "rel/minari")
+    ds = collect(gym.make("FogDriveRL-v0", episode_seconds=0.4), None, episodes=1, dataset_id="fog-gym/rel-v0",
+                 progress=False)  # fmt: skip
+    assert os.environ["MINARI_DATASETS_PATH"] == str(tmp_path / "rel" / "minari")
+    assert ds.total_steps == 2 and (tmp_path / "rel" / "minari" / "fog-gym" / "rel-v0").is_dir()

@@ -73,10 +73,11 @@ def test_logged_points_and_boxes_equal_the_files(dataset, tmp_path):
         paths = ds.get_sample_paths(s["token"], ["LIDAR_TOP_FOG_DENSE", "BBOX_3D"])
         t = round(i * 0.1 * 1e9)  # duration timeline, nanoseconds
         pts = load_channel("LIDAR_TOP_FOG_DENSE", paths["LIDAR_TOP_FOG_DENSE"])
-        np.testing.assert_array_equal(np.asarray(dense[t], np.float32), pts[:, :3])
+        mirrored = pts[:, :3] * np.float32([1, -1, 1])  # shown right-handed: y negated
+        np.testing.assert_array_equal(np.asarray(dense[t], np.float32), mirrored)
         corners = load_channel("BBOX_3D", paths["BBOX_3D"])["bboxes_3d"]
         np.testing.assert_allclose(np.asarray(centers[t] or np.zeros((0, 3))).reshape(-1, 3),
-                                   corners.reshape(-1, 8, 3).mean(axis=1), atol=1e-5)  # fmt: skip
+                                   corners.reshape(-1, 8, 3).mean(axis=1) * [1, -1, 1], atol=1e-5)  # fmt: skip
 
 
 def test_a_live_episode_logs_the_ego_trajectory_and_each_fog_level(tmp_path):
