@@ -33,8 +33,9 @@ LANE_WIDTH = 4.0  # highway-env's StraightLane.DEFAULT_WIDTH
 class RuleDriver:
     """A privileged driver for the highway preset: reads the true scene, not the observation.
 
-    Gap ahead in the ego lane < 20 m: change to a free lane (left first) or slow down; else move right when
-    the right lane is free for 30 m; else speed up when the gap is over 35 m, otherwise keep going.
+    With headway h = gap ahead in the ego lane / own speed: h < 2 s → change to a lane that is free from 10 m
+    behind to 2.5 s ahead (left first) or slow down; else move right when that lane is free for 3 s; else speed up
+    when h > 3 s and below 28 m/s, otherwise keep lane and speed.
     """
 
     def __init__(self, env: gym.Env) -> None:
@@ -45,28 +46,30 @@ class RuleDriver:
         scene = self.base.scene
         x, y, yaw = scene.ego_pose
         v = scene.vehicles
-        others = v.ids != scene.ego_id
+        ego = v.ids == scene.ego_id
+        speed = max(float(np.linalg.norm(v.velocities[ego][0, :2])) if ego.any() else 20.0, 5.0)
+        others = ~ego
         d = v.centers[others, :2] - np.array([x, y])
         ahead = d @ np.array([math.cos(yaw), math.sin(yaw)])
         side = d @ np.array([-math.sin(yaw), math.cos(yaw)])  # + right (CARLA's y)
         lane = int(np.clip(round(y / LANE_WIDTH), 0, self.lanes - 1))
 
-        def gap(offset: float) -> float:
+        def headway(offset: int) -> float:
             m = (np.abs(side - offset * LANE_WIDTH) < LANE_WIDTH / 2) & (ahead > 0)
-            return float(ahead[m].min()) if m.any() else math.inf
+            return float(ahead[m].min()) / speed if m.any() else math.inf
 
         def free(offset: int) -> bool:
             if not 0 <= lane + offset < self.lanes:
                 return False
             m = np.abs(side - offset * LANE_WIDTH) < LANE_WIDTH / 2
-            return not np.any(m & (ahead > -10.0) & (ahead < 20.0))
+            return not np.any(m & (ahead > -10.0) & (ahead < 2.5 * speed))
 
-        front = gap(0)
-        if front < 20.0:
+        h = headway(0)
+        if h < 2.0:
             return LANE_LEFT if free(-1) else LANE_RIGHT if free(1) else SLOWER
-        if free(1) and gap(1) > 30.0:
+        if free(1) and headway(1) > 3.0:
             return LANE_RIGHT
-        return FASTER if front > 35.0 else IDLE
+        return FASTER if h > 3.0 and speed < 28.0 else IDLE
 
 
 def to_tensor(observations: dict[str, np.ndarray]):
