@@ -96,6 +96,8 @@ def build_parser() -> argparse.ArgumentParser:
     gen.add_argument("--seconds", type=float, default=20.0, help="scene length in seconds (default 20)")
     gen.add_argument("--seed", type=int, default=0, help="base seed (default 0)")
     gen.add_argument("--towns", nargs="+", choices=TOWNS, default=list(TOWNS), help="towns to use (default all)")
+    gen.add_argument("--lidar-only", action="store_true",
+                     help="write only the LiDAR, its fog variants, the semantic LiDAR and the 3D boxes (no cameras)")
     gen.add_argument("--resume", action="store_true", help="continue an interrupted run in --root (same settings)")
     gen.add_argument("--ray", metavar="ADDRESS", default=None, help="run scenes as Ray tasks on this cluster")
     val = sub.add_parser(
@@ -312,7 +314,8 @@ def _generate(args: argparse.Namespace) -> int:
     if not args.seconds > 0:
         raise _fail("generate", "--seconds must be > 0")
     try:
-        plan = plan_scenes(args.scenes, tuple(args.towns), args.seed, args.resolution, args.seconds)
+        plan = plan_scenes(args.scenes, tuple(args.towns), args.seed, args.resolution, args.seconds,
+                           "lidar" if args.lidar_only else "full")  # fmt: skip
         tables = generate(args.root, plan, args.workers, args.resume, args.ray)
     except ValueError as e:
         raise _fail("generate", str(e)) from None

@@ -23,7 +23,7 @@ from typing import Any
 import numpy as np
 
 from fog_gym.config import TOWNS
-from fog_gym.dataset.layout import DATA_ROOT, scene_folder_name
+from fog_gym.dataset.layout import DATA_ROOT, MODALITIES, scene_folder_name
 from fog_gym.dataset.manifest import MANIFEST_FILE, differences, make_manifest, read_manifest, write_manifest
 from fog_gym.dataset.validate import stats, validate  # noqa: F401  (kept importable from here)
 from fog_gym.dataset.writer import SceneWriter, build_index
@@ -43,6 +43,7 @@ class SceneSpec:
     resolution: tuple[int, int]
     seconds: float
     base_seed: int = 0
+    modality: str = "full"  # a key of MODALITIES: "full" (35 channels) or "lidar"
 
     @property
     def folder(self) -> str:
@@ -56,8 +57,14 @@ class SceneSpec:
 
 
 def plan_scenes(n_scenes: int, towns: tuple[str, ...] = TOWNS, seed: int = 0, resolution: tuple[int, int] = (1280, 960),
-                seconds: float = 20.0) -> list[SceneSpec]:  # fmt: skip
-    """``n_scenes`` (even) spread over ``towns`` in day/night pairs, as evenly as possible, in a fixed order."""
+                seconds: float = 20.0, modality: str = "full") -> list[SceneSpec]:  # fmt: skip
+    """``n_scenes`` (even) spread over ``towns`` in day/night pairs, as evenly as possible, in a fixed order.
+
+    ``modality`` "lidar" writes only :data:`~fog_gym.dataset.layout.MODALITIES` ``["lidar"]`` (no cameras are
+    rendered); the scenes' traffic, seeds and folder names are the same as with "full".
+    """
+    if modality not in MODALITIES:
+        raise ValueError(f"modality must be one of {tuple(MODALITIES)}, got {modality!r}")
     if isinstance(n_scenes, bool) or not isinstance(n_scenes, int) or n_scenes < 2 or n_scenes % 2:
         raise ValueError(f"scenes must be an even number >= 2 (day/night pairs), got {n_scenes!r}")
     for t in towns:
@@ -73,7 +80,8 @@ def plan_scenes(n_scenes: int, towns: tuple[str, ...] = TOWNS, seed: int = 0, re
             for tod in ("day", "night"):
                 index = len(plan)
                 scene_seed = int(np.random.SeedSequence([seed, index]).generate_state(1)[0] & 0x7FFFFFFF)
-                plan.append(SceneSpec(index, town, tod, run, scene_seed, tuple(resolution), float(seconds), seed))
+                plan.append(SceneSpec(index, town, tod, run, scene_seed, tuple(resolution), float(seconds), seed,
+                                      modality))  # fmt: skip
     return plan
 
 
@@ -91,11 +99,13 @@ def generate_scene(root: str | Path, spec: SceneSpec | dict[str, Any]) -> str:
     folder_path = root / DATA_ROOT / spec.folder
     if folder_path.exists():
         shutil.rmtree(folder_path)  # a partial scene from an interrupted run: redo it from its seed
+    lidar_only = spec.modality == "lidar"
     env = FogWrapper(FogDriveEnv(town=spec.town, time_of_day=spec.time_of_day, resolution=spec.resolution,
-                                 episode_seconds=spec.seconds), ["light", "moderate", "dense"])  # fmt: skip
-    writer = SceneWriter(root, spec.folder)
+                                 episode_seconds=spec.seconds, cameras=[] if lidar_only else None),
+                     ["light", "moderate", "dense"])  # fmt: skip
+    writer = SceneWriter(root, spec.folder, MODALITIES[spec.modality])
     obs, info = env.reset(seed=spec.seed)
-    writer.write_extrinsics(info["extrinsics"])
+    writer.write_extrinsics(fogdrive_extrinsics() if lidar_only else info["extrinsics"])
     writer.write_sample(0, obs, info)
     idle = 1 if env.action_space.shape == () else np.zeros(env.action_space.shape, np.float32)
     index, done = 1, False
@@ -111,6 +121,19 @@ def generate_scene(root: str | Path, spec: SceneSpec | dict[str, Any]) -> str:
     return spec.folder
 
 
+def fogdrive_extrinsics() -> dict[str, np.ndarray]:
+    """The four LiDAR→camera extrinsics of the FogDrive rig (what FogDrive-v0 reports), for sets without cameras."""
+    from fog_gym import geometry
+    from fog_gym.config import RigConfig
+    from fog_gym.labels import EXTRINSIC_KEYS
+    from fog_gym.lidar import sensor_to_world
+
+    rig = RigConfig.fogdrive()
+    lidar_to_vehicle = sensor_to_world(rig.lidar.pose)
+    return {EXTRINSIC_KEYS[c.name]: geometry.lidar_to_camera(
+        lidar_to_vehicle, geometry.transform_matrix(c.pose.location, c.pose.rotation)) for c in rig.cameras}  # fmt: skip
+
+
 def pending_scenes(root: Path, plan: list[SceneSpec]) -> list[SceneSpec]:
     """Scenes of the plan that are not completely on disk."""
     return [s for s in plan if not (root / PROGRESS_DIR / f"{s.folder}.json").exists()]
@@ -122,7 +145,8 @@ def plan_manifest(plan: list[SceneSpec]) -> dict[str, Any]:
         raise ValueError("the plan has no scenes")
     towns = list(dict.fromkeys(s.town for s in plan))
     first = plan[0]
-    return make_manifest(len(plan), first.resolution, first.seconds, first.base_seed, towns)
+    return make_manifest(len(plan), first.resolution, first.seconds, first.base_seed, towns,
+                         channels=MODALITIES[first.modality])  # fmt: skip
 
 
 def check_manifest(root: Path, manifest: dict[str, Any], resume: bool) -> None:

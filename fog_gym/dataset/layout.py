@@ -38,6 +38,12 @@ def _channels() -> dict[str, tuple[str, str]]:
 
 #: The 35 channels of a FogDrive sample → (folder inside the scene, file format).
 CHANNELS: dict[str, tuple[str, str]] = _channels()
+#: Channel sets ``fog-gym generate`` can write: everything, or the LiDAR, its fog variants, the semantic LiDAR and
+#: the 3D boxes (no cameras, no radar) — the data of the 3D detection experiment, far faster to generate.
+MODALITIES: dict[str, tuple[str, ...]] = {
+    "full": tuple(CHANNELS),
+    "lidar": ("LIDAR_TOP", *(f"LIDAR_TOP_FOG_{lv}" for lv in FOG_LEVELS), "SEM_LIDAR_TOP", "BBOX_3D"),
+}
 EXTRINSIC_FILE = "extrinsic_config/extrinsic_config.json"
 SAMPLE_PERIOD_US = 100_000  # 10 Hz keyframes
 _SCENE_RE = re.compile(r"^data_collection_T(\d+)_(day|night)_run(\d+)_([0-9a-f]+)$")

@@ -24,7 +24,7 @@ import cv2
 import numpy as np
 
 from fog_gym.dataset.layout import (
-    CAMERAS, CHANNELS, DATA_ROOT, EXTRINSIC_FILE, FOG_LEVELS, SAMPLE_PERIOD_US, channel_path, parse_scene_folder,
+    CAMERAS, CHANNELS, DATA_ROOT, EXTRINSIC_FILE, SAMPLE_PERIOD_US, channel_path, parse_scene_folder,
     scene_name,
 )  # fmt: skip
 from fog_gym.encoding import encode_depth, semantic_to_carla_rgb
@@ -73,11 +73,16 @@ class SceneWriter:
     ``info`` (``boxes_2d``, ``boxes_3d``); ``write_extrinsics`` the ``info["extrinsics"]`` dict.
     """
 
-    def __init__(self, root: str | Path, folder: str) -> None:
+    def __init__(self, root: str | Path, folder: str, channels: tuple[str, ...] | None = None) -> None:
         if parse_scene_folder(folder) is None:
             raise ValueError(f"not a FogDrive scene folder name: {folder!r}")
+        channels = tuple(CHANNELS) if channels is None else tuple(channels)
+        unknown = [c for c in channels if c not in CHANNELS]
+        if unknown or "BBOX_3D" not in channels:
+            raise ValueError(f"channels must be FogDrive channels including BBOX_3D, got {list(channels)}")
         self.root = Path(root)
         self.folder = folder
+        self.channels = channels
 
     def _path(self, channel: str, index: int) -> Path:
         return self.root / channel_path(channel, self.folder, index)
@@ -87,31 +92,32 @@ class SceneWriter:
         _atomic_write(self.root / DATA_ROOT / self.folder / EXTRINSIC_FILE, json.dumps(data).encode())
 
     def encode_sample(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> dict[str, bytes]:
-        """Every channel's file contents for one sample (no I/O), in write order (``BBOX_3D`` last)."""
+        """The file contents of the writer's channels for one sample (no I/O), in write order (``BBOX_3D`` last)."""
         from fog_gym.points import unpack_points
 
         files: dict[str, bytes] = {}
-        for cam in CAMERAS:
-            files[cam] = encode_png(obs[cam])
-            for lv in FOG_LEVELS:
-                files[f"{cam}_FOG_{lv}"] = encode_png(obs[f"{cam}_FOG_{lv}"])
-            files[f"{cam}_DEPTH"] = encode_png(encode_depth(obs[f"{cam}_DEPTH"]))
-            files[f"{cam}_SEM"] = encode_png(semantic_to_carla_rgb(obs[f"{cam}_SEM"]))
-            b = info["boxes_2d"][cam]
-            files[f"{cam}_BBOX"] = json.dumps({
-                "bboxes": np.asarray(b["bboxes"]).tolist(), "vehicle_ids": np.asarray(b["vehicle_ids"]).tolist(),
-                "vehicle_class": np.asarray(b["vehicle_class"]).tolist(),
-            }).encode()  # fmt: skip
-        files["LIDAR_TOP"] = encode_npy(unpack_points(obs, "LIDAR_TOP"))
-        for lv in FOG_LEVELS:
-            files[f"LIDAR_TOP_FOG_{lv}"] = encode_npy(unpack_points(obs, f"LIDAR_TOP_FOG_{lv}"))
-        files["SEM_LIDAR_TOP"] = encode_npy(unpack_points(obs, "SEM_LIDAR_TOP"))
-        files["RADAR_FRONT"] = encode_npy(unpack_points(obs, "RADAR_FRONT"))
+        for channel in self.channels:
+            if channel == "BBOX_3D":
+                continue
+            cam = next((c for c in CAMERAS if channel == c or channel.startswith(c + "_")), None)
+            if cam is None:  # a point channel
+                files[channel] = encode_npy(unpack_points(obs, channel))
+            elif channel.endswith("_DEPTH"):
+                files[channel] = encode_png(encode_depth(obs[channel]))
+            elif channel.endswith("_SEM"):
+                files[channel] = encode_png(semantic_to_carla_rgb(obs[channel]))
+            elif channel.endswith("_BBOX"):
+                b = info["boxes_2d"][cam]
+                files[channel] = json.dumps({
+                    "bboxes": np.asarray(b["bboxes"]).tolist(), "vehicle_ids": np.asarray(b["vehicle_ids"]).tolist(),
+                    "vehicle_class": np.asarray(b["vehicle_class"]).tolist(),
+                }).encode()  # fmt: skip
+            else:  # clean or fogged RGB
+                files[channel] = encode_png(obs[channel])
         b3 = info["boxes_3d"]
         files["BBOX_3D"] = json.dumps({
             "bboxes_3d": np.asarray(b3["corners"]).tolist(), "vehicle_ids": np.asarray(b3["vehicle_ids"]).tolist(),
         }).encode()  # fmt: skip
-        assert list(files) == list(CHANNELS) or set(files) == set(CHANNELS)
         return files
 
     def write_files(self, index: int, files: dict[str, bytes]) -> None:
@@ -144,8 +150,9 @@ def complete_samples(root: Path, folder: str) -> int:
 def build_index(root: str | Path, split_seed: int = 0) -> dict[str, Any]:
     """Rebuild ``index/{scene,sample,sample_data,splits}.json`` from the scene folders on disk; returns the tables.
 
-    Only complete samples count; scenes with none are left out. Scenes are ordered by (town, time of day, run).
-    Splits come from :func:`fog_gym.dataset.splits.make_splits` over the scene names.
+    Only complete samples count; scenes with none are left out. A scene's channels are those its first sample
+    has (all 35, or a subset such as :data:`fog_gym.dataset.layout.MODALITIES` ``["lidar"]``). Scenes are ordered
+    by (town, time of day, run). Splits come from :func:`fog_gym.dataset.splits.make_splits` over the scene names.
     """
     root = Path(root)
     data_root = root / DATA_ROOT
@@ -160,6 +167,7 @@ def build_index(root: str | Path, split_seed: int = 0) -> dict[str, Any]:
         n = complete_samples(root, folder)
         if n == 0:
             continue
+        present = [c for c in CHANNELS if (root / channel_path(c, folder, 0)).exists()]  # the scene's channel set
         scene_token = token_for("scene", folder)
         tokens = [token_for("sample", folder, i) for i in range(n)]
         scenes.append({
@@ -171,7 +179,8 @@ def build_index(root: str | Path, split_seed: int = 0) -> dict[str, Any]:
         for i, tok in enumerate(tokens):
             samples.append({"token": tok, "timestamp": float(i * SAMPLE_PERIOD_US), "scene_token": scene_token,
                             "prev": tokens[i - 1] if i else "", "next": tokens[i + 1] if i + 1 < n else ""})  # fmt: skip
-            for channel, (_, ext) in CHANNELS.items():
+            for channel in present:
+                ext = CHANNELS[channel][1]
                 rel = channel_path(channel, folder, i)
                 rec = {"token": token_for("sample_data", folder, i, channel), "sample_token": tok, "channel": channel,
                        "filename": rel, "fileformat": ext}  # fmt: skip
