@@ -101,6 +101,25 @@ BOX_CORNER_SIGNS = np.array(
 )
 
 
+def corners_to_boxes(corners: np.ndarray) -> np.ndarray:
+    """``(N, 7)`` boxes ``[x, y, z, l, w, h, yaw]`` from corners ``(N, 8, 3)`` in :data:`BOX_CORNER_SIGNS` order
+    (the inverse of :func:`box_corners`).
+
+    >>> corners_to_boxes(box_corners([[1.0, 2.0, 0.75]], [[4.0, 2.0, 1.5]], [0.5])).round(6).tolist()
+    [[1.0, 2.0, 0.75, 4.0, 2.0, 1.5, 0.5]]
+    """
+    c = np.asarray(corners, np.float64).reshape(-1, 8, 3)
+    length_vec = (c[:, 0] - c[:, 3]) / 2.0  # +x corner minus −x corner, same y and z
+    width_vec = (c[:, 0] - c[:, 1]) / 2.0
+    out = np.empty((len(c), 7))
+    out[:, :3] = c.mean(axis=1)
+    out[:, 3] = 2.0 * np.linalg.norm(length_vec, axis=1)
+    out[:, 4] = 2.0 * np.linalg.norm(width_vec, axis=1)
+    out[:, 5] = c[:, 4, 2] - c[:, 0, 2]
+    out[:, 6] = np.arctan2(length_vec[:, 1], length_vec[:, 0])
+    return out
+
+
 def box_corners(centers: np.ndarray, sizes: np.ndarray, yaws: np.ndarray) -> np.ndarray:
     """Corners ``(N, 8, 3)`` of upright boxes from centres ``(N, 3)``, sizes ``(N, 3)`` = (l, w, h), yaws ``(N,)`` rad.
 

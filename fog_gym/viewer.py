@@ -71,14 +71,11 @@ def intensity_colors(intensity: np.ndarray) -> np.ndarray:
 
 
 def box_params(corners: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Centres ``(N, 3)``, half sizes ``(N, 3)`` and yaws ``(N,)`` [rad] of upright boxes given by their eight corners
-    in :data:`fog_gym.geometry.BOX_CORNER_SIGNS` order (the inverse of :func:`fog_gym.geometry.box_corners`)."""
-    c = np.asarray(corners, np.float64).reshape(-1, 8, 3)
-    length_vec = (c[:, 0] - c[:, 3]) / 2.0  # +x corner minus −x corner, same y and z
-    width_vec = (c[:, 0] - c[:, 1]) / 2.0
-    height = (c[:, 4, 2] - c[:, 0, 2]) / 2.0
-    half = np.stack([np.linalg.norm(length_vec, axis=1), np.linalg.norm(width_vec, axis=1), height], axis=1)
-    return c.mean(axis=1), half, np.arctan2(length_vec[:, 1], length_vec[:, 0])
+    """Centres ``(N, 3)``, half sizes ``(N, 3)`` and yaws ``(N,)`` [rad] of boxes given by their eight corners."""
+    from fog_gym.geometry import corners_to_boxes
+
+    b = corners_to_boxes(corners)
+    return b[:, :3], b[:, 3:6] / 2.0, b[:, 6]
 
 
 def radar_to_xyz(radar: np.ndarray) -> np.ndarray:

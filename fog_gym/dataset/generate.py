@@ -60,8 +60,9 @@ def plan_scenes(n_scenes: int, towns: tuple[str, ...] = TOWNS, seed: int = 0, re
                 seconds: float = 20.0, modality: str = "full") -> list[SceneSpec]:  # fmt: skip
     """``n_scenes`` (even) spread over ``towns`` in day/night pairs, as evenly as possible, in a fixed order.
 
-    ``modality`` "lidar" writes only :data:`~fog_gym.dataset.layout.MODALITIES` ``["lidar"]`` (no cameras are
-    rendered); the scenes' traffic, seeds and folder names are the same as with "full".
+    ``modality`` "lidar" writes only :data:`~fog_gym.dataset.layout.MODALITIES` ``["lidar"]``: the same scenes,
+    LiDAR files and boxes as "full" (cameras are still rendered, at ``resolution``, because a 3D box is kept only
+    for a vehicle in some camera's view), without the 24 PNGs per sample that dominate the cost.
     """
     if modality not in MODALITIES:
         raise ValueError(f"modality must be one of {tuple(MODALITIES)}, got {modality!r}")
@@ -99,13 +100,13 @@ def generate_scene(root: str | Path, spec: SceneSpec | dict[str, Any]) -> str:
     folder_path = root / DATA_ROOT / spec.folder
     if folder_path.exists():
         shutil.rmtree(folder_path)  # a partial scene from an interrupted run: redo it from its seed
-    lidar_only = spec.modality == "lidar"
+    # the cameras are rendered in both modalities: FogDrive's 3D boxes are the vehicles annotated in some camera,
+    # so a LiDAR-only scene gets exactly the boxes (and LiDAR files) of the full scene; only the writing is skipped
     env = FogWrapper(FogDriveEnv(town=spec.town, time_of_day=spec.time_of_day, resolution=spec.resolution,
-                                 episode_seconds=spec.seconds, cameras=[] if lidar_only else None),
-                     ["light", "moderate", "dense"])  # fmt: skip
+                                 episode_seconds=spec.seconds), ["light", "moderate", "dense"])  # fmt: skip
     writer = SceneWriter(root, spec.folder, MODALITIES[spec.modality])
     obs, info = env.reset(seed=spec.seed)
-    writer.write_extrinsics(fogdrive_extrinsics() if lidar_only else info["extrinsics"])
+    writer.write_extrinsics(info["extrinsics"])
     writer.write_sample(0, obs, info)
     idle = 1 if env.action_space.shape == () else np.zeros(env.action_space.shape, np.float32)
     index, done = 1, False
@@ -119,19 +120,6 @@ def generate_scene(root: str | Path, spec: SceneSpec | dict[str, Any]) -> str:
     marker.parent.mkdir(parents=True, exist_ok=True)
     marker.write_text(json.dumps(asdict(spec)))
     return spec.folder
-
-
-def fogdrive_extrinsics() -> dict[str, np.ndarray]:
-    """The four LiDAR→camera extrinsics of the FogDrive rig (what FogDrive-v0 reports), for sets without cameras."""
-    from fog_gym import geometry
-    from fog_gym.config import RigConfig
-    from fog_gym.labels import EXTRINSIC_KEYS
-    from fog_gym.lidar import sensor_to_world
-
-    rig = RigConfig.fogdrive()
-    lidar_to_vehicle = sensor_to_world(rig.lidar.pose)
-    return {EXTRINSIC_KEYS[c.name]: geometry.lidar_to_camera(
-        lidar_to_vehicle, geometry.transform_matrix(c.pose.location, c.pose.rotation)) for c in rig.cameras}  # fmt: skip
 
 
 def pending_scenes(root: Path, plan: list[SceneSpec]) -> list[SceneSpec]:
