@@ -30,6 +30,7 @@ def main(argv: list[str] | None = None) -> dict:
     p.add_argument("--lr", type=float, default=1e-3, help="peak learning rate of the one-cycle schedule (default 1e-3)")
     p.add_argument("--every", type=int, default=2, help="use every n-th training sample of a scene (default 2: 5 Hz)")
     p.add_argument("--test-every", type=int, default=2, help="use every n-th test sample (default 2)")
+    p.add_argument("--eval-every", type=int, default=1, help="evaluate after every n-th epoch and the last (default 1)")
     p.add_argument("--rows", nargs="+", default=["Light", "Dense", "Mixed-S", "Mixed-L", "Clear"],
                    help="training subsets to run (default all five)")
     p.add_argument("--device", default="auto", help="torch device: auto (GPU when present), cpu, cuda")
@@ -46,8 +47,8 @@ def main(argv: list[str] | None = None) -> dict:
         args.seconds, args.epochs, args.rows, args.every, args.test_every = 2.0, 2, ["Light", "Mixed-L"], 2, 2
     try:
         config = Exp1Config(epochs=args.epochs, batch_size=args.batch_size, lr=args.lr, every=args.every,
-                            test_every=args.test_every, rows=tuple(args.rows), device=args.device,
-                            workers=args.workers, seed=args.seed)  # fmt: skip
+                            test_every=args.test_every, eval_every=args.eval_every, rows=tuple(args.rows),
+                            device=args.device, workers=args.workers, seed=args.seed)  # fmt: skip
     except ValueError as e:
         p.error(str(e))
     if args.generate:

@@ -21,7 +21,7 @@ from fog_gym.dataset.access import FogDrive
 from fog_gym.detect3d.bev import BEVGrid
 from fog_gym.detect3d.data import SweepDataset, collate
 from fog_gym.detect3d.model import BEVCenterNet, decode, detection_loss, parameter_count
-from fog_gym.detect3d.protocol import TEST_COLUMNS, TRAIN_ROWS, test_subsets, training_subsets
+from fog_gym.detect3d.protocol import TEST_COLUMNS, TRAIN_ROWS, evaluation_subsets, training_subsets
 from fog_gym.metrics.detection3d import evaluate
 
 METRICS = ("mAP", "mean_TP", "ATE", "ASE", "AOE", "FDS", "ATE_m")
@@ -37,6 +37,7 @@ class Exp1Config:
     weight_decay: float = 0.01
     every: int = 2  # use every n-th sample of a scene (samples are 0.1 s apart)
     test_every: int = 2
+    eval_every: int = 1  # evaluate after every n-th epoch (and after the last)
     width: int = 32
     rows: tuple[str, ...] = TRAIN_ROWS
     fraction: float = 0.2
@@ -48,7 +49,7 @@ class Exp1Config:
     threshold: float = 0.1
 
     def __post_init__(self) -> None:
-        for name in ("epochs", "batch_size", "every", "test_every", "width"):
+        for name in ("epochs", "batch_size", "every", "test_every", "eval_every", "width"):
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < 1:
                 raise ValueError(f"{name} must be a positive integer, got {v!r}")
@@ -92,7 +93,7 @@ def run_experiment1(root: str | Path, out: str | Path, config: Exp1Config = Exp1
     device = _device(config.device)
     torch.manual_seed(config.seed)
     trains = training_subsets(ds.splits["train"], config.seed, config.fraction, config.mixed_fraction)
-    tests = test_subsets(ds.splits["test"], config.seed, config.test_fraction)
+    tests = evaluation_subsets(ds.splits["test"], config.seed, config.test_fraction)
     loaders = {
         lv: torch.utils.data.DataLoader(SweepDataset(ds, pairs, grid, config.test_every), config.batch_size,
                                         collate_fn=collate, num_workers=config.workers)  # fmt: skip
@@ -131,6 +132,8 @@ def run_experiment1(root: str | Path, out: str | Path, config: Exp1Config = Exp1
                 tb.add_scalar("loss/total", float(loss), step)
                 for k, v in parts.items():
                     tb.add_scalar(f"loss/{k}", v, step)
+            if (epoch + 1) % config.eval_every and epoch + 1 != config.epochs:
+                continue
             for lv, test_loader in loaders.items():
                 r = evaluate(*predict(model, test_loader, device, grid, config.threshold))
                 for k in METRICS:

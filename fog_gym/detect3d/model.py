@@ -67,7 +67,7 @@ def detection_loss(out: dict[str, torch.Tensor], heatmap: torch.Tensor, batch_in
         lr = F.l1_loss(pred, regression, reduction="mean")
     else:
         lr = out["regression"].sum() * 0.0
-    return lh + 2.0 * lr, {"heatmap": float(lh), "regression": float(lr)}
+    return lh + 2.0 * lr, {"heatmap": float(lh.detach()), "regression": float(lr.detach())}
 
 
 @torch.no_grad()

@@ -55,7 +55,7 @@ def training_subsets(train_scenes: Sequence[str], seed: int = 0, fraction: float
     }
 
 
-def test_subsets(test_scenes: Sequence[str], seed: int = 0, fraction: float = 0.2) -> dict[str, list[tuple[str, str]]]:
+def evaluation_subsets(test_scenes: Sequence[str], seed: int = 0, fraction: float = 0.2) -> dict[str, list[tuple[str, str]]]:
     """Per-density test subsets: the same 20 % of the test scenes at each level."""
     names = sorted(test_scenes)
     if not names:

@@ -1,0 +1,159 @@
+"""Experiment 1: BEV encoding, targets ↔ decoding, subsets, the LiDAR-only set, and a tiny end-to-end run."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+torch = pytest.importorskip("torch")  # the torch extra is part of the dev extra: never skipped in CI
+
+from fog_gym.dataset import FogDrive  # noqa: E402
+from fog_gym.dataset.generate import generate, plan_scenes  # noqa: E402
+from fog_gym.dataset.layout import MODALITIES  # noqa: E402
+from fog_gym.dataset.validate import validate  # noqa: E402
+from fog_gym.detect3d.bev import BEVGrid, class_from_height, decode_cells, make_targets, point_features  # noqa: E402
+from fog_gym.detect3d.data import SweepDataset, collate  # noqa: E402
+from fog_gym.detect3d.experiment import Exp1Config, run_experiment1  # noqa: E402
+from fog_gym.detect3d.model import BEVCenterNet, decode, detection_loss  # noqa: E402
+from fog_gym.detect3d.protocol import TEST_COLUMNS, evaluation_subsets, training_subsets  # noqa: E402
+from fog_gym.metrics.detection3d import evaluate  # noqa: E402
+
+GRID = BEVGrid()
+
+
+def _boxes(rng, n):
+    return np.c_[rng.uniform(-39, 39, (n, 2)), rng.uniform(-1.5, -0.5, n), rng.uniform(4, 9, n),
+                 rng.uniform(1.8, 2.6, n), rng.uniform(1.4, 3.8, n), rng.uniform(-np.pi, np.pi, n)]  # fmt: skip
+
+
+def test_class_from_height_recovers_every_vehicles_class():
+    from fog_gym.env import FogDriveEnv
+
+    env = FogDriveEnv(town="highway", resolution=(32, 24), highway_config={"vehicles_count": 60})
+    seen = 0
+    for seed in range(3):
+        env.reset(seed=seed)
+        v = env.scene.vehicles
+        others = v.ids != env.scene.ego_id
+        assert (class_from_height(v.sizes[others, 2]) == v.classes[others]).all()
+        seen += others.sum()
+    assert seen > 100
+
+
+def test_targets_decode_back_to_the_boxes():
+    rng = np.random.default_rng(0)
+    boxes = _boxes(rng, 12)
+    boxes = boxes[np.unique(np.floor((boxes[:, :2] + 40) / 1.0), axis=0, return_index=True)[1]]  # one box per cell
+    classes = class_from_height(boxes[:, 5])
+    t = make_targets(boxes, classes, GRID)
+    back = decode_cells(t["index"], t["regression"], GRID)
+    np.testing.assert_allclose(back, boxes, atol=1e-5)
+    assert t["heatmap"].max() == 1.0 and (t["heatmap"] == 1.0).sum() == len(boxes)
+
+
+def test_a_perfect_network_output_decodes_to_map_one():
+    rng = np.random.default_rng(1)
+    boxes = _boxes(rng, 8)
+    boxes = boxes[np.unique(np.floor((boxes[:, :2] + 40) / 2.0), axis=0, return_index=True)[1]]  # apart
+    classes = class_from_height(boxes[:, 5])
+    t = make_targets(boxes, classes, GRID)
+    h, w = GRID.out_shape
+    heat = torch.full((1, 3, h, w), -20.0)
+    reg = torch.zeros((1, 8, h * w))
+    for k, (cell, c) in enumerate(zip(t["index"], t["classes"], strict=True)):
+        heat[0, c].view(-1)[cell] = 5.0
+        reg[0, :, cell] = torch.from_numpy(t["regression"][k])
+    pred = decode({"heatmap": heat, "regression": reg.view(1, 8, h, w)}, GRID)
+    r = evaluate([{"boxes": boxes, "classes": classes}], pred)
+    assert r["mAP"] == pytest.approx(1.0) and r["ATE_m"] < 1e-5 and r["mean_TP"] > 0.99999
+
+
+def test_features_of_a_mirrored_sweep_are_the_mirrored_features():
+    rng = np.random.default_rng(2)
+    pts = np.c_[rng.uniform(-45, 45, (5000, 2)), rng.uniform(-3.5, 2.5, 5000), rng.uniform(0, 1, 5000)].astype(np.float32)
+    f = point_features(pts, GRID)
+    g = point_features(pts * np.float32([1, -1, 1, 1]), GRID)
+    np.testing.assert_allclose(g, f[:, :, ::-1], atol=1e-6)
+    inside = (np.abs(pts[:, :2]) < 40).all(1) & (pts[:, 2] >= -3) & (pts[:, 2] < 2)
+    assert np.expm1(f[0]).round().sum() == inside.sum()  # every point in range counted once
+
+
+def test_subsets_follow_the_paper():
+    names = [f"T1_day_scene{i:03d}" for i in range(100)]
+    s = training_subsets(names, seed=3)
+    light, dense, ms, ml = (set(s[k]) for k in ("Light", "Dense", "Mixed-S", "Mixed-L"))
+    assert len(light) == len(dense) == 20 and len(ms) == 24 and len(ml) == 60
+    assert {n for n, _ in light} == {n for n, _ in dense} == {n for n, _ in ml}
+    assert light | dense <= ml  # Mixed-L holds both single-density subsets
+    by_level = {lv: {n for n, l in ms if l == lv} for lv in ("light", "moderate", "dense")}
+    assert all(len(v) == 8 for v in by_level.values()) and len(set.union(*by_level.values())) == 24  # disjoint
+    t = evaluation_subsets([f"x{i}" for i in range(10)])
+    assert list(t) == list(TEST_COLUMNS) and all([n for n, _ in v] == [n for n, _ in t["light"]] for v in t.values())
+    assert len(t["dense"]) == 2
+    with pytest.raises(ValueError, match="no scenes"):
+        training_subsets([])
+
+
+@pytest.fixture(scope="module")
+def lidar_set(tmp_path_factory):
+    root = tmp_path_factory.mktemp("exp1") / "lidar"
+    generate(root, plan_scenes(10, towns=("highway", "merge"), seed=4, resolution=(64, 48), seconds=0.4,
+                               modality="lidar"), progress=False)  # fmt: skip
+    return root
+
+
+def test_a_lidar_only_set_validates_and_equals_the_full_sets_lidar_files(lidar_set, tmp_path):
+    assert validate(lidar_set) == []
+    ds = FogDrive(lidar_set)
+    assert ds.list_channels() == sorted(MODALITIES["lidar"])
+    full = tmp_path / "full"
+    generate(full, plan_scenes(10, towns=("highway", "merge"), seed=4, resolution=(64, 48), seconds=0.4)[:2],
+             progress=False)  # fmt: skip
+    for rec in FogDrive(full).sample_data:
+        if rec["channel"] in MODALITIES["lidar"]:
+            assert (lidar_set / rec["filename"]).read_bytes() == (full / rec["filename"]).read_bytes(), rec["filename"]
+
+
+def test_training_lowers_the_loss_on_real_sweeps(lidar_set):
+    ds = FogDrive(lidar_set)
+    data = SweepDataset(ds, [(ds.splits["train"][0], "light")], GRID)
+    feats, heat, bidx, cidx, reg, gt = collate([data[i] for i in range(len(data))])
+    assert sum(len(g["boxes"]) for g in gt) > 0
+    torch.manual_seed(0)
+    model = BEVCenterNet(width=16)
+    opt = torch.optim.Adam(model.parameters(), 3e-3)
+    losses = []
+    for _ in range(25):
+        loss, _ = detection_loss(model(feats), heat, bidx, cidx, reg)
+        opt.zero_grad()
+        loss.backward()
+        opt.step()
+        losses.append(float(loss.detach()))
+    assert losses[-1] < 0.5 * losses[0]
+
+
+def test_experiment1_end_to_end_writes_every_cell(lidar_set, tmp_path):
+    cfg = Exp1Config(epochs=1, batch_size=4, every=1, test_every=1, width=8, rows=("Light", "Mixed-L"))
+    res = run_experiment1(lidar_set, tmp_path / "out", cfg, progress=False, log=lambda *_: None)
+    for row in ("Light", "Mixed-L"):
+        for col in TEST_COLUMNS:
+            cell = res["rows"][row]["best"][col]
+            assert cell["epoch"] == 1 and cell["n_gt"] > 0
+            assert all(0.0 <= cell[k] <= 1.0 for k in ("mAP", "mean_TP", "ATE", "ASE", "AOE", "FDS"))
+            assert cell["FDS"] == pytest.approx(0.5 * cell["mAP"] + 0.5 * cell["mean_TP"])
+    assert res["rows"]["Mixed-L"]["train_sweeps"] == 3 * res["rows"]["Light"]["train_sweeps"]
+    out = tmp_path / "out"
+    assert json.loads((out / "results.json").read_text())["rows"].keys() == {"Light", "Mixed-L"}
+    assert "| Mixed-L |" in (out / "exp1.md").read_text() and (out / "exp1.png").stat().st_size > 0
+    assert any((out / "tb" / "Light").iterdir())
+
+
+def test_bad_settings_fail_before_training(tmp_path):
+    with pytest.raises(ValueError, match="epochs must be a positive integer"):
+        Exp1Config(epochs=0)
+    with pytest.raises(ValueError, match="rows must be a non-empty subset"):
+        Exp1Config(rows=("Heavy",))
+    with pytest.raises(FileNotFoundError, match="not a FogDrive dataset root"):
+        run_experiment1(tmp_path, tmp_path / "out")
+    assert not math.isnan(GRID.out_cell_m)
