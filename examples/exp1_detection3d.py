@@ -31,6 +31,9 @@ def main(argv: list[str] | None = None) -> dict:
     p.add_argument("--every", type=int, default=2, help="use every n-th training sample of a scene (default 2: 5 Hz)")
     p.add_argument("--test-every", type=int, default=2, help="use every n-th test sample (default 2)")
     p.add_argument("--eval-every", type=int, default=1, help="evaluate after every n-th epoch and the last (default 1)")
+    p.add_argument("--fraction", type=float, default=0.2, help="share of train scenes per density subset (paper 0.2)")
+    p.add_argument("--mixed-fraction", type=float, default=0.08, help="Mixed-S share per density (paper 0.08)")
+    p.add_argument("--test-fraction", type=float, default=0.2, help="share of test scenes evaluated (paper 0.2)")
     p.add_argument("--rows", nargs="+", default=["Light", "Dense", "Mixed-S", "Mixed-L", "Clear"],
                    help="training subsets to run (default all five)")
     p.add_argument("--device", default="auto", help="torch device: auto (GPU when present), cpu, cuda")
@@ -48,7 +51,8 @@ def main(argv: list[str] | None = None) -> dict:
     try:
         config = Exp1Config(epochs=args.epochs, batch_size=args.batch_size, lr=args.lr, every=args.every,
                             test_every=args.test_every, eval_every=args.eval_every, rows=tuple(args.rows),
-                            device=args.device, workers=args.workers, seed=args.seed)  # fmt: skip
+                            device=args.device, workers=args.workers, seed=args.seed, fraction=args.fraction,
+                            mixed_fraction=args.mixed_fraction, test_fraction=args.test_fraction)  # fmt: skip
     except ValueError as e:
         p.error(str(e))
     if args.generate:

@@ -58,6 +58,8 @@ class Exp1Config:
             raise ValueError(f"rows must be a non-empty subset of {TRAIN_ROWS}, got {list(self.rows)}")
         if not self.lr > 0:
             raise ValueError(f"lr must be > 0, got {self.lr}")
+        if not 0 < self.test_fraction <= 1:
+            raise ValueError(f"test_fraction must lie in (0, 1], got {self.test_fraction}")
 
 
 def _device(name: str) -> torch.device:
@@ -127,9 +129,10 @@ def run_experiment1(root: str | Path, out: str | Path, config: Exp1Config = Exp1
                 opt.step()
                 sched.step()
                 step += 1
+                value = float(loss.detach())
                 bar.update()
-                bar.set_postfix(loss=f"{float(loss):.3f}")
-                tb.add_scalar("loss/total", float(loss), step)
+                bar.set_postfix(loss=f"{value:.3f}")
+                tb.add_scalar("loss/total", value, step)
                 for k, v in parts.items():
                     tb.add_scalar(f"loss/{k}", v, step)
             if (epoch + 1) % config.eval_every and epoch + 1 != config.epochs:
