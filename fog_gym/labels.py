@@ -30,6 +30,7 @@ import numpy as np
 from numba import njit
 
 from fog_gym import geometry
+from fog_gym.polygon import polygon_area as _area
 from fog_gym.config import _finite
 
 VISIBILITY_RULES = ("lidar", "camera")
@@ -139,15 +140,6 @@ def _clip_polygon(poly, n, x0, y0, x1, y1):
         if n == 0:
             break
     return poly, n
-
-
-@njit(cache=True)
-def _area(poly, n):
-    s = 0.0
-    for k in range(n):
-        k1 = (k + 1) % n
-        s += poly[k, 0] * poly[k1, 1] - poly[k1, 0] * poly[k, 1]
-    return abs(s) / 2.0
 
 
 @njit(cache=True)

@@ -36,6 +36,8 @@ from typing import Any
 import numpy as np
 from numba import njit
 
+from fog_gym.polygon import polygon_area
+
 ATE_CAP_M = 2.0
 ASE_CAP = 1.0
 AOE_CAP_RAD = math.pi
@@ -97,15 +99,6 @@ def _clip_convex(subject, n, clip):
 
 
 @njit(cache=True)
-def _poly_area(poly, n):
-    s = 0.0
-    for k in range(n):
-        k1 = (k + 1) % n
-        s += poly[k, 0] * poly[k1, 1] - poly[k1, 0] * poly[k, 1]
-    return abs(s) / 2.0
-
-
-@njit(cache=True)
 def _iou3d(a, b):
     out = np.zeros((a.shape[0], b.shape[0]))
     for i in range(a.shape[0]):
@@ -120,7 +113,7 @@ def _iou3d(a, b):
             if dz <= 0:
                 continue
             poly, n = _clip_convex(ca, 4, _corners_bev(b[j]))
-            inter = _poly_area(poly, n) * dz
+            inter = polygon_area(poly, n) * dz
             vb = b[j, 3] * b[j, 4] * b[j, 5]
             out[i, j] = inter / (va + vb - inter)
     return out
