@@ -30,7 +30,9 @@ Example:
 from __future__ import annotations
 
 import math
+import os
 import re
+import sys
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
@@ -234,8 +236,15 @@ def blueprint(cameras: Sequence[str], levels: Sequence[str], active: str = "clea
                          collapse_panels=True)  # fmt: skip
 
 
+def _check_display(save: str | Path | None) -> None:
+    if save is None and sys.platform.startswith("linux") and not (os.environ.get("DISPLAY")
+                                                                 or os.environ.get("WAYLAND_DISPLAY")):  # fmt: skip
+        raise ValueError("no display to open the viewer on: pass save='FILE.rrd' (--save) and open it where there is one")
+
+
 def _open(application: str, save: str | Path | None):
     rr = _require_rerun()
+    _check_display(save)
     rec = rr.RecordingStream(application)
     if save is not None:
         Path(save).parent.mkdir(parents=True, exist_ok=True)
@@ -263,6 +272,7 @@ def view_dataset(root: str | Path, scene: str | None = None, save: str | Path | 
     from fog_gym.labels import EXTRINSIC_KEYS
     from fog_gym.lidar import sensor_to_world
 
+    _check_display(save)
     ds = FogDrive(root)
     names = ds.list_scene_names()
     if not names:
@@ -311,6 +321,7 @@ def view_live(town: str = "highway", fog: Sequence[Any] = ("light", "moderate", 
     if isinstance(steps, bool) or not isinstance(steps, int) or steps <= 0:
         raise ValueError(f"steps must be a positive integer, got {steps!r}")
     levels, _ = parse_fog_levels(list(fog))
+    _check_display(save)
     env = make_fogdrive(fog=list(fog), town=town, time_of_day=time_of_day, resolution=tuple(resolution))
     base = env.unwrapped
     rig = base.config.rig

@@ -102,6 +102,14 @@ def test_bad_arguments_fail_before_any_work(dataset, tmp_path):
     assert not (tmp_path / "x.rrd").exists()
 
 
+def test_without_a_display_the_viewer_asks_for_save(dataset, monkeypatch):
+    monkeypatch.setattr(sys, "platform", "linux")
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    with pytest.raises(ValueError, match="no display to open the viewer on: pass save="):
+        view_dataset(dataset)
+
+
 def test_cli_view_saves_an_rrd_and_refuses_a_non_rrd_name(dataset, tmp_path):
     rrd = tmp_path / "cli.rrd"
     run = subprocess.run([sys.executable, "-m", "fog_gym.cli", "view", "--root", str(dataset), "--save", str(rrd)],
