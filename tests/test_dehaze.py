@@ -71,3 +71,20 @@ def test_identical_images_have_infinite_psnr_and_ssim_one():
 def test_bad_input_names_the_expected_shape(call, message):
     with pytest.raises(ValueError, match=message):
         call()
+
+
+def test_aodnet_has_the_papers_size_and_learns_to_undo_fog():
+    torch = pytest.importorskip("torch")
+    from fog_gym.dehaze.aodnet import AODNet, dehaze, train_aodnet
+
+    assert sum(p.numel() for p in AODNet().parameters()) == 1761
+    clean, depth, K = _scene(48, 64, seed=4)
+    crops = np.stack([np.roll(clean, (7 * k, 5 * k), axis=(0, 1)) for k in range(16)])
+    A = np.array([205.0, 205.0, 210.0])
+    foggy = np.stack([fog_image(c, depth, K, alpha_from_visibility(100.0), A) for c in crops])
+    torch.manual_seed(0)
+    model, losses = train_aodnet(crops, foggy, epochs=30, batch_size=8, lr=3e-3, progress=False)
+    assert losses[-1] < 0.5 * losses[0]
+    assert psnr(dehaze(model, foggy[0]), crops[0]) > psnr(foggy[0], crops[0])
+    with pytest.raises(ValueError, match="uint8 \\(N, H, W, 3\\) arrays of one shape"):
+        train_aodnet(crops, foggy[:3])
