@@ -108,7 +108,7 @@ def generate_scene(root: str | Path, spec: SceneSpec | dict[str, Any]) -> str:
     obs, info = env.reset(seed=spec.seed)
     writer.write_extrinsics(info["extrinsics"])
     writer.write_sample(0, obs, info)
-    idle = 1 if env.action_space.shape == () else np.zeros(env.action_space.shape, np.float32)
+    idle = env.unwrapped.idle_action
     index, done = 1, False
     while not done:
         obs, _, terminated, truncated, info = env.step(idle)
