@@ -1,6 +1,6 @@
 """Frames, rotations, intrinsics and projection (pure numpy, imports nothing from the environment).
 
-Frames (DESIGN.md §4):
+Frames (docs/design.md §2):
 
 * world, vehicle, sensor and LiDAR frames follow CARLA: left-handed, +x forward, +y right, +z up,
   yaw positive turning right (towards +y). highway-env's (x, y, heading) carry over unchanged.

@@ -1,6 +1,6 @@
 """The Scene: everything the sensors see at one instant, as plain numpy arrays.
 
-Data path (DESIGN.md §2): highway-env world → :class:`Scene` → sensors. A :class:`StaticWorld` (road
+Data path (docs/design.md §1): highway-env world → :class:`Scene` → sensors. A :class:`StaticWorld` (road
 surface map and roadside props) is built once per episode; each keyframe adds the vehicles, lifted into
 3D as a few boxes each (body, cabin or cargo, wheels, lamps), all inside the vehicle's ground-truth box.
 
