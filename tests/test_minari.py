@@ -127,14 +127,18 @@ class _Scene:
 
         xy = np.array([ego_xy, *others_xy], float)
         self.ego_id, self.ego_pose = 1, (xy[0, 0], xy[0, 1], 0.0)
-        self.vehicles = SimpleNamespace(ids=np.arange(1, len(xy) + 1), centers=np.c_[xy, np.full(len(xy), 0.75)])
+        velocities = np.zeros((len(xy), 3))
+        velocities[:, 0] = 20.0  # everyone at 20 m/s: a 2 s headway is 40 m
+        self.vehicles = SimpleNamespace(ids=np.arange(1, len(xy) + 1), centers=np.c_[xy, np.full(len(xy), 0.75)],
+                                        velocities=velocities)  # fmt: skip
 
 
 @pytest.mark.parametrize("others, action", [
     ([(112.0, 4.0)], 0),                   # blocked, left lane free → LANE_LEFT
     ([(112.0, 4.0), (105.0, 0.0)], 2),     # blocked, left taken, right free → LANE_RIGHT
     ([(112.0, 4.0), (105.0, 0.0), (100.0, 8.0)], 4),  # boxed in → SLOWER
-    ([(160.0, 4.0), (100.0, 8.0)], 3),     # clear road, right lane taken → FASTER
+    ([(170.0, 4.0), (100.0, 8.0)], 3),     # 3.5 s headway, right lane taken → FASTER
+    ([(150.0, 4.0), (100.0, 8.0)], 1),     # 2.5 s headway, right lane taken → keep lane and speed
     ([], 2),                               # nothing around, a lane to the right → keep right
 ])  # fmt: skip
 def test_rule_driver_of_the_bc_example_overtakes_left_and_keeps_right(others, action):
@@ -157,7 +161,7 @@ def test_bc_example_learns_from_the_dataset_it_loads():
     assert obs["CAM_FRONT"].shape == (20, 3, 64, 64) and acts.tolist() == seen  # every (observation, action) pair
     model, accuracy = bc.train_bc(minari.load_dataset("fog-gym/bc-v0"), epochs=25, progress=False)
     majority = np.bincount(acts).max() / len(acts)
-    assert accuracy[-1] >= majority  # at least as good as always predicting the commonest action
+    assert accuracy[-1] >= majority - 1e-6  # at least as good as always predicting the commonest action
     assert bc.bc_policy(model)(env.reset(seed=0)[0]) in range(5)
 
 
