@@ -149,6 +149,20 @@ def test_experiment1_end_to_end_writes_every_cell(lidar_set, tmp_path):
     assert any((out / "tb" / "Light").iterdir())
 
 
+def test_a_second_run_keeps_finished_rows_and_refuses_other_settings(lidar_set, tmp_path):
+    cfg = Exp1Config(epochs=1, batch_size=4, every=1, test_every=1, width=8, rows=("Dense",))
+    first = run_experiment1(lidar_set, tmp_path / "out", cfg, progress=False, log=lambda *_: None)
+    messages = []
+    again = run_experiment1(lidar_set, tmp_path / "out", Exp1Config(**{**cfg.__dict__, "rows": ("Dense", "Clear")}),
+                            progress=False, log=messages.append)  # fmt: skip
+    assert any(m.startswith("Dense: kept from") for m in messages)
+    assert again["rows"]["Dense"] == json.loads(json.dumps(first["rows"]["Dense"]))
+    assert set(again["rows"]) == {"Dense", "Clear"}
+    with pytest.raises(ValueError, match="other settings"):
+        run_experiment1(lidar_set, tmp_path / "out", Exp1Config(**{**cfg.__dict__, "lr": 5e-4}), progress=False,
+                        log=lambda *_: None)  # fmt: skip
+
+
 def test_bad_settings_fail_before_training(tmp_path):
     with pytest.raises(ValueError, match="epochs must be a positive integer"):
         Exp1Config(epochs=0)

@@ -83,7 +83,11 @@ def predict(model: torch.nn.Module, loader, device: torch.device, grid: BEVGrid,
 def run_experiment1(root: str | Path, out: str | Path, config: Exp1Config = Exp1Config(), progress: bool = True,
                     log=print) -> dict[str, Any]:  # fmt: skip
     """Run the protocol on the dataset at ``root``; writes ``results.json``, ``exp1.md``, ``exp1.png``, TensorBoard
-    logs under ``out/tb``; returns the results."""
+    logs under ``out/tb``; returns the results.
+
+    Each finished row is kept in ``out/rows/<row>.json`` with its checkpoint ``out/model_<row>.pt``; running again
+    into the same ``out`` with the same dataset and settings skips those rows (a long run survives interruption).
+    A row file written under other settings is an error, never silently mixed in."""
     from torch.utils.tensorboard import SummaryWriter
     from tqdm import tqdm
 
@@ -105,7 +109,16 @@ def run_experiment1(root: str | Path, out: str | Path, config: Exp1Config = Exp1
     results: dict[str, Any] = {"config": asdict(config), "device": str(device), "rows": {},
                                "test_scenes": sorted({n for p in tests.values() for n, _ in p}),
                                "test_samples": {lv: len(l.dataset) for lv, l in loaders.items()}}  # fmt: skip
+    (out / "rows").mkdir(exist_ok=True)
     for row in config.rows:
+        done = out / "rows" / f"{row}.json"
+        if done.exists():
+            kept = json.loads(done.read_text())
+            if kept.get("config") != _settings(config) or kept.get("test_scenes") != results["test_scenes"]:
+                raise ValueError(f"{done} was written with other settings or test scenes; use another --out")
+            results["rows"][row] = kept["row"]
+            log(f"{row}: kept from {done}")
+            continue
         data = SweepDataset(ds, trains[row], grid, config.every, augment=True, seed=config.seed)
         loader = torch.utils.data.DataLoader(data, config.batch_size, shuffle=True, collate_fn=collate,
                                              num_workers=config.workers,
@@ -153,11 +166,25 @@ def run_experiment1(root: str | Path, out: str | Path, config: Exp1Config = Exp1
         log(f"{row}: {len(data)} sweeps, {time.perf_counter() - t0:.0f} s; best-FDS mAP "
             + ", ".join(f"{lv} {best[lv]['mAP']:.3f}" for lv in TEST_COLUMNS))  # fmt: skip
         torch.save(model.state_dict(), out / f"model_{row}.pt")
+        _write_atomic(done, json.dumps({"config": _settings(config), "test_scenes": results["test_scenes"],
+                                        "row": results["rows"][row]}, indent=1))  # fmt: skip
     results["parameters"] = parameter_count(BEVCenterNet(width=config.width))
-    (out / "results.json").write_text(json.dumps(results, indent=1))
-    (out / "exp1.md").write_text(markdown(results))
+    _write_atomic(out / "results.json", json.dumps(results, indent=1))
+    _write_atomic(out / "exp1.md", markdown(results))
     figure(results, out / "exp1.png")
     return results
+
+
+def _settings(config: Exp1Config) -> dict[str, Any]:
+    """The settings a finished row depends on, as they read back from JSON (not which rows, device or workers)."""
+    kept = {k: v for k, v in asdict(config).items() if k not in ("rows", "device", "workers")}
+    return json.loads(json.dumps(kept))
+
+
+def _write_atomic(path: Path, text: str) -> None:
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(text)
+    os.replace(tmp, path)
 
 
 def markdown(results: dict[str, Any]) -> str:
