@@ -20,9 +20,13 @@ from fog_gym import geometry
 from fog_gym.config import RigConfig
 from fog_gym.lidar import sensor_to_world, simulate_lidar, simulate_radar, simulate_semantic_lidar
 from fog_gym.points import LIDAR, RADAR, SEMANTIC_LIDAR
+from fog_gym.render.lights import concat_lights, cull_lights, shade_night, street_lamp_lights
 from fog_gym.render.raster import render
-from fog_gym.scene import Scene, concat_primitives, prop_primitives, select_primitives
-from fog_gym.scenery import SURFACE_TAGS
+from fog_gym.scene import Scene, concat_primitives, headlights, prop_primitives, select_primitives
+from fog_gym.scenery import SURFACE_TAGS, lamp_heads
+
+#: Lights farther than this from the ego (beyond their own radius) are left out of a night frame [m].
+LIGHT_RANGE = 250.0
 
 
 @dataclass(frozen=True)
@@ -50,6 +54,9 @@ class CameraRig:
             groups.setdefault((c.width, c.height), []).append(c)
         self._groups = list(groups.items())
         self._props_cache: tuple[object, dict] | None = None
+        self._lamps_cache: tuple[object, np.ndarray] | None = None
+        #: Auto-exposure gain of each camera in the latest frame (1 by day).
+        self.exposure: dict[str, float] = {}
 
     def world_to_camera(self, scene: Scene, name: str) -> np.ndarray:
         ego = geometry.yaw_transform(*scene.ego_pose)
@@ -66,18 +73,35 @@ class CameraRig:
         """Every camera's buffers; ``prims`` defaults to :meth:`primitives` of the scene."""
         prims = self.primitives(scene) if prims is None else prims
         light = scene.lighting
-        lut = light.surface_lut()
+        night = light.night
+        if night:  # albedo pass, then street lamps, headlights and auto-exposure (fog_gym.render.lights)
+            lut, ambient, sun = light.albedo_lut(), 1.0, 0.0
+            heads, lights = self.night_lights(scene)
+        else:
+            lut, ambient, sun = light.surface_lut(), light.ambient, light.sun_intensity
         frames: dict[str, CameraFrame] = {}
         for (width, height), cams in self._groups:
             mats = np.array([self.world_to_camera(scene, c.name) for c in cams])
             ks = np.array([[k[0, 0], k[1, 1], k[0, 2], k[1, 2]] for k in (self.intrinsics[c.name] for c in cams)])
             out = render(
                 mats[:, :3, :3], mats[:, :3, 3], ks, width, height, self.far, prims, scene.static.tiled, lut,
-                SURFACE_TAGS, light.sky_horizon, light.sky_zenith, light.sun_dir, light.ambient, light.sun_intensity,
+                SURFACE_TAGS, light.sky_horizon, light.sky_zenith, light.sun_dir, ambient, sun, face_ids=night,
             )  # fmt: skip
+            gains = shade_night(mats[:, :3, :3], mats[:, :3, 3], ks, self.far, out, lights, heads) if night else None
             for i, c in enumerate(cams):
                 frames[c.name] = CameraFrame(out["rgb"][i], out["depth"][i], out["sem"][i], out["inst"][i])
+                self.exposure[c.name] = 1.0 if gains is None else float(gains[i])
         return frames
+
+    def night_lights(self, scene: Scene):
+        """(lamp heads (N, 3), :class:`~fog_gym.render.lights.Lights`) lit near the ego in a night scene."""
+        if self._lamps_cache is None or self._lamps_cache[0] is not scene.static:
+            self._lamps_cache = (scene.static, lamp_heads(scene.static.props, scene.static.surface))
+        heads = self._lamps_cache[1]
+        ego = np.array([scene.ego_pose[0], scene.ego_pose[1], 0.0])
+        heads = heads[np.linalg.norm(heads[:, :2] - ego[:2], axis=1) <= LIGHT_RANGE + 50.0]
+        lights = cull_lights(concat_lights(street_lamp_lights(heads), headlights(scene.vehicles)), ego, LIGHT_RANGE)
+        return heads, lights
 
 
 class PointSensors:

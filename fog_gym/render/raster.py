@@ -60,6 +60,8 @@ def _setup_faces(
     face_tag = np.zeros((n_cam, max_faces), dtype=np.uint8)
     face_inst = np.zeros((n_cam, max_faces), dtype=np.uint16)
     bounds = np.zeros((n_cam, max_faces, 4), dtype=np.int64)  # y0, y1, x0, x1 inclusive
+    face_nrm = np.zeros((n_cam, max_faces, 3), dtype=np.float32)  # world-frame outward normal
+    face_emis = np.zeros((n_cam, max_faces), dtype=np.bool_)
     counts = np.zeros(n_cam, dtype=np.int64)
     for c in prange(n_cam):
         R = cam_rot[c]
@@ -194,9 +196,13 @@ def _setup_faces(
                     face_rgb[c, n_out, ch] = np.uint8(min(max(val, 0.0), 255.0))
                 face_tag[c, n_out] = tags[p]
                 face_inst[c, n_out] = insts[p]
+                face_nrm[c, n_out, 0] = nwx
+                face_nrm[c, n_out, 1] = nwy
+                face_nrm[c, n_out, 2] = nwz
+                face_emis[c, n_out] = emissive[p]
                 n_out += 1
         counts[c] = n_out
-    return verts, nverts, planes, face_rgb, face_tag, face_inst, bounds, counts
+    return verts, nverts, planes, face_rgb, face_tag, face_inst, bounds, counts, face_nrm, face_emis
 
 
 @njit(cache=True, inline="always")
@@ -228,7 +234,7 @@ def _raster_bands(
     surface, s_rows, s_cols, tiles_x, surf_x0, surf_y0, surf_res, surf_lut, surf_tag,
     sky_horizon, sky_zenith,
     verts, nverts, planes, face_rgb, face_tag, face_inst, bounds, counts,
-    out_rgb, out_depth, out_sem, out_inst,
+    out_rgb, out_depth, out_sem, out_inst, want_face, out_face,
 ):  # fmt: skip
     n_cam = cam_rot.shape[0]
     n_bands = (height + BAND_ROWS - 1) // BAND_ROWS
@@ -248,6 +254,8 @@ def _raster_bands(
         sy = R[0, 1] / fx
         sz = R[0, 2] / fx
         out_inst[c, r0:r1] = 0
+        if want_face:
+            out_face[c, r0:r1] = -1
         for i in range(r0, r1):
             ry = (i + 0.5 - cy) / fy
             bx = R[2, 0] + R[1, 0] * ry
@@ -343,6 +351,8 @@ def _raster_bands(
                         out_rgb[c, i, j, 2] = face_rgb[c, f, 2]
                         out_sem[c, i, j] = face_tag[c, f]
                         out_inst[c, i, j] = face_inst[c, f]
+                        if want_face:
+                            out_face[c, i, j] = f
 
 
 class TiledSurface(NamedTuple):
@@ -390,6 +400,7 @@ def render(
     ambient: float,
     sun_intensity: float,
     out: dict[str, np.ndarray] | None = None,
+    face_ids: bool = False,
 ) -> dict[str, np.ndarray]:
     """Render ``C`` cameras of one resolution.
 
@@ -398,7 +409,9 @@ def render(
     ``colors`` (P, 3) albedo in [0, 1], ``tags`` (P,) uint8, ``insts`` (P,) uint16, ``emissive`` (P,) bool.
     ``surface_lut_rgb`` comes from :func:`surface_lut`, ``surface_tag`` maps surface class → semantic tag.
     Returns ``rgb`` (C, H, W, 3) uint8, ``depth`` (C, H, W) float32, ``sem`` (C, H, W) uint8,
-    ``inst`` (C, H, W) uint16.
+    ``inst`` (C, H, W) uint16. With ``face_ids`` (for lighting passes) also ``face`` (C, H, W) int32, the index of
+    the face seen at each pixel (−1: ground or sky), ``face_normal`` (C, F, 3) float32 world-frame normals and
+    ``face_emissive`` (C, F) bool of those faces.
     """
     n_cam = cam_rot.shape[0]
     if out is None:
@@ -416,11 +429,14 @@ def render(
         prims["centers"], prims["halves"], prims["yaws"], prims["colors"], prims["tags"], prims["insts"],
         prims["emissive"], np.asarray(sun_dir, np.float64), float(ambient), float(sun_intensity),
     )  # fmt: skip
+    face = np.empty((n_cam, height, width), np.int32) if face_ids else np.empty((1, 1, 1), np.int32)
     _raster_bands(
         cam_rot, cam_trans, cam_k, int(width), int(height), float(far),
         surface.flat, surface.rows, surface.cols, surface.tiles_x, surface.origin[0], surface.origin[1],
         surface.resolution, surface_lut_rgb, np.asarray(surface_tag, np.uint8),
         np.asarray(sky_horizon, np.float64), np.asarray(sky_zenith, np.float64),
-        *faces, out["rgb"], out["depth"], out["sem"], out["inst"],
+        *faces[:8], out["rgb"], out["depth"], out["sem"], out["inst"], bool(face_ids), face,
     )  # fmt: skip
+    if face_ids:
+        out = {**out, "face": face, "face_normal": faces[8], "face_emissive": faces[9]}
     return out
