@@ -358,6 +358,9 @@ def shade_night(
     ``buffers`` is :func:`fog_gym.render.raster.render`'s output with ``face_ids=True`` (its ``rgb`` holding
     albedo); ``heads`` (N, 3) are lamp heads to draw. Only ``buffers["rgb"]`` changes.
     """
+    missing = [k for k in ("rgb", "depth", "face", "face_normal", "face_emissive") if k not in buffers]
+    if missing:
+        raise ValueError(f"buffers lack {missing}: pass the output of render(..., face_ids=True)")
     rgb = buffers["rgb"]
     lin = np.empty(rgb.shape, np.float32)
     heads = np.ascontiguousarray(np.reshape(heads, (-1, 3)), np.float64)
