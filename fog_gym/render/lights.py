@@ -25,7 +25,8 @@ Auto-exposure (in the spirit of CARLA's default ``exposure_mode = "histogram"``)
 histogram of ``log2`` luminance over ``[LOG_MIN, LOG_MAX]``; the mean log luminance of the pixels between the
 ``LOW_PERCENT`` and ``HIGH_PERCENT`` of that histogram (the darkest half and the brightest 2 % — black sky,
 lamp heads — do not steer it) is mapped to ``KEY``: ``gain = KEY / 2^mean``, clamped to ``[GAIN_MIN,
-GAIN_MAX]`` (0 to +6 EV). Encoding: ``round(min(L · gain, 1) · 255)``.
+GAIN_MAX]`` (0 to +6 EV). Encoding: ``round(tone(L · gain) · 255)`` with a filmic-like shoulder (:func:`tone`)
+that keeps headlit cars from clipping flat.
 
 Example (one lamp 7 m above a grey floor point, straight down):
     >>> import numpy as np
@@ -51,7 +52,7 @@ LAMP_COLOR = np.array([1.0, 0.88, 0.70])
 LAMP_HEAD_RADIUS = 0.3  # drawn disc [m]
 LAMP_HEAD_RADIANCE = 6.0
 #: Low beam: peak intensity (both lamps together), radius of influence [m], colour, hot-spot distance [m].
-BEAM_INTENSITY, BEAM_RADIUS, BEAM_HOTSPOT = 2500.0, 60.0, 45.0
+BEAM_INTENSITY, BEAM_RADIUS, BEAM_HOTSPOT = 1200.0, 60.0, 45.0
 BEAM_COLOR = np.array([1.0, 0.97, 0.90])
 BEAM_HALF_ANGLE, BEAM_FADE_ANGLE, BEAM_CUTOFF = math.radians(12.0), math.radians(22.0), math.radians(1.5)
 #: Night ambient (sky glow) irradiance, emissive and sky radiance scales.
@@ -63,6 +64,8 @@ LOG_MIN, LOG_MAX, N_BINS = -12.0, 4.0, 128
 LOW_PERCENT, HIGH_PERCENT = 0.5, 0.98
 KEY = 0.18
 GAIN_MIN, GAIN_MAX = 1.0, 64.0
+#: Highlight shoulder of the encoding: linear up to ``KNEE``, then ``KNEE + (1 − KNEE)(1 − e^{−(x − KNEE)/(1 − KNEE)})``.
+KNEE = 0.6
 TILE = 32
 MAX_LIGHTS = 4096
 
@@ -337,16 +340,33 @@ def exposure_gains(lin: np.ndarray) -> np.ndarray:
     return gains
 
 
+@njit(cache=True, inline="always")
+def _tone(x, knee):
+    if x <= knee:
+        return x
+    return knee + (1.0 - knee) * (1.0 - math.exp(-(x - knee) / (1.0 - knee)))
+
+
+def tone(x: np.ndarray | float) -> np.ndarray:
+    """The encoding's tone curve on exposed radiance (identity below :data:`KNEE`, a smooth shoulder to 1 above).
+
+    >>> tone(np.array([0.3, 0.6, 1.0, 100.0])).round(3).tolist()
+    [0.3, 0.6, 0.853, 1.0]
+    """
+    x = np.asarray(x, np.float64)
+    return np.where(x <= KNEE, x, KNEE + (1 - KNEE) * (1 - np.exp(-(np.maximum(x, KNEE) - KNEE) / (1 - KNEE))))
+
+
 @njit(cache=True, parallel=True)
-def _encode(lin, gains, out):
+def _encode(lin, gains, knee, out):
     n_cam, height, width, _ = lin.shape
     for task in prange(n_cam * height):
         c = task // height
         i = task % height
-        g = gains[c] * 255.0
+        g = gains[c]
         for j in range(width):
             for ch in range(3):
-                out[c, i, j, ch] = np.uint8(min(lin[c, i, j, ch] * g, 255.0) + 0.5)
+                out[c, i, j, ch] = np.uint8(_tone(lin[c, i, j, ch] * g, knee) * 255.0 + 0.5)
 
 
 def shade_night(
@@ -372,5 +392,5 @@ def shade_night(
         float(ambient), float(EMISSIVE_GAIN), float(SKY_GAIN), lin,
     )  # fmt: skip
     gains = exposure_gains(lin)
-    _encode(lin, gains, rgb)
+    _encode(lin, gains, float(KNEE), rgb)
     return gains
