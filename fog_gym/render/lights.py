@@ -12,7 +12,8 @@ Light model (all in linear "albedo × irradiance" units, in which the day render
   square ``W(d) = clamp(1 − (d/R)⁴, 0, 1)²`` that brings each light to exactly zero at its radius ``R``;
 * street lamp (full cut-off luminaire): ``P = clamp(ω_z / 0.15, 0, 1)`` (light only below the lamp head);
 * low beam, along the vehicle's heading: horizontally 1 within ±12° fading to 0 at ±22°; vertically a sharp
-  cut-off above the horizon (``exp(−(φ/1.5°)²)`` for rays rising by φ) and ``min(1, (φ_h/φ)²)`` below it, with
+  cut-off above the horizon (``0.25·exp(−(φ/1.5°)²)`` for rays rising by φ), rising linearly from 0.25 at the
+  horizon to 1 at the hot spot ``φ_h`` and ``(φ_h/φ)²`` below it, with
   ``φ_h = atan(h/45 m)``: the hot spot just under the cut-off reaches the road at 45 m and the pool fades out
   by ≈ 60 m (the road's irradiance ∝ I·h/d³ stays nearly flat from 10 to 45 m, as real beam patterns do);
 * radiance ``L = albedo · (A + Σ E_l · colour_l)`` with the night ambient ``A``; emissive faces (lamps) emit
@@ -25,7 +26,7 @@ Auto-exposure (in the spirit of CARLA's default ``exposure_mode = "histogram"``)
 histogram of ``log2`` luminance over ``[LOG_MIN, LOG_MAX]``; the mean log luminance of the pixels between the
 ``LOW_PERCENT`` and ``HIGH_PERCENT`` of that histogram (the darkest half and the brightest 2 % — black sky,
 lamp heads — do not steer it) is mapped to ``KEY``: ``gain = KEY / 2^mean``, clamped to ``[GAIN_MIN,
-GAIN_MAX]`` (0 to +6 EV). Encoding: ``round(tone(L · gain) · 255)`` with a filmic-like shoulder (:func:`tone`)
+GAIN_MAX]`` (0 to +4 EV). Encoding: ``round(tone(L · gain) · 255)`` with a filmic-like shoulder (:func:`tone`)
 that keeps headlit cars from clipping flat.
 
 Example (one lamp 7 m above a grey floor point, straight down):
@@ -52,7 +53,7 @@ LAMP_COLOR = np.array([1.0, 0.88, 0.70])
 LAMP_HEAD_RADIUS = 0.3  # drawn disc [m]
 LAMP_HEAD_RADIANCE = 6.0
 #: Low beam: peak intensity (both lamps together), radius of influence [m], colour, hot-spot distance [m].
-BEAM_INTENSITY, BEAM_RADIUS, BEAM_HOTSPOT = 1200.0, 60.0, 45.0
+BEAM_INTENSITY, BEAM_RADIUS, BEAM_HOTSPOT = 4000.0, 60.0, 45.0
 BEAM_COLOR = np.array([1.0, 0.97, 0.90])
 BEAM_HALF_ANGLE, BEAM_FADE_ANGLE, BEAM_CUTOFF = math.radians(12.0), math.radians(22.0), math.radians(1.5)
 #: Night ambient (sky glow) irradiance, emissive and sky radiance scales.
@@ -63,7 +64,7 @@ SKY_GAIN = 0.1
 LOG_MIN, LOG_MAX, N_BINS = -12.0, 4.0, 128
 LOW_PERCENT, HIGH_PERCENT = 0.5, 0.98
 KEY = 0.18
-GAIN_MIN, GAIN_MAX = 1.0, 64.0
+GAIN_MIN, GAIN_MAX = 1.0, 16.0
 #: Highlight shoulder of the encoding: linear up to ``KNEE``, then ``KNEE + (1 − KNEE)(1 − e^{−(x − KNEE)/(1 − KNEE)})``.
 KNEE = 0.6
 TILE = 32
@@ -167,10 +168,13 @@ def _light_at(px, py, pz, nx, ny, nz, k, lpos, laxis, lint, lrad, lkind, lheight
         # elevation of the emitted ray: positive = downwards (the point lies below the lamp)
         phi = math.atan2(wz, math.sqrt(fwd * fwd + lat * lat))
         if phi <= 0.0:
-            v = math.exp(-(phi / 0.02617993877991494) ** 2)  # BEAM_CUTOFF
+            v = 0.25 * math.exp(-(phi / 0.02617993877991494) ** 2)  # BEAM_CUTOFF
         else:
             ph = math.atan2(max(lheight[k], 0.1), 45.0)  # BEAM_HOTSPOT
-            v = min(1.0, (ph / phi) ** 2)
+            if phi >= ph:
+                v = (ph / phi) ** 2
+            else:  # between the cut-off and the hot spot: from a quarter up to full intensity
+                v = 0.25 + 0.75 * phi / ph
         prof = h * v
     return lint[k] * prof * cosn / max(d2, 1.0) * win
 
@@ -186,61 +190,240 @@ def irradiance(point: np.ndarray, normal: np.ndarray, lights: Lights) -> np.ndar
     return e
 
 
+@njit(cache=True, parallel=True)
+def _splat_ground(out, origin_x, origin_y, res, lpos, laxis, lcol, lint, lrad, lkind, lheight, add):
+    """Ground (z = 0, normal up) irradiance of each light, splatted over its footprint into ``out`` (rows, cols, 3)."""
+    rows, cols, _ = out.shape
+    n_l = lpos.shape[0]
+    # rows are split across threads; each thread visits every light's footprint rows it owns (no write races)
+    n_tasks = min(rows, 64)
+    for t in prange(n_tasks):
+        for k in range(n_l):
+            r = lrad[k]
+            i0 = max(int((lpos[k, 1] - r - origin_y) / res), 0)
+            i1 = min(int((lpos[k, 1] + r - origin_y) / res) + 1, rows)
+            j0 = max(int((lpos[k, 0] - r - origin_x) / res), 0)
+            j1 = min(int((lpos[k, 0] + r - origin_x) / res) + 1, cols)
+            for i in range(i0, i1):
+                if i % n_tasks != t:
+                    continue
+                y = origin_y + (i + 0.5) * res
+                for j in range(j0, j1):
+                    x = origin_x + (j + 0.5) * res
+                    w = _light_at(x, y, 0.01, 0.0, 0.0, 1.0, k, lpos, laxis, lint, lrad, lkind, lheight)
+                    if w > 0.0:
+                        out[i, j, 0] += w * lcol[k, 0]
+                        out[i, j, 1] += w * lcol[k, 1]
+                        out[i, j, 2] += w * lcol[k, 2]
+
+
+@njit(cache=True)
+def _prim_lights(centers, halves, lpos, lrad, max_per):
+    """For each primitive, the lights whose sphere of influence touches its bounding sphere (at most ``max_per``)."""
+    n_p = centers.shape[0]
+    idx = np.zeros((max(n_p, 1), max_per), np.int32)
+    cnt = np.zeros(max(n_p, 1), np.int32)
+    for p in range(n_p):
+        rp = math.sqrt(halves[p, 0] ** 2 + halves[p, 1] ** 2 + halves[p, 2] ** 2)
+        for k in range(lpos.shape[0]):
+            dx = lpos[k, 0] - centers[p, 0]
+            dy = lpos[k, 1] - centers[p, 1]
+            dz = lpos[k, 2] - centers[p, 2]
+            rr = lrad[k] + rp
+            if dx * dx + dy * dy + dz * dz < rr * rr and cnt[p] < max_per:
+                idx[p, cnt[p]] = k
+                cnt[p] += 1
+    return idx, cnt
+
+
+# box face axes: for face f, (normal axis, first in-plane axis, second in-plane axis) in the primitive's frame
+_FACE_AXES = np.array([[0, 1, 2], [0, 1, 2], [1, 0, 2], [1, 0, 2], [2, 0, 1], [2, 0, 1]], np.int64)
+_FACE_SIGN = np.array([1.0, -1.0, 1.0, -1.0, 1.0, -1.0])
+
+
+@njit(cache=True, parallel=True)
+def _face_grids(centers, halves, yaws, emissive, prim_l, prim_n, lpos, laxis, lcol, lint, lrad, lkind, lheight,
+                cell, max_cells):  # fmt: skip
+    """Irradiance on a grid of points over each lit box face (bilinear between cell centres when shading).
+
+    Returns offsets (P, 6) into ``data`` (−1: unlit face), dims (P, 6, 2) and ``data`` (N, 3) float32.
+    """
+    n_p = centers.shape[0]
+    offsets = np.full((max(n_p, 1), 6), -1, np.int64)
+    dims = np.ones((max(n_p, 1), 6, 2), np.int64)
+    total = 0
+    for p in range(n_p):
+        if prim_n[p] == 0 or emissive[p]:
+            continue
+        for f in range(5):  # the bottom face (−z) is never seen from above the ground
+            a1 = _FACE_AXES[f, 1]
+            a2 = _FACE_AXES[f, 2]
+            n1 = min(max(int(math.ceil(2.0 * halves[p, a1] / cell)), 1), max_cells)
+            n2 = min(max(int(math.ceil(2.0 * halves[p, a2] / cell)), 1), max_cells)
+            dims[p, f, 0] = n1
+            dims[p, f, 1] = n2
+            offsets[p, f] = total
+            total += n1 * n2
+    data = np.zeros((max(total, 1), 3), np.float32)
+    for p in prange(n_p):
+        if offsets[p, 0] < 0:
+            continue
+        cy = math.cos(yaws[p])
+        sy = math.sin(yaws[p])
+        for f in range(5):
+            a0 = _FACE_AXES[f, 0]
+            a1 = _FACE_AXES[f, 1]
+            a2 = _FACE_AXES[f, 2]
+            sign = _FACE_SIGN[f]
+            n1 = dims[p, f, 0]
+            n2 = dims[p, f, 1]
+            loc = np.zeros(3)
+            nl = np.zeros(3)
+            nl[a0] = sign
+            nx = nl[0] * cy - nl[1] * sy
+            ny = nl[0] * sy + nl[1] * cy
+            nz = nl[2]
+            for u in range(n1):
+                for v in range(n2):
+                    loc[a0] = sign * halves[p, a0]
+                    loc[a1] = ((u + 0.5) / n1 * 2.0 - 1.0) * halves[p, a1]
+                    loc[a2] = ((v + 0.5) / n2 * 2.0 - 1.0) * halves[p, a2]
+                    wx = centers[p, 0] + loc[0] * cy - loc[1] * sy + 0.01 * nx
+                    wy = centers[p, 1] + loc[0] * sy + loc[1] * cy + 0.01 * ny
+                    wz = centers[p, 2] + loc[2] + 0.01 * nz
+                    e0, e1, e2 = 0.0, 0.0, 0.0
+                    for s in range(prim_n[p]):
+                        k = prim_l[p, s]
+                        w = _light_at(wx, wy, wz, nx, ny, nz, k, lpos, laxis, lint, lrad, lkind, lheight)
+                        if w > 0.0:
+                            e0 += w * lcol[k, 0]
+                            e1 += w * lcol[k, 1]
+                            e2 += w * lcol[k, 2]
+                    o = offsets[p, f] + u * n2 + v
+                    data[o, 0] = e0
+                    data[o, 1] = e1
+                    data[o, 2] = e2
+    return offsets, dims, data
+
+
+@njit(cache=True, inline="always")
+def _map_at(m, ox, oy, inv_res, x, y):
+    fj = (x - ox) * inv_res
+    fi = (y - oy) * inv_res
+    if fi < 0.0 or fj < 0.0 or fi >= m.shape[0] or fj >= m.shape[1]:
+        return -1, -1
+    return int(fi), int(fj)
+
+
 @njit(cache=True, parallel=True, fastmath=False)
-def _shade(
-    cam_rot, cam_trans, cam_k, far, rgb, depth, face, face_nrm, face_emis,
-    lpos, laxis, lcol, lint, lrad, lkind, lheight, heads, head_rad, head_col,
-    ambient, emissive_gain, sky_gain, out_lin,
+def _shade_pass(
+    cam_rot, cam_trans, cam_k, far, rgb, depth, face, face_emis, face_prim, face_side,
+    centers, halves, yaws, g_off, g_dims, g_data,
+    smap, s_ox, s_oy, s_inv, wmap, w_ox, w_oy, w_inv,
+    ambient, emissive_gain, sky_gain, step, gains, knee, encode, hist, log_min, log_max,
 ):  # fmt: skip
     n_cam, height, width = depth.shape
-    ty = (height + TILE - 1) // TILE
-    tx = (width + TILE - 1) // TILE
-    n_l = lpos.shape[0]
-    n_h = heads.shape[0]
-    for task in prange(n_cam * ty * tx):
-        c = task // (ty * tx)
-        r0 = ((task // tx) % ty) * TILE
-        c0 = (task % tx) * TILE
-        r1 = min(r0 + TILE, height)
-        c1 = min(c0 + TILE, width)
+    n_rows = (height + step - 1) // step
+    n_bins = hist.shape[2]
+    scale = n_bins / (log_max - log_min)
+    for task in prange(n_cam * n_rows):
+        c = task // n_rows
+        i = (task % n_rows) * step
         R = cam_rot[c]
         T = cam_trans[c]
         fx, fy, cx, cy = cam_k[c, 0], cam_k[c, 1], cam_k[c, 2], cam_k[c, 3]
-        # world bounding box of this tile's surface points
-        lo0, lo1, lo2 = 1e30, 1e30, 1e30
-        hi0, hi1, hi2 = -1e30, -1e30, -1e30
-        for i in range(r0, r1):
-            yn = (i + 0.5 - cy) / fy
-            for j in range(c0, c1):
-                z = depth[c, i, j]
-                if z >= far:
-                    continue
-                xc = (j + 0.5 - cx) / fx * z - T[0]
-                yc = yn * z - T[1]
-                zc = z - T[2]
-                wx = R[0, 0] * xc + R[1, 0] * yc + R[2, 0] * zc
-                wy = R[0, 1] * xc + R[1, 1] * yc + R[2, 1] * zc
-                wz = R[0, 2] * xc + R[1, 2] * yc + R[2, 2] * zc
-                lo0, lo1, lo2 = min(lo0, wx), min(lo1, wy), min(lo2, wz)
-                hi0, hi1, hi2 = max(hi0, wx), max(hi1, wy), max(hi2, wz)
-        sel = np.empty(n_l, np.int64)
-        n_sel = 0
-        if hi0 >= lo0:
-            for k in range(n_l):
-                ex = max(lo0 - lpos[k, 0], 0.0, lpos[k, 0] - hi0)
-                ey = max(lo1 - lpos[k, 1], 0.0, lpos[k, 1] - hi1)
-                ez = max(lo2 - lpos[k, 2], 0.0, lpos[k, 2] - hi2)
-                if ex * ex + ey * ey + ez * ez < lrad[k] * lrad[k]:
-                    sel[n_sel] = k
-                    n_sel += 1
-        # lamp heads whose disc may touch the tile
-        hsel = np.empty(n_h, np.int64)
-        hu = np.empty(n_h)
-        hv = np.empty(n_h)
-        hz = np.empty(n_h)
-        hr = np.empty(n_h)
-        n_hs = 0
-        for k in range(n_h):
+        yn = (i + 0.5 - cy) / fy
+        g = gains[c]
+        for j in range(0, width, step):
+            z = depth[c, i, j]
+            a0 = rgb[c, i, j, 0] * 0.00392156862745098
+            a1 = rgb[c, i, j, 1] * 0.00392156862745098
+            a2 = rgb[c, i, j, 2] * 0.00392156862745098
+            if z >= far:
+                l0, l1, l2 = a0 * sky_gain, a1 * sky_gain, a2 * sky_gain
+            else:
+                f = face[c, i, j]
+                if f >= 0 and face_emis[c, f]:
+                    l0, l1, l2 = a0 * emissive_gain, a1 * emissive_gain, a2 * emissive_gain
+                else:
+                    xc = (j + 0.5 - cx) / fx * z - T[0]
+                    yc = yn * z - T[1]
+                    zc = z - T[2]
+                    wx = R[0, 0] * xc + R[1, 0] * yc + R[2, 0] * zc
+                    wy = R[0, 1] * xc + R[1, 1] * yc + R[2, 1] * zc
+                    e0, e1, e2 = ambient, ambient, ambient
+                    if f < 0:  # ground: the light maps (beams near the ego in the window map, lamps everywhere)
+                        mi, mj = _map_at(wmap, w_ox, w_oy, w_inv, wx, wy)
+                        if mi >= 0:
+                            e0 += wmap[mi, mj, 0]
+                            e1 += wmap[mi, mj, 1]
+                            e2 += wmap[mi, mj, 2]
+                        else:
+                            mi, mj = _map_at(smap, s_ox, s_oy, s_inv, wx, wy)
+                            if mi >= 0:
+                                e0 += smap[mi, mj, 0]
+                                e1 += smap[mi, mj, 1]
+                                e2 += smap[mi, mj, 2]
+                    else:  # a face: bilinear in its irradiance grid
+                        p = face_prim[c, f]
+                        fs = face_side[c, f]
+                        o = g_off[p, fs]
+                        if o >= 0:
+                            wz = R[0, 2] * xc + R[1, 2] * yc + R[2, 2] * zc
+                            dx = wx - centers[p, 0]
+                            dy = wy - centers[p, 1]
+                            cyw = yaws[p, 0]
+                            syw = yaws[p, 1]
+                            lx = dx * cyw + dy * syw
+                            ly = -dx * syw + dy * cyw
+                            lz = wz - centers[p, 2]
+                            a1 = _FACE_AXES[fs, 1]
+                            a2 = _FACE_AXES[fs, 2]
+                            q1 = lx if a1 == 0 else ly
+                            q2 = ly if a2 == 1 else lz
+                            n1 = g_dims[p, fs, 0]
+                            n2 = g_dims[p, fs, 1]
+                            s1 = min(max((q1 / halves[p, a1] + 1.0) * 0.5 * n1 - 0.5, 0.0), n1 - 1.0)
+                            s2 = min(max((q2 / halves[p, a2] + 1.0) * 0.5 * n2 - 0.5, 0.0), n2 - 1.0)
+                            u0 = min(int(s1), n1 - 1)
+                            v0 = min(int(s2), n2 - 1)
+                            u1 = min(u0 + 1, n1 - 1)
+                            v1 = min(v0 + 1, n2 - 1)
+                            fu = s1 - u0
+                            fv = s2 - v0
+                            w00 = (1.0 - fu) * (1.0 - fv)
+                            w01 = (1.0 - fu) * fv
+                            w10 = fu * (1.0 - fv)
+                            w11 = fu * fv
+                            k00 = o + u0 * n2 + v0
+                            k01 = o + u0 * n2 + v1
+                            k10 = o + u1 * n2 + v0
+                            k11 = o + u1 * n2 + v1
+                            e0 += w00 * g_data[k00, 0] + w01 * g_data[k01, 0] + w10 * g_data[k10, 0] + w11 * g_data[k11, 0]
+                            e1 += w00 * g_data[k00, 1] + w01 * g_data[k01, 1] + w10 * g_data[k10, 1] + w11 * g_data[k11, 1]
+                            e2 += w00 * g_data[k00, 2] + w01 * g_data[k01, 2] + w10 * g_data[k10, 2] + w11 * g_data[k11, 2]
+                    l0, l1, l2 = a0 * e0, a1 * e1, a2 * e2
+            if encode:
+                rgb[c, i, j, 0] = np.uint8(_tone(l0 * g, knee) * 255.0 + 0.5)
+                rgb[c, i, j, 1] = np.uint8(_tone(l1 * g, knee) * 255.0 + 0.5)
+                rgb[c, i, j, 2] = np.uint8(_tone(l2 * g, knee) * 255.0 + 0.5)
+            else:
+                y = 0.2126 * l0 + 0.7152 * l1 + 0.0722 * l2
+                b = 0
+                if y > 0.0:
+                    b = min(max(int((math.log2(y) - log_min) * scale), 0), n_bins - 1)
+                hist[c, task % n_rows, b] += 1
+
+
+@njit(cache=True)
+def _draw_heads(cam_rot, cam_trans, cam_k, depth, rgb, heads, head_rad, color):
+    """Lamp heads as discs (RGB only) where nothing nearer hides them; ``color`` is the encoded uint8 triple."""
+    n_cam, height, width = depth.shape
+    for c in range(n_cam):
+        R = cam_rot[c]
+        T = cam_trans[c]
+        fx, fy, cx, cy = cam_k[c, 0], cam_k[c, 1], cam_k[c, 2], cam_k[c, 3]
+        for k in range(heads.shape[0]):
             pxc = R[0, 0] * heads[k, 0] + R[0, 1] * heads[k, 1] + R[0, 2] * heads[k, 2] + T[0]
             pyc = R[1, 0] * heads[k, 0] + R[1, 1] * heads[k, 1] + R[1, 2] * heads[k, 2] + T[1]
             pzc = R[2, 0] * heads[k, 0] + R[2, 1] * heads[k, 1] + R[2, 2] * heads[k, 2] + T[2]
@@ -249,56 +432,14 @@ def _shade(
             u = fx * pxc / pzc + cx
             v = fy * pyc / pzc + cy
             rp = max(fx * head_rad / pzc, 0.75)
-            if u + rp < c0 or u - rp > c1 or v + rp < r0 or v - rp > r1:
-                continue
-            hsel[n_hs] = k
-            hu[n_hs], hv[n_hs], hz[n_hs], hr[n_hs] = u, v, pzc, rp
-            n_hs += 1
-        for i in range(r0, r1):
-            yn = (i + 0.5 - cy) / fy
-            for j in range(c0, c1):
-                z = depth[c, i, j]
-                a0 = rgb[c, i, j, 0] * (1.0 / 255.0)
-                a1 = rgb[c, i, j, 1] * (1.0 / 255.0)
-                a2 = rgb[c, i, j, 2] * (1.0 / 255.0)
-                if z >= far:
-                    l0, l1, l2 = a0 * sky_gain, a1 * sky_gain, a2 * sky_gain
-                else:
-                    f = face[c, i, j]
-                    if f >= 0 and face_emis[c, f]:
-                        l0, l1, l2 = a0 * emissive_gain, a1 * emissive_gain, a2 * emissive_gain
-                    else:
-                        if f >= 0:
-                            nx, ny, nz = face_nrm[c, f, 0], face_nrm[c, f, 1], face_nrm[c, f, 2]
-                        else:
-                            nx, ny, nz = 0.0, 0.0, 1.0
-                        xc = (j + 0.5 - cx) / fx * z - T[0]
-                        yc = yn * z - T[1]
-                        zc = z - T[2]
-                        wx = R[0, 0] * xc + R[1, 0] * yc + R[2, 0] * zc
-                        wy = R[0, 1] * xc + R[1, 1] * yc + R[2, 1] * zc
-                        wz = R[0, 2] * xc + R[1, 2] * yc + R[2, 2] * zc
-                        # lift the point 1 cm off its surface so lights at grazing angles stay stable
-                        wx += 0.01 * nx
-                        wy += 0.01 * ny
-                        wz += 0.01 * nz
-                        e0, e1, e2 = ambient, ambient, ambient
-                        for s in range(n_sel):
-                            k = sel[s]
-                            w = _light_at(wx, wy, wz, nx, ny, nz, k, lpos, laxis, lint, lrad, lkind, lheight)
-                            if w > 0.0:
-                                e0 += w * lcol[k, 0]
-                                e1 += w * lcol[k, 1]
-                                e2 += w * lcol[k, 2]
-                        l0, l1, l2 = a0 * e0, a1 * e1, a2 * e2
-                for s in range(n_hs):
-                    du = j + 0.5 - hu[s]
-                    dv = i + 0.5 - hv[s]
-                    if du * du + dv * dv <= hr[s] * hr[s] and hz[s] < z:
-                        l0, l1, l2 = head_col[0], head_col[1], head_col[2]
-                out_lin[c, i, j, 0] = l0
-                out_lin[c, i, j, 1] = l1
-                out_lin[c, i, j, 2] = l2
+            for i in range(max(int(v - rp), 0), min(int(v + rp) + 1, height)):
+                for j in range(max(int(u - rp), 0), min(int(u + rp) + 1, width)):
+                    du = j + 0.5 - u
+                    dv = i + 0.5 - v
+                    if du * du + dv * dv <= rp * rp and pzc < depth[c, i, j]:
+                        rgb[c, i, j, 0] = color[0]
+                        rgb[c, i, j, 1] = color[1]
+                        rgb[c, i, j, 2] = color[2]
 
 
 @njit(cache=True, parallel=True)
@@ -327,7 +468,11 @@ def exposure_gains(lin: np.ndarray) -> np.ndarray:
     >>> bool(abs(g * 0.05 - KEY) / KEY < 0.1)
     True
     """
-    hist = _log_histograms(np.ascontiguousarray(lin, np.float32), LOG_MIN, LOG_MAX, N_BINS)
+    return gains_from_histograms(_log_histograms(np.ascontiguousarray(lin, np.float32), LOG_MIN, LOG_MAX, N_BINS))
+
+
+def gains_from_histograms(hist: np.ndarray) -> np.ndarray:
+    """Exposure gain per camera from (C, N_BINS) log-luminance histograms."""
     centres = LOG_MIN + (np.arange(N_BINS) + 0.5) * (LOG_MAX - LOG_MIN) / N_BINS
     gains = np.empty(len(hist))
     for c, h in enumerate(hist):
@@ -357,40 +502,106 @@ def tone(x: np.ndarray | float) -> np.ndarray:
     return np.where(x <= KNEE, x, KNEE + (1 - KNEE) * (1 - np.exp(-(np.maximum(x, KNEE) - KNEE) / (1 - KNEE))))
 
 
-@njit(cache=True, parallel=True)
-def _encode(lin, gains, knee, out):
-    n_cam, height, width, _ = lin.shape
-    for task in prange(n_cam * height):
-        c = task // height
-        i = task % height
-        g = gains[c]
-        for j in range(width):
-            for ch in range(3):
-                out[c, i, j, ch] = np.uint8(_tone(lin[c, i, j, ch] * g, knee) * 255.0 + 0.5)
+class GroundLightMap(NamedTuple):
+    """Ground irradiance (rows, cols, 3) float32 on a grid: cell (0, 0)'s corner at ``origin``, ``resolution`` m."""
+
+    irradiance: np.ndarray
+    origin: tuple[float, float]
+    resolution: float
+
+    @classmethod
+    def empty(cls) -> GroundLightMap:
+        return cls(np.zeros((1, 1, 3), np.float32), (0.0, 0.0), 1.0)
+
+
+#: Ground light maps: cell size [m]; half-width of the per-frame window (beams) around the ego [m].
+MAP_RESOLUTION, WINDOW_HALF = 0.5, 120.0
+
+
+def lamp_light_map(lamps: Lights, extent: tuple[float, float, float, float], resolution: float = MAP_RESOLUTION) -> GroundLightMap:
+    """Street lamps' ground irradiance over ``extent`` = (x_min, x_max, y_min, y_max): built once per static world."""
+    x0, x1, y0, y1 = extent
+    rows, cols = max(1, int(math.ceil((y1 - y0) / resolution))), max(1, int(math.ceil((x1 - x0) / resolution)))
+    out = np.zeros((rows, cols, 3), np.float32)
+    if len(lamps):
+        _splat_ground(out, float(x0), float(y0), float(resolution), *_light_args(lamps), True)
+    return GroundLightMap(out, (float(x0), float(y0)), float(resolution))
+
+
+def beam_window(static: GroundLightMap, beams: Lights, center: np.ndarray, half: float = WINDOW_HALF) -> GroundLightMap:
+    """A window of ``static`` around ``center`` (snapped to its grid) with the low beams added."""
+    res = static.resolution
+    ox, oy = static.origin
+    j0 = int(math.floor((center[0] - half - ox) / res))
+    i0 = int(math.floor((center[1] - half - oy) / res))
+    n = int(math.ceil(2 * half / res))
+    out = np.zeros((n, n, 3), np.float32)
+    rows, cols = static.irradiance.shape[:2]
+    si0, sj0, si1, sj1 = max(i0, 0), max(j0, 0), min(i0 + n, rows), min(j0 + n, cols)
+    if si1 > si0 and sj1 > sj0:
+        out[si0 - i0 : si1 - i0, sj0 - j0 : sj1 - j0] = static.irradiance[si0:si1, sj0:sj1]
+    origin = (ox + j0 * res, oy + i0 * res)
+    if len(beams):
+        _splat_ground(out, origin[0], origin[1], res, *_light_args(beams), True)
+    return GroundLightMap(out, origin, res)
+
+
+def _light_args(lights: Lights):
+    return lights.pos, lights.axis, lights.color, lights.intensity, lights.radius, lights.kind, lights.height
+
+
+#: Face irradiance grids: cell size [m] and at most this many cells along each side of a face.
+FACE_CELL, FACE_MAX_CELLS = 1.0, 8
+#: Lights per primitive at most (the nearest are not preferred: the first found are kept).
+MAX_PRIM_LIGHTS = 16
+#: The exposure histogram samples every ``EXPOSURE_STEP``-th pixel in each direction.
+EXPOSURE_STEP = 4
 
 
 def shade_night(
     cam_rot: np.ndarray, cam_trans: np.ndarray, cam_k: np.ndarray, far: float, buffers: dict[str, np.ndarray],
-    lights: Lights, heads: np.ndarray, ambient: float = NIGHT_AMBIENT,
+    prims: dict[str, np.ndarray], lights: Lights, ground: tuple[GroundLightMap, GroundLightMap], heads: np.ndarray,
+    ambient: float = NIGHT_AMBIENT,
 ) -> np.ndarray:
     """Light, expose and encode in place the RGB of an albedo-mode render; returns the exposure gain per camera.
 
     ``buffers`` is :func:`fog_gym.render.raster.render`'s output with ``face_ids=True`` (its ``rgb`` holding
-    albedo); ``heads`` (N, 3) are lamp heads to draw. Only ``buffers["rgb"]`` changes.
+    albedo) for the primitives ``prims``; faces are lit per pixel by ``lights``, the ground by the light maps
+    ``ground`` = (whole-world lamp map, per-frame window with the beams); ``heads`` (N, 3) are lamp heads to draw.
+    The exposure comes from a histogram of every :data:`EXPOSURE_STEP`-th pixel's radiance (each direction).
+    Only ``buffers["rgb"]`` changes.
     """
-    missing = [k for k in ("rgb", "depth", "face", "face_normal", "face_emissive") if k not in buffers]
+    missing = [k for k in ("rgb", "depth", "face", "face_emissive", "face_prim", "face_side") if k not in buffers]
     if missing:
         raise ValueError(f"buffers lack {missing}: pass the output of render(..., face_ids=True)")
     rgb = buffers["rgb"]
-    lin = np.empty(rgb.shape, np.float32)
+    n_cam, height = rgb.shape[:2]
+    rot = np.ascontiguousarray(cam_rot, np.float64)
+    trans = np.ascontiguousarray(cam_trans, np.float64)
+    ks = np.ascontiguousarray(cam_k, np.float64)
+    prim_l, prim_n = _prim_lights(prims["centers"], prims["halves"], lights.pos, lights.radius, MAX_PRIM_LIGHTS)
+    g_off, g_dims, g_data = _face_grids(prims["centers"], prims["halves"], prims["yaws"], prims["emissive"], prim_l,
+                                        prim_n, *_light_args(lights), FACE_CELL, FACE_MAX_CELLS)  # fmt: skip
+    smap, wmap = ground
+
+    def run(step, gains, encode, hist):
+        _shade_pass(
+            rot, trans, ks, float(far), rgb, buffers["depth"], buffers["face"], buffers["face_emissive"],
+            buffers["face_prim"], buffers["face_side"], prims["centers"], prims["halves"],
+            np.ascontiguousarray(np.c_[np.cos(prims["yaws"]), np.sin(prims["yaws"])]), g_off, g_dims, g_data,
+            smap.irradiance, smap.origin[0], smap.origin[1], 1.0 / smap.resolution,
+            wmap.irradiance, wmap.origin[0], wmap.origin[1], 1.0 / wmap.resolution,
+            float(ambient), float(EMISSIVE_GAIN), float(SKY_GAIN), step, gains, float(KNEE), encode, hist,
+            LOG_MIN, LOG_MAX,
+        )  # fmt: skip
+
+    hist = np.zeros((n_cam, (height + EXPOSURE_STEP - 1) // EXPOSURE_STEP, N_BINS), np.int64)
+    run(EXPOSURE_STEP, np.ones(n_cam), False, hist)
+    gains = gains_from_histograms(hist.sum(axis=1))
+    run(1, gains, True, np.zeros((1, 1, 1), np.int64))
     heads = np.ascontiguousarray(np.reshape(heads, (-1, 3)), np.float64)
-    _shade(
-        np.ascontiguousarray(cam_rot, np.float64), np.ascontiguousarray(cam_trans, np.float64),
-        np.ascontiguousarray(cam_k, np.float64), float(far), rgb, buffers["depth"], buffers["face"],
-        buffers["face_normal"], buffers["face_emissive"], lights.pos, lights.axis, lights.color, lights.intensity,
-        lights.radius, lights.kind, lights.height, heads, float(LAMP_HEAD_RADIUS), LAMP_COLOR * LAMP_HEAD_RADIANCE,
-        float(ambient), float(EMISSIVE_GAIN), float(SKY_GAIN), lin,
-    )  # fmt: skip
-    gains = exposure_gains(lin)
-    _encode(lin, gains, float(KNEE), rgb)
+    for c in range(n_cam):
+        color = np.round(tone(LAMP_COLOR * LAMP_HEAD_RADIANCE * gains[c]) * 255).astype(np.uint8)
+        _draw_heads(rot[c : c + 1], trans[c : c + 1], ks[c : c + 1], buffers["depth"][c : c + 1], rgb[c : c + 1],
+                    heads, float(LAMP_HEAD_RADIUS), color)  # fmt: skip
     return gains

@@ -62,6 +62,8 @@ def _setup_faces(
     bounds = np.zeros((n_cam, max_faces, 4), dtype=np.int64)  # y0, y1, x0, x1 inclusive
     face_nrm = np.zeros((n_cam, max_faces, 3), dtype=np.float32)  # world-frame outward normal
     face_emis = np.zeros((n_cam, max_faces), dtype=np.bool_)
+    face_prim = np.zeros((n_cam, max_faces), dtype=np.int32)
+    face_side = np.zeros((n_cam, max_faces), dtype=np.int8)
     counts = np.zeros(n_cam, dtype=np.int64)
     for c in prange(n_cam):
         R = cam_rot[c]
@@ -200,9 +202,11 @@ def _setup_faces(
                 face_nrm[c, n_out, 1] = nwy
                 face_nrm[c, n_out, 2] = nwz
                 face_emis[c, n_out] = emissive[p]
+                face_prim[c, n_out] = p
+                face_side[c, n_out] = f
                 n_out += 1
         counts[c] = n_out
-    return verts, nverts, planes, face_rgb, face_tag, face_inst, bounds, counts, face_nrm, face_emis
+    return verts, nverts, planes, face_rgb, face_tag, face_inst, bounds, counts, face_nrm, face_emis, face_prim, face_side
 
 
 @njit(cache=True, inline="always")
@@ -411,7 +415,9 @@ def render(
     Returns ``rgb`` (C, H, W, 3) uint8, ``depth`` (C, H, W) float32, ``sem`` (C, H, W) uint8,
     ``inst`` (C, H, W) uint16. With ``face_ids`` (for lighting passes) also ``face`` (C, H, W) int32, the index of
     the face seen at each pixel (−1: ground or sky), ``face_normal`` (C, F, 3) float32 world-frame normals and
-    ``face_emissive`` (C, F) bool of those faces.
+    ``face_emissive`` (C, F) bool, ``face_prim`` (C, F) int32 (the primitive each face belongs to) and
+    ``face_side`` (C, F) int8 (which of its
+    six faces: +x, −x, +y, −y, +z, −z in the primitive's frame).
     """
     n_cam = cam_rot.shape[0]
     if out is None:
@@ -438,5 +444,6 @@ def render(
         *faces[:8], out["rgb"], out["depth"], out["sem"], out["inst"], bool(face_ids), face,
     )  # fmt: skip
     if face_ids:
-        out = {**out, "face": face, "face_normal": faces[8], "face_emissive": faces[9]}
+        out = {**out, "face": face, "face_normal": faces[8], "face_emissive": faces[9], "face_prim": faces[10],
+               "face_side": faces[11]}
     return out
