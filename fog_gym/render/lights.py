@@ -352,12 +352,24 @@ def _shade_pass(
                     wx = R[0, 0] * xc + R[1, 0] * yc + R[2, 0] * zc
                     wy = R[0, 1] * xc + R[1, 1] * yc + R[2, 1] * zc
                     e0, e1, e2 = ambient, ambient, ambient
-                    if f < 0:  # ground: the light maps (beams near the ego in the window map, lamps everywhere)
-                        mi, mj = _map_at(wmap, w_ox, w_oy, w_inv, wx, wy)
-                        if mi >= 0:
-                            e0 += wmap[mi, mj, 0]
-                            e1 += wmap[mi, mj, 1]
-                            e2 += wmap[mi, mj, 2]
+                    if f < 0:  # ground: light maps (window near the ego, bilinear, with the beams; lamps beyond it)
+                        fi = (wy - w_oy) * w_inv - 0.5
+                        fj = (wx - w_ox) * w_inv - 0.5
+                        if fi >= 0.0 and fj >= 0.0 and fi < wmap.shape[0] - 1 and fj < wmap.shape[1] - 1:
+                            mi = int(fi)
+                            mj = int(fj)
+                            ti = fi - mi
+                            tj = fj - mj
+                            b00 = (1.0 - ti) * (1.0 - tj)
+                            b01 = (1.0 - ti) * tj
+                            b10 = ti * (1.0 - tj)
+                            b11 = ti * tj
+                            e0 += (b00 * wmap[mi, mj, 0] + b01 * wmap[mi, mj + 1, 0] + b10 * wmap[mi + 1, mj, 0]
+                                   + b11 * wmap[mi + 1, mj + 1, 0])
+                            e1 += (b00 * wmap[mi, mj, 1] + b01 * wmap[mi, mj + 1, 1] + b10 * wmap[mi + 1, mj, 1]
+                                   + b11 * wmap[mi + 1, mj + 1, 1])
+                            e2 += (b00 * wmap[mi, mj, 2] + b01 * wmap[mi, mj + 1, 2] + b10 * wmap[mi + 1, mj, 2]
+                                   + b11 * wmap[mi + 1, mj + 1, 2])
                         else:
                             mi, mj = _map_at(smap, s_ox, s_oy, s_inv, wx, wy)
                             if mi >= 0:
@@ -377,14 +389,14 @@ def _shade_pass(
                             lx = dx * cyw + dy * syw
                             ly = -dx * syw + dy * cyw
                             lz = wz - centers[p, 2]
-                            a1 = _FACE_AXES[fs, 1]
-                            a2 = _FACE_AXES[fs, 2]
-                            q1 = lx if a1 == 0 else ly
-                            q2 = ly if a2 == 1 else lz
+                            ax1 = _FACE_AXES[fs, 1]
+                            ax2 = _FACE_AXES[fs, 2]
+                            q1 = lx if ax1 == 0 else ly
+                            q2 = ly if ax2 == 1 else lz
                             n1 = g_dims[p, fs, 0]
                             n2 = g_dims[p, fs, 1]
-                            s1 = min(max((q1 / halves[p, a1] + 1.0) * 0.5 * n1 - 0.5, 0.0), n1 - 1.0)
-                            s2 = min(max((q2 / halves[p, a2] + 1.0) * 0.5 * n2 - 0.5, 0.0), n2 - 1.0)
+                            s1 = min(max((q1 / halves[p, ax1] + 1.0) * 0.5 * n1 - 0.5, 0.0), n1 - 1.0)
+                            s2 = min(max((q2 / halves[p, ax2] + 1.0) * 0.5 * n2 - 0.5, 0.0), n2 - 1.0)
                             u0 = min(int(s1), n1 - 1)
                             v0 = min(int(s2), n2 - 1)
                             u1 = min(u0 + 1, n1 - 1)
