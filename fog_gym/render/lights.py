@@ -12,7 +12,7 @@ Light model (all in linear "albedo × irradiance" units, in which the day render
   square ``W(d) = clamp(1 − (d/R)⁴, 0, 1)²`` that brings each light to exactly zero at its radius ``R``;
 * street lamp (full cut-off luminaire): ``P = clamp(ω_z / 0.15, 0, 1)`` (light only below the lamp head);
 * low beam, along the vehicle's heading: horizontally 1 within ±12° fading to 0 at ±22°; vertically a sharp
-  cut-off above the horizon (``0.25·exp(−(φ/1.5°)²)`` for rays rising by φ), rising linearly from 0.25 at the
+  cut-off above the horizon (``0.1·exp(−(φ/1.5°)²)`` for rays rising by φ), rising linearly from 0.1 at the
   horizon to 1 at the hot spot ``φ_h`` and ``(φ_h/φ)²`` below it, with
   ``φ_h = atan(h/45 m)``: the hot spot just under the cut-off reaches the road at 45 m and the pool fades out
   by ≈ 60 m (the road's irradiance ∝ I·h/d³ stays nearly flat from 10 to 45 m, as real beam patterns do);
@@ -168,13 +168,13 @@ def _light_at(px, py, pz, nx, ny, nz, k, lpos, laxis, lint, lrad, lkind, lheight
         # elevation of the emitted ray: positive = downwards (the point lies below the lamp)
         phi = math.atan2(wz, math.sqrt(fwd * fwd + lat * lat))
         if phi <= 0.0:
-            v = 0.25 * math.exp(-(phi / 0.02617993877991494) ** 2)  # BEAM_CUTOFF
+            v = 0.1 * math.exp(-(phi / 0.02617993877991494) ** 2)  # BEAM_CUTOFF
         else:
             ph = math.atan2(max(lheight[k], 0.1), 45.0)  # BEAM_HOTSPOT
             if phi >= ph:
                 v = (ph / phi) ** 2
-            else:  # between the cut-off and the hot spot: from a quarter up to full intensity
-                v = 0.25 + 0.75 * phi / ph
+            else:  # between the cut-off and the hot spot: from a tenth up to full intensity
+                v = 0.1 + 0.9 * phi / ph
         prof = h * v
     return lint[k] * prof * cosn / max(d2, 1.0) * win
 
