@@ -20,7 +20,7 @@ from fog_gym import geometry
 from fog_gym.config import RigConfig
 from fog_gym.lidar import sensor_to_world, simulate_lidar, simulate_radar, simulate_semantic_lidar
 from fog_gym.points import LIDAR, RADAR, SEMANTIC_LIDAR
-from fog_gym.render.lights import beam_window, concat_lights, cull_lights, lamp_light_map, shade_night, street_lamp_lights
+from fog_gym.render.lights import beam_window, concat_lights, cull_lights, lamp_light_map, render_night, street_lamp_lights
 from fog_gym.render.raster import render
 from fog_gym.scene import Scene, concat_primitives, headlights, prop_primitives, select_primitives
 from fog_gym.scenery import SURFACE_TAGS, lamp_heads
@@ -83,15 +83,20 @@ class CameraRig:
         for (width, height), cams in self._groups:
             mats = np.array([self.world_to_camera(scene, c.name) for c in cams])
             ks = np.array([[k[0, 0], k[1, 1], k[0, 2], k[1, 2]] for k in (self.intrinsics[c.name] for c in cams)])
-            out = render(
-                mats[:, :3, :3], mats[:, :3, 3], ks, width, height, self.far, prims, scene.static.tiled, lut,
-                SURFACE_TAGS, light.sky_horizon, light.sky_zenith, light.sun_dir, ambient, sun, face_ids=night,
-            )  # fmt: skip
-            gains = (shade_night(mats[:, :3, :3], mats[:, :3, 3], ks, self.far, out, prims, lights, ground, heads)
-                     if night else None)  # fmt: skip
+            if night:
+                out, gains = render_night(
+                    mats[:, :3, :3], mats[:, :3, 3], ks, width, height, self.far, prims, scene.static.tiled, lut,
+                    SURFACE_TAGS, light.sky_horizon, light.sky_zenith, lights, ground, heads,
+                )  # fmt: skip
+            else:
+                out = render(
+                    mats[:, :3, :3], mats[:, :3, 3], ks, width, height, self.far, prims, scene.static.tiled, lut,
+                    SURFACE_TAGS, light.sky_horizon, light.sky_zenith, light.sun_dir, ambient, sun,
+                )  # fmt: skip
+                gains = np.ones(len(cams))
             for i, c in enumerate(cams):
                 frames[c.name] = CameraFrame(out["rgb"][i], out["depth"][i], out["sem"][i], out["inst"][i])
-                self.exposure[c.name] = 1.0 if gains is None else float(gains[i])
+                self.exposure[c.name] = float(gains[i])
         return frames
 
     def night_lights(self, scene: Scene):

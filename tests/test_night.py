@@ -229,3 +229,26 @@ def test_fog_wrapper_at_night_keeps_koschmieder_and_adds_glow():
     # far away the fog shows its (lit) airlight, not the black sky
     assert np.abs(fogged[far].astype(float).mean(axis=0) - A).max() < 25
     env.close()
+
+
+def test_fused_night_render_matches_the_two_pass_reference():
+    """render_night lights pixels as they are drawn; shade_night lights an albedo render afterwards: same image."""
+    rig = front_rig(160, 120)
+    scene = make_scene([(5, 0, (14.0, 3.5), (4.5, 1.9, 1.5), 0.2)], night=True, props=pole_props([12.0, 50.0]))
+    prims = rig.primitives(scene)
+    heads, lights, ground = rig.night_lights(scene)
+    T = rig.world_to_camera(scene, "CAM_FRONT")[None]
+    K = rig.intrinsics["CAM_FRONT"]
+    ks = np.array([[K[0, 0], K[1, 1], K[0, 2], K[1, 2]]])
+    light = scene.lighting
+    common = (T[:, :3, :3], T[:, :3, 3], ks, 160, 120, rig.far, prims, scene.static.tiled, light.albedo_lut(),
+              np.array([10, 1, 2, 24], np.uint8), light.sky_horizon, light.sky_zenith)  # fmt: skip
+    fused, gains = L.render_night(*common, lights, ground, heads)
+    ref = render(*common, np.array([0.0, 0, -1]), 1.0, 0.0, face_ids=True)
+    L.shade_night(T[:, :3, :3], T[:, :3, 3], ks, rig.far, ref, prims, lights, ground, heads, gains=gains)
+    for k in ("depth", "sem", "inst"):
+        assert np.array_equal(fused[k], ref[k])
+    diff = np.abs(fused["rgb"].astype(int) - ref["rgb"].astype(int)).max(axis=-1)
+    assert (diff <= 2).mean() > 0.99 and fused["rgb"].mean() > 20
+    # the exposure measured on the small render is close to the one of the full-size image
+    assert L.GAIN_MIN <= gains[0] <= L.GAIN_MAX

@@ -236,8 +236,7 @@ def _prim_lights(centers, halves, lpos, lrad, max_per):
     return idx, cnt
 
 
-# box face axes: for face f, (normal axis, first in-plane axis, second in-plane axis) in the primitive's frame
-_FACE_AXES = np.array([[0, 1, 2], [0, 1, 2], [1, 0, 2], [1, 0, 2], [2, 0, 1], [2, 0, 1]], np.int64)
+_FACE_AXES = raster.FACE_AXES
 _FACE_SIGN = np.array([1.0, -1.0, 1.0, -1.0, 1.0, -1.0])
 
 
@@ -573,9 +572,11 @@ EXPOSURE_STEP = 4
 def shade_night(
     cam_rot: np.ndarray, cam_trans: np.ndarray, cam_k: np.ndarray, far: float, buffers: dict[str, np.ndarray],
     prims: dict[str, np.ndarray], lights: Lights, ground: tuple[GroundLightMap, GroundLightMap], heads: np.ndarray,
-    ambient: float = NIGHT_AMBIENT,
+    ambient: float = NIGHT_AMBIENT, gains: np.ndarray | None = None,
 ) -> np.ndarray:
     """Light, expose and encode in place the RGB of an albedo-mode render; returns the exposure gain per camera.
+
+    The reference (two-pass) form of :func:`render_night`; ``gains`` fixes the exposure instead of measuring it.
 
     ``buffers`` is :func:`fog_gym.render.raster.render`'s output with ``face_ids=True`` (its ``rgb`` holding
     albedo) for the primitives ``prims``; faces are lit per pixel by ``lights``, the ground by the light maps
@@ -607,9 +608,10 @@ def shade_night(
             LOG_MIN, LOG_MAX,
         )  # fmt: skip
 
-    hist = np.zeros((n_cam, (height + EXPOSURE_STEP - 1) // EXPOSURE_STEP, N_BINS), np.int64)
-    run(EXPOSURE_STEP, np.ones(n_cam), False, hist)
-    gains = gains_from_histograms(hist.sum(axis=1))
+    if gains is None:
+        hist = np.zeros((n_cam, (height + EXPOSURE_STEP - 1) // EXPOSURE_STEP, N_BINS), np.int64)
+        run(EXPOSURE_STEP, np.ones(n_cam), False, hist)
+        gains = gains_from_histograms(hist.sum(axis=1))
     run(1, gains, True, np.zeros((1, 1, 1), np.int64))
     heads = np.ascontiguousarray(np.reshape(heads, (-1, 3)), np.float64)
     for c in range(n_cam):
@@ -617,3 +619,63 @@ def shade_night(
         _draw_heads(rot[c : c + 1], trans[c : c + 1], ks[c : c + 1], buffers["depth"][c : c + 1], rgb[c : c + 1],
                     heads, float(LAMP_HEAD_RADIUS), color)  # fmt: skip
     return gains
+
+
+#: The exposure of :func:`render_night` is measured on a render this many times smaller in each direction.
+EXPOSURE_DOWNSCALE = 4
+
+
+def render_night(
+    cam_rot: np.ndarray, cam_trans: np.ndarray, cam_k: np.ndarray, width: int, height: int, far: float,
+    prims: dict[str, np.ndarray], surface, albedo_lut: np.ndarray, surface_tag: np.ndarray,
+    sky_horizon: np.ndarray, sky_zenith: np.ndarray, lights: Lights, ground: tuple[GroundLightMap, GroundLightMap],
+    heads: np.ndarray, ambient: float = NIGHT_AMBIENT,
+) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    """Render night frames in one lit pass; returns (buffers as :func:`~fog_gym.render.raster.render`, gains).
+
+    1. the exposure: an albedo render :data:`EXPOSURE_DOWNSCALE`× smaller, lit by :func:`shade_night`'s
+       kernel, gives the histogram and so the gain of each camera;
+    2. the full-size render lights, exposes and encodes every pixel as it is drawn (ground from the light maps,
+       faces from their irradiance grids), so the night costs one raster pass plus small set-ups;
+    3. the lamp heads are drawn on top.
+    """
+    from fog_gym.render.raster import render
+
+    n_cam = len(cam_rot)
+    prim_l, prim_n = _prim_lights(prims["centers"], prims["halves"], lights.pos, lights.radius, MAX_PRIM_LIGHTS)
+    g_off, g_dims, g_data = _face_grids(prims["centers"], prims["halves"], prims["yaws"], prims["emissive"], prim_l,
+                                        prim_n, *_light_args(lights), FACE_CELL, FACE_MAX_CELLS)  # fmt: skip
+    cossin = np.ascontiguousarray(np.c_[np.cos(prims["yaws"]), np.sin(prims["yaws"])])
+    smap, wmap = ground
+    # 1. exposure on a small render
+    lw, lh = max(8, width // EXPOSURE_DOWNSCALE), max(8, height // EXPOSURE_DOWNSCALE)
+    scale = np.array([lw / width, lh / height, lw / width, lh / height])
+    k_low = np.asarray(cam_k, np.float64) * scale
+    sun = np.array([0.0, 0.0, -1.0])
+    low = render(cam_rot, cam_trans, k_low, lw, lh, far, prims, surface, albedo_lut, surface_tag, sky_horizon,
+                 sky_zenith, sun, 1.0, 0.0, face_ids=True)  # fmt: skip
+    hist = np.zeros((n_cam, lh, N_BINS), np.int64)
+    _shade_pass(
+        np.ascontiguousarray(cam_rot, np.float64), np.ascontiguousarray(cam_trans, np.float64), k_low, float(far),
+        low["rgb"], low["depth"], low["face"], low["face_emissive"], low["face_prim"], low["face_side"],
+        prims["centers"], prims["halves"], cossin, g_off, g_dims, g_data,
+        smap.irradiance, smap.origin[0], smap.origin[1], 1.0 / smap.resolution,
+        wmap.irradiance, wmap.origin[0], wmap.origin[1], 1.0 / wmap.resolution,
+        float(ambient), float(EMISSIVE_GAIN), float(SKY_GAIN), 1, np.ones(n_cam), float(KNEE), False, hist,
+        LOG_MIN, LOG_MAX,
+    )  # fmt: skip
+    gains = gains_from_histograms(hist.sum(axis=1))
+    # 2. the lit full-size render
+    night = {"gains": gains, "knee": KNEE, "ambient": ambient, "emissive_gain": EMISSIVE_GAIN, "sky_gain": SKY_GAIN,
+             "window": wmap, "static": smap, "centers": prims["centers"], "halves": prims["halves"],
+             "cossin": cossin, "g_off": g_off, "g_dims": g_dims, "g_data": g_data}  # fmt: skip
+    out = render(cam_rot, cam_trans, cam_k, width, height, far, prims, surface, albedo_lut, surface_tag,
+                 sky_horizon, sky_zenith, sun, 1.0, 0.0, night=night)  # fmt: skip
+    # 3. lamp heads
+    heads = np.ascontiguousarray(np.reshape(heads, (-1, 3)), np.float64)
+    rot, trans, ks = (np.ascontiguousarray(a, np.float64) for a in (cam_rot, cam_trans, cam_k))
+    for c in range(n_cam):
+        color = np.round(tone(LAMP_COLOR * LAMP_HEAD_RADIANCE * gains[c]) * 255).astype(np.uint8)
+        _draw_heads(rot[c : c + 1], trans[c : c + 1], ks[c : c + 1], out["depth"][c : c + 1], out["rgb"][c : c + 1],
+                    heads, float(LAMP_HEAD_RADIUS), color)  # fmt: skip
+    return out, gains
