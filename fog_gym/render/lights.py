@@ -200,10 +200,21 @@ def _splat_ground(out, origin_x, origin_y, res, lpos, laxis, lcol, lint, lrad, l
     for t in prange(n_tasks):
         for k in range(n_l):
             r = lrad[k]
-            i0 = max(int((lpos[k, 1] - r - origin_y) / res), 0)
-            i1 = min(int((lpos[k, 1] + r - origin_y) / res) + 1, rows)
-            j0 = max(int((lpos[k, 0] - r - origin_x) / res), 0)
-            j1 = min(int((lpos[k, 0] + r - origin_x) / res) + 1, cols)
+            bx0, bx1 = lpos[k, 0] - r, lpos[k, 0] + r
+            by0, by1 = lpos[k, 1] - r, lpos[k, 1] + r
+            if lkind[k] == 1:  # a beam lights only its sector: bound the apex and the arc's extreme points
+                bx0, bx1, by0, by1 = lpos[k, 0], lpos[k, 0], lpos[k, 1], lpos[k, 1]
+                yaw = math.atan2(laxis[k, 1], laxis[k, 0])
+                for q in range(9):
+                    a = yaw + (q / 4.0 - 1.0) * 0.3839724354387525  # BEAM_FADE_ANGLE
+                    ex = lpos[k, 0] + r * math.cos(a)
+                    ey = lpos[k, 1] + r * math.sin(a)
+                    bx0, bx1 = min(bx0, ex), max(bx1, ex)
+                    by0, by1 = min(by0, ey), max(by1, ey)
+            i0 = max(int((by0 - origin_y) / res), 0)
+            i1 = min(int((by1 - origin_y) / res) + 1, rows)
+            j0 = max(int((bx0 - origin_x) / res), 0)
+            j1 = min(int((bx1 - origin_x) / res) + 1, cols)
             for i in range(i0, i1):
                 if i % n_tasks != t:
                     continue
