@@ -1,9 +1,10 @@
 """Night lighting for the RGB cameras: street lamps, headlight beams and histogram auto-exposure (numba kernels).
 
-Pure functions over numpy arrays; nothing here imports the environment. Used after the rasteriser ran in
-*albedo mode* (``ambient = 1``, no sun, an unshaded surface map) with ``face_ids=True``: the depth buffer gives
-each pixel's world point, the face index its normal, and the RGB buffer its albedo. Depth, semantics and
-instance ids are never touched; only the RGB buffer is rewritten.
+Pure functions over numpy arrays; nothing here imports the environment. :func:`render_night` draws a night
+frame in one raster pass that lights, exposes and encodes each pixel as it is drawn (the surface map and face
+colours hold albedo; the ground's irradiance comes from light maps, the faces' from small irradiance grids
+over each lit box face); :func:`shade_night` is the two-pass reference that lights an albedo render
+(``face_ids=True``) afterwards. Depth, semantics and instance ids are never touched.
 
 Light model (all in linear "albedo × irradiance" units, in which the day renderer's sun gives ≈ 0.45–1.05):
 
@@ -22,8 +23,8 @@ Light model (all in linear "albedo × irradiance" units, in which the day render
 
 No shadows: a light reaches every point within its radius that faces it (documented limitation).
 
-Auto-exposure (in the spirit of CARLA's default ``exposure_mode = "histogram"``): per camera and frame, a
-histogram of ``log2`` luminance over ``[LOG_MIN, LOG_MAX]``; the mean log luminance of the pixels between the
+Auto-exposure (in the spirit of CARLA's default ``exposure_mode = "histogram"``): per camera and frame (measured
+on the view rendered :data:`EXPOSURE_DOWNSCALE`× smaller), a histogram of ``log2`` luminance over ``[LOG_MIN, LOG_MAX]``; the mean log luminance of the pixels between the
 ``LOW_PERCENT`` and ``HIGH_PERCENT`` of that histogram (the darkest half and the brightest 2 % — black sky,
 lamp heads — do not steer it) is mapped to ``KEY``: ``gain = KEY / 2^mean``, clamped to ``[GAIN_MIN,
 GAIN_MAX]`` (0 to +4 EV). Encoding: ``round(tone(L · gain) · 255)`` with a filmic-like shoulder (:func:`tone`)
