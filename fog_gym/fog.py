@@ -143,6 +143,71 @@ def atmospheric_light(rgb: np.ndarray, window: int = 15, top_fraction: float = 0
     return pixels[np.argsort(grey, kind="stable")[k // 2]]
 
 
+# Camera fog at night: airlight from the scene's lights, glow of bright sources
+
+#: Night airlight: pixels nearer than this [m] light the fog; their ``NIGHT_AIRLIGHT_PERCENTILE`` colour is ``A``.
+NIGHT_AIRLIGHT_RANGE, NIGHT_AIRLIGHT_PERCENTILE = 30.0, 75.0
+#: Glow: sources are pixels at or above ``GLOW_THRESHOLD`` (any channel, 0–255), taken at ``GLOW_SOURCE_GAIN`` ×
+#: their 8-bit value (a clipped lamp is far brighter than white); ``GLOW_FORWARD`` of the light they lose to fog
+#: is scattered forwards into a Gaussian of angular width ``GLOW_WIDTH_RAD · (1 + α · GLOW_DISTANCE)``.
+GLOW_THRESHOLD, GLOW_SOURCE_GAIN, GLOW_FORWARD = 240, 12.0, 0.5
+GLOW_WIDTH_RAD, GLOW_DISTANCE = math.radians(0.6), 50.0
+
+
+def night_airlight(rgb: np.ndarray, depth: np.ndarray, max_range: float = NIGHT_AIRLIGHT_RANGE) -> np.ndarray:
+    """Atmospheric light of a night frame: the fog is lit like the surfaces around the camera.
+
+    At night there is no bright sky to take ``A`` from (the dark-channel estimate would pick a lamp head); the
+    droplets near the camera are lit by the same lamps and beams as the surfaces there, so ``A`` is the
+    ``NIGHT_AIRLIGHT_PERCENTILE`` colour of the pixels nearer than ``max_range`` (all pixels if none are).
+
+    >>> rgb = np.zeros((2, 2, 3), np.uint8); rgb[0] = 80
+    >>> night_airlight(rgb, np.array([[10.0, 10.0], [500.0, 500.0]], np.float32)).tolist()
+    [80.0, 80.0, 80.0]
+    """
+    img = np.asarray(rgb)
+    if img.ndim != 3 or img.shape[2] != 3 or np.shape(depth) != img.shape[:2]:
+        raise ValueError(f"rgb must be (H, W, 3) and depth (H, W), got {img.shape} and {np.shape(depth)}")
+    near = np.asarray(depth) < max_range
+    pixels = img[near] if near.any() else img.reshape(-1, 3)
+    return np.percentile(pixels.astype(np.float64), NIGHT_AIRLIGHT_PERCENTILE, axis=0)
+
+
+def glow_sigma_px(K: np.ndarray, alpha: float) -> float:
+    """Width (pixels) of the glow around a bright source: ``fx · tan(GLOW_WIDTH_RAD · (1 + α · GLOW_DISTANCE))``."""
+    return float(K[0, 0] * math.tan(GLOW_WIDTH_RAD * (1.0 + alpha * GLOW_DISTANCE)))
+
+
+def add_glow(fogged: np.ndarray, clean: np.ndarray, depth: np.ndarray, K: np.ndarray, alpha: float) -> np.ndarray:
+    """Forward-scattered light of bright sources (lamps, headlights) added to a fogged night image.
+
+    A source pixel of radiance ``S`` (clean image, ≥ ``GLOW_THRESHOLD``, taken at ``GLOW_SOURCE_GAIN · S``) at
+    ray distance ℓ loses ``1 − e^{−αℓ}`` of its light to the fog; ``GLOW_FORWARD`` of that is scattered forwards
+    into a Gaussian of width :func:`glow_sigma_px`: ``G = N_σ * [η · g · S · (1 − e^{−αℓ})]`` and the result is
+    ``min(255, fogged + G)``. Both the strength (through ``1 − e^{−αℓ}``) and the width grow with α; with
+    ``α = 0`` nothing is added.
+
+    >>> clean = np.zeros((41, 41, 3), np.uint8); clean[20, 20] = 255
+    >>> K = np.array([[100.0, 0, 20.5], [0, 100.0, 20.5], [0, 0, 1]])
+    >>> d = np.full((41, 41), 40.0, np.float32)
+    >>> g = add_glow(np.zeros_like(clean), clean, d, K, 0.06)
+    >>> bool(g[20, 24, 0] > g[20, 28, 0] > 0), int(add_glow(clean, clean, d, K, 0.0)[20, 19, 0])
+    (True, 0)
+    """
+    if alpha <= 0.0:
+        return fogged
+    src = clean.max(axis=2) >= GLOW_THRESHOLD
+    if not src.any():
+        return fogged
+    h, w = depth.shape
+    ell = depth * ray_length_factor(w, h, K)
+    weight = np.where(src, GLOW_FORWARD * GLOW_SOURCE_GAIN * (1.0 - np.exp(-alpha * ell)), 0.0).astype(np.float32)
+    energy = clean.astype(np.float32) * weight[..., None]
+    sigma = max(glow_sigma_px(K, alpha), 0.5)
+    glow = cv2.GaussianBlur(energy, (0, 0), sigmaX=sigma, sigmaY=sigma, borderType=cv2.BORDER_CONSTANT)
+    return np.clip(fogged.astype(np.float32) + glow + 0.5, 0, 255).astype(np.uint8)
+
+
 _F32 = np.float32
 
 

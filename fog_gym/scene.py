@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fog_gym.render.lights import Lights, headlight_lights
 from fog_gym.render.raster import TiledSurface, surface_lut, tile_surface
 from fog_gym.scenery import SURFACE_RGB, SURFACE_TAGS, Props, SurfaceMap
 from fog_gym.world import VehicleState
@@ -63,6 +64,10 @@ class Lighting:
 
     def surface_lut(self) -> np.ndarray:
         return surface_lut(SURFACE_RGB * self.ground_shade, self.texture_amp)
+
+    def albedo_lut(self) -> np.ndarray:
+        """Unshaded surface colours (day texture) for the night lighting pass."""
+        return surface_lut(SURFACE_RGB, 1.0)
 
 
 @dataclass(frozen=True)
@@ -163,6 +168,16 @@ def vehicle_primitives(state: VehicleState, night: bool, exclude_id: int | None 
         "insts": state.ids[vi].astype(np.uint16),
         "emissive": np.concatenate([np.full(len(r[0]), r[8]) for r in rows]),
     }
+
+
+def headlights(state: VehicleState) -> Lights:
+    """Low beams of every vehicle (the ego included) at its lamp height, pointing along its heading."""
+    lamp_z = np.zeros(len(state))
+    for cls in np.unique(state.classes):
+        idx = np.flatnonzero(state.classes == cls)
+        L, W, H = state.sizes[idx, 0], state.sizes[idx, 1], state.sizes[idx, 2]
+        lamp_z[idx] = np.broadcast_to(_parts(int(cls), L, W, H)[2], L.shape)
+    return headlight_lights(state.centers, state.sizes, state.yaws, lamp_z)
 
 
 def empty_primitives() -> dict[str, np.ndarray]:

@@ -230,6 +230,35 @@ def _outer_edges(lanes: list[LaneGeometry], surface: SurfaceMap):
                 yield side, sign * unit, heading, ln.s, outside
 
 
+#: Street-lamp heads: on top of each pole (tag 6, 7 m), on an arm reaching this far over the road [m].
+LAMP_ARM = 3.5
+POLE_TAG = 6
+
+
+def lamp_heads(props: Props, surface: SurfaceMap) -> np.ndarray:
+    """Head positions (N, 3) of the street lamps on the roadside poles: at the pole's top, the arm towards the road.
+
+    Poles stand :data:`SIDEWALK_WIDTH` + 0.6 m beyond the road edge, across the road's heading (their yaw); the
+    arm points to whichever side has pavement within 3 m.
+
+    >>> lane = LaneGeometry.straight((0, 0), (80, 0), width=4.0, line_types=(2, 2))
+    >>> surf = build_surface([lane], resolution=0.5)
+    >>> pole = Props(np.array([[40.0, 2 + SIDEWALK_WIDTH + 0.6, 3.5]]), np.array([[0.25, 0.25, 7.0]]),
+    ...              np.zeros(1), np.full((1, 3), 0.45), np.array([POLE_TAG], np.uint8))
+    >>> lamp_heads(pole, surf).round(2).tolist()
+    [[40.0, 1.6, 7.0]]
+    """
+    poles = np.flatnonzero(props.tags == POLE_TAG)
+    if poles.size == 0:
+        return np.zeros((0, 3))
+    c = props.centers[poles]
+    side = np.c_[-np.sin(props.yaws[poles]), np.cos(props.yaws[poles])]  # left of the heading
+    probe_l = surface.class_at(c[:, 0] + 3.0 * side[:, 0], c[:, 1] + 3.0 * side[:, 1]) != TERRAIN
+    sign = np.where(probe_l, 1.0, -1.0)[:, None]
+    top = c[:, 2] + props.sizes[poles, 2] / 2
+    return np.c_[c[:, :2] + sign * LAMP_ARM * side, top]
+
+
 def place_props(lanes: list[LaneGeometry], surface: SurfaceMap, rng: np.random.Generator, style: SceneryStyle) -> Props:
     """Line the outer road edges with guard rails, poles, trees and buildings, never on pavement or each other."""
     placer = _Placer(surface)

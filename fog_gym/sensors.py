@@ -20,9 +20,13 @@ from fog_gym import geometry
 from fog_gym.config import RigConfig
 from fog_gym.lidar import sensor_to_world, simulate_lidar, simulate_radar, simulate_semantic_lidar
 from fog_gym.points import LIDAR, RADAR, SEMANTIC_LIDAR
+from fog_gym.render.lights import beam_window, concat_lights, cull_lights, lamp_light_map, render_night, street_lamp_lights
 from fog_gym.render.raster import render
-from fog_gym.scene import Scene, concat_primitives, prop_primitives, select_primitives
-from fog_gym.scenery import SURFACE_TAGS
+from fog_gym.scene import Scene, concat_primitives, headlights, prop_primitives, select_primitives
+from fog_gym.scenery import SURFACE_TAGS, lamp_heads
+
+#: Lights farther than this from the ego (beyond their own radius) are left out of a night frame [m].
+LIGHT_RANGE = 250.0
 
 
 @dataclass(frozen=True)
@@ -50,6 +54,9 @@ class CameraRig:
             groups.setdefault((c.width, c.height), []).append(c)
         self._groups = list(groups.items())
         self._props_cache: tuple[object, dict] | None = None
+        self._lamps_cache: tuple | None = None
+        #: Auto-exposure gain of each camera in the latest frame (1 by day).
+        self.exposure: dict[str, float] = {}
 
     def world_to_camera(self, scene: Scene, name: str) -> np.ndarray:
         ego = geometry.yaw_transform(*scene.ego_pose)
@@ -66,18 +73,46 @@ class CameraRig:
         """Every camera's buffers; ``prims`` defaults to :meth:`primitives` of the scene."""
         prims = self.primitives(scene) if prims is None else prims
         light = scene.lighting
-        lut = light.surface_lut()
+        night = light.night
+        if night:  # albedo pass, then street lamps, headlights and auto-exposure (fog_gym.render.lights)
+            lut, ambient, sun = light.albedo_lut(), 1.0, 0.0
+            heads, lights, ground = self.night_lights(scene)
+        else:
+            lut, ambient, sun = light.surface_lut(), light.ambient, light.sun_intensity
         frames: dict[str, CameraFrame] = {}
         for (width, height), cams in self._groups:
             mats = np.array([self.world_to_camera(scene, c.name) for c in cams])
             ks = np.array([[k[0, 0], k[1, 1], k[0, 2], k[1, 2]] for k in (self.intrinsics[c.name] for c in cams)])
-            out = render(
-                mats[:, :3, :3], mats[:, :3, 3], ks, width, height, self.far, prims, scene.static.tiled, lut,
-                SURFACE_TAGS, light.sky_horizon, light.sky_zenith, light.sun_dir, light.ambient, light.sun_intensity,
-            )  # fmt: skip
+            if night:
+                out, gains = render_night(
+                    mats[:, :3, :3], mats[:, :3, 3], ks, width, height, self.far, prims, scene.static.tiled, lut,
+                    SURFACE_TAGS, light.sky_horizon, light.sky_zenith, lights, ground, heads,
+                )  # fmt: skip
+            else:
+                out = render(
+                    mats[:, :3, :3], mats[:, :3, 3], ks, width, height, self.far, prims, scene.static.tiled, lut,
+                    SURFACE_TAGS, light.sky_horizon, light.sky_zenith, light.sun_dir, ambient, sun,
+                )  # fmt: skip
+                gains = np.ones(len(cams))
             for i, c in enumerate(cams):
                 frames[c.name] = CameraFrame(out["rgb"][i], out["depth"][i], out["sem"][i], out["inst"][i])
+                self.exposure[c.name] = float(gains[i])
         return frames
+
+    def night_lights(self, scene: Scene):
+        """Lamp heads (N, 3) near the ego, the :class:`~fog_gym.render.lights.Lights` that light faces, and the
+        ground light maps (street lamps over the whole world, built once per static world; a window around the
+        ego with the low beams added) of a night scene."""
+        if self._lamps_cache is None or self._lamps_cache[0] is not scene.static:
+            all_heads = lamp_heads(scene.static.props, scene.static.surface)
+            lamp_map = lamp_light_map(street_lamp_lights(all_heads), scene.static.surface.extent)
+            self._lamps_cache = (scene.static, all_heads, lamp_map)
+        _, heads, lamp_map = self._lamps_cache
+        ego = np.array([scene.ego_pose[0], scene.ego_pose[1], 0.0])
+        heads = heads[np.linalg.norm(heads[:, :2] - ego[:2], axis=1) <= LIGHT_RANGE + 50.0]
+        beams = cull_lights(headlights(scene.vehicles), ego, LIGHT_RANGE)
+        lights = cull_lights(concat_lights(street_lamp_lights(heads), beams), ego, LIGHT_RANGE)
+        return heads, lights, (lamp_map, beam_window(lamp_map, beams, ego))
 
 
 class PointSensors:

@@ -69,7 +69,8 @@ def _surface_classes(surface, x, y, c, s, fwd, right, px_metres: float) -> np.nd
 def exposure_preview(rgb: np.ndarray, target: float = 0.8, percentile: float = 99.0) -> tuple[np.ndarray, float]:
     """A display copy of a (dark) image scaled so its ``percentile`` luminance sits at ``target``; returns (image, gain).
 
-    For looking at night frames only: the data stays linear. The gain is never below 1.
+    The gain is never below 1. fog-gym's night frames are auto-exposed by the renderer
+    (:mod:`fog_gym.render.lights`), so on them this is (close to) a no-op; it remains for other dark images.
 
     >>> img, gain = exposure_preview(np.full((2, 2, 3), 20, np.uint8))
     >>> int(img[0, 0, 0]), round(gain, 1)
@@ -155,3 +156,34 @@ def lidar_panels(lidar: np.ndarray | None, semantic: np.ndarray | None, metres: 
     if semantic is not None:
         panels.append(points_bev(semantic, colorize_semantic(semantic[:, 5].astype(np.int64)), metres))
     return np.concatenate(panels, axis=1) if panels else np.zeros((1, 1, 3), np.uint8)
+
+
+def night_fog_levels(
+    day: dict[str, np.ndarray] | None, night: dict[str, np.ndarray], tile_width: int = 480, zoom: float = 3.0
+) -> np.ndarray:
+    """The night fog-levels picture: one column per fog level (``{caption: front image}``, clear first).
+
+    Rows: the day images (when given, for comparison), the night images, and the night images magnified
+    ``zoom``× around the brightest source of the clear night frame (a lamp or headlights), where the glow of
+    lit fog shows. Night frames are auto-exposed by the renderer, so nothing is brightened here.
+
+    >>> img = np.zeros((40, 60, 3), np.uint8); img[10, 30] = 255
+    >>> night_fog_levels(None, {"clear": img, "dense": img}, tile_width=60).shape
+    (80, 120, 3)
+    """
+    names = list(night)
+    first = night[names[0]]
+    lum = first.astype(np.float32) @ np.array([0.2126, 0.7152, 0.0722], np.float32)
+    lum = cv2.GaussianBlur(lum, (0, 0), 2.0)
+    cy, cx = np.unravel_index(int(np.argmax(lum)), lum.shape)
+    h, w = first.shape[:2]
+    ch, cw = max(2, int(h / zoom)), max(2, int(w / zoom))
+    y0, x0 = int(np.clip(cy - ch // 2, 0, h - ch)), int(np.clip(cx - cw // 2, 0, w - cw))
+    rows: dict[str, list[np.ndarray]] = {}
+    if day is not None:
+        rows["day"] = [day[n] for n in names if n in day]
+    rows["night"] = [night[n] for n in names]
+    rows[f"night, {zoom:g}x around the brightest source"] = [
+        cv2.resize(night[n][y0 : y0 + ch, x0 : x0 + cw], (w, h), interpolation=cv2.INTER_NEAREST) for n in names
+    ]
+    return contact_sheet(rows, tile_width=tile_width, captions=names)

@@ -318,6 +318,76 @@ def bench_rig(town: str, rig_key: str, repeats: int) -> dict[str, Any]:
     return result
 
 
+# -- night vs day camera rendering ---------------------------------------------------------------------
+
+
+def night_twin(scene: Any) -> Any:
+    """The same instant at night: same geometry, night lighting and lamp colours (street lamps, beams, exposure)."""
+    import dataclasses
+
+    from fog_gym.scene import Lighting, vehicle_primitives
+
+    light = Lighting.for_time_of_day("night", np.random.default_rng(0))
+    return dataclasses.replace(scene, lighting=light,
+                               primitives=vehicle_primitives(scene.vehicles, True, exclude_id=scene.ego_id))
+
+
+def bench_night(town: str, repeats: int) -> dict[str, Any]:
+    """``CameraRig.render`` of the full rig by day and by night on the same scenes, timed in alternation."""
+    from fog_gym.env import FogDriveEnv
+
+    env = FogDriveEnv(town=town, time_of_day="day", labels=None)
+    action = idle_action(env.action_space)
+    env.reset(seed=0)
+    day, night, lights = [], [], []
+    for k in tqdm(range(repeats + WARMUP_STEPS), desc="night vs day cameras", file=sys.stderr):
+        env.step(action)
+        scene = env.scene
+        twin = night_twin(scene)
+        prims_day, prims_night = env.cameras.primitives(scene), env.cameras.primitives(twin)
+        order = [(scene, prims_day, day), (twin, prims_night, night)]
+        for sc, pr, sink in order if k % 2 == 0 else order[::-1]:
+            _, ms = timed(env.cameras.render, sc, pr)
+            if k >= WARMUP_STEPS:
+                sink.append(ms)
+        if k >= WARMUP_STEPS:
+            lights.append(len(env.cameras.night_lights(twin)[1]))
+    env.close()
+    d, n = summarize(day), summarize(night)
+    return {"day": d, "night": n, "ratio": n["median"] / d["median"], "lights": summarize([float(x) for x in lights]),
+            "label": "full rig: 4 × 1280×960"}
+
+
+def render_night(res: dict[str, Any], repeats: int) -> list[str]:
+    return [
+        f"### Night vs day camera rendering ({res['label']}, `CameraRig.render`, {repeats} frames, alternating)",
+        "",
+        markdown_table(["", "day", "night", "night / day"],
+                       [["ms", fmt_ms(res["day"]), fmt_ms(res["night"]), f"{res['ratio']:.2f}×"]]),
+        "",
+        f"Lights in a night frame (street lamps + low beams within reach): median {res['lights']['median']:.0f}.",
+    ]
+
+
+def night_figure(res: dict[str, Any], path: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(4.5, 3.2), dpi=120)
+    keys = ("day", "night")
+    med = [res[k]["median"] for k in keys]
+    err = [[res[k]["median"] - res[k]["p25"] for k in keys], [res[k]["p75"] - res[k]["median"] for k in keys]]
+    ax.bar(keys, med, yerr=err, color=["#e0b040", "#304070"], capsize=6)
+    ax.set_ylabel("CameraRig.render [ms] (median, p25–p75)")
+    ax.set_title(f"{res['label']}: night / day = {res['ratio']:.2f}×", fontsize=9)
+    fig.tight_layout()
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path)
+    plt.close(fig)
+
+
 # -- point sensors on a dense highway ------------------------------------------------------------------
 
 
@@ -963,6 +1033,10 @@ def build_parser(prog: str = "bench.py") -> argparse.ArgumentParser:
     parser.add_argument("--quick", action="store_true", help=f"smoke run: {QUICK_REPEATS} repeats, 3 profiled steps")
     parser.add_argument("--json", type=Path, default=None, metavar="PATH",
                         help="also write every figure (with the raw samples) as JSON to PATH")  # fmt: skip
+    parser.add_argument("--night-only", action="store_true",
+                        help="only time the full rig's cameras by night against by day (same scenes)")
+    parser.add_argument("--night-figure", type=Path, default=None, metavar="PNG",
+                        help="write the night vs day camera bar chart to PNG")
     return parser
 
 
@@ -990,6 +1064,15 @@ def main(argv: list[str] | None = None, prog: str = "bench.py") -> int:
     }  # fmt: skip
 
     t0 = time.perf_counter()
+    night = bench_night(args.town, repeats)
+    if args.night_figure is not None:
+        night_figure(night, args.night_figure)
+    if args.night_only:
+        print("\n".join(render_night(night, repeats)))
+        if args.json is not None:
+            args.json.parent.mkdir(parents=True, exist_ok=True)
+            args.json.write_text(json.dumps({"meta": meta, "night": night}, indent=2))
+        return 0
     rigs = {key: bench_rig(args.town, key, repeats) for key in RIGS}
     point_sensors = bench_point_sensors(repeats)
     fog = bench_fog(repeats)
@@ -999,13 +1082,14 @@ def main(argv: list[str] | None = None, prog: str = "bench.py") -> int:
     baseline = bench_baselines(args.town, repeats, profile_steps)
     meta.update(wall_s=time.perf_counter() - t0, loadavg_end=load_average(), numba_layer=numba.threading_layer())
     results = {"meta": meta, "rigs": rigs, "point_sensors": point_sensors, "fog": fog, "labels": labels, "recording": recording, "rl": rl,
-               "baseline": baseline}
+               "baseline": baseline, "night": night}
 
     print(render_report(results))
     print("\n" + "\n".join(render_fog(fog, repeats)))
     print("\n" + "\n".join(render_labels(labels, repeats)))
     print("\n" + "\n".join(render_recording(recording)))
     print("\n" + "\n".join(render_rl(rl)))
+    print("\n" + "\n".join(render_night(night, repeats)))
     if args.json is not None:
         args.json.parent.mkdir(parents=True, exist_ok=True)
         args.json.write_text(json.dumps(results, indent=2))

@@ -89,12 +89,15 @@ def test_every_town_runs_with_fogdrive_classes(town):
     env.close()
 
 
-def test_day_and_night_differ_and_night_is_dark():
+def test_day_and_night_differ_in_light_only_and_the_night_sky_is_dark():
     day = FogDriveEnv(town="intersection", time_of_day="day", resolution=SMALL).reset(seed=3)[0]
     night = FogDriveEnv(town="intersection", time_of_day="night", resolution=SMALL).reset(seed=3)[0]
     for cam in fog_gym.CAMERA_NAMES:
-        assert night[cam].mean() < 0.15 * day[cam].mean()
+        assert night[cam].mean() < day[cam].mean()  # lamps and beams light the night, the sun lights the day
+        sky = day[f"{cam}_SEM"] == 11
+        assert night[cam][sky].mean() < 0.1 * day[cam][sky].mean()
         np.testing.assert_array_equal(night[f"{cam}_DEPTH"], day[f"{cam}_DEPTH"])  # same world, other light
+        np.testing.assert_array_equal(night[f"{cam}_SEM"], day[f"{cam}_SEM"])
 
 
 def test_truncation_at_episode_length():

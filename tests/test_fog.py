@@ -181,10 +181,14 @@ def test_in_place_and_paired_are_identical():
         b = paired.step(first_idle(paired.action_space))[0]
 
 
-def test_set_fog_applies_from_next_reset_and_night_airlight_is_dark():
+def test_set_fog_applies_from_next_reset_and_night_airlight_comes_from_the_lit_scene():
+    from fog_gym.fog import night_airlight
+
     env = FogWrapper(fog_gym.FogDriveEnv(time_of_day="night", **KW), "light")
     env.reset(seed=0)
-    assert max(env.airlight["CAM_FRONT"]) < 60
+    clean = env.unwrapped.frames["CAM_FRONT"]
+    np.testing.assert_array_equal(env.airlight["CAM_FRONT"], night_airlight(clean.rgb, clean.depth))
+    assert max(env.airlight["CAM_FRONT"]) < 200  # lit fog, not a daylight sky
     env.set_fog(50)
     _, _, _, _, info = env.step(first_idle(env.action_space))
     assert info["fog"]["visibility_m"] == 160.0

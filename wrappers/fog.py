@@ -9,7 +9,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from fog_gym.fog import FogLevel, atmospheric_light, fog_images, fog_lidar, parse_fog
+from fog_gym.fog import FogLevel, add_glow, atmospheric_light, fog_images, fog_lidar, night_airlight, parse_fog
 from fog_gym.points import LIDAR, pack_points, unpack_points
 
 FogSpec = str | float | int | FogLevel
@@ -104,8 +104,10 @@ class FogWrapper(gym.Wrapper):
             self.levels, self._pending = (self._pending,), None
         obs, info = self.env.reset(seed=seed, options=options)
         base = self.env.unwrapped
+        night = base.scene is not None and base.scene.lighting.night  # night: the fog is lit by the scene's lights
         self.airlight = {
-            cam: self._fixed_airlight if self._fixed_airlight is not None else atmospheric_light(obs[cam])
+            cam: self._fixed_airlight if self._fixed_airlight is not None
+            else night_airlight(obs[cam], obs[f"{cam}_DEPTH"]) if night else atmospheric_light(obs[cam])
             for cam in self.cameras
         }
         self._rngs = {
@@ -154,8 +156,10 @@ class FogWrapper(gym.Wrapper):
         for cam in self.cameras:
             images = fog_images(obs[cam], obs[f"{cam}_DEPTH"], base.cameras.intrinsics[cam], alphas, self.airlight[cam],
                                 validate=False)  # the env's own frames
+            night = base.scene is not None and base.scene.lighting.night
             for lv, img in zip(levels, images):
-                out[lv.name][cam] = img
+                K = base.cameras.intrinsics[cam]
+                out[lv.name][cam] = add_glow(img, obs[cam], obs[f"{cam}_DEPTH"], K, lv.alpha) if night else img
         if self.has_lidar:
             clean = unpack_points(obs, LIDAR)
             for lv in levels:

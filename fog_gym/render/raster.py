@@ -60,6 +60,10 @@ def _setup_faces(
     face_tag = np.zeros((n_cam, max_faces), dtype=np.uint8)
     face_inst = np.zeros((n_cam, max_faces), dtype=np.uint16)
     bounds = np.zeros((n_cam, max_faces, 4), dtype=np.int64)  # y0, y1, x0, x1 inclusive
+    face_nrm = np.zeros((n_cam, max_faces, 3), dtype=np.float32)  # world-frame outward normal
+    face_emis = np.zeros((n_cam, max_faces), dtype=np.bool_)
+    face_prim = np.zeros((n_cam, max_faces), dtype=np.int32)
+    face_side = np.zeros((n_cam, max_faces), dtype=np.int8)
     counts = np.zeros(n_cam, dtype=np.int64)
     for c in prange(n_cam):
         R = cam_rot[c]
@@ -194,9 +198,15 @@ def _setup_faces(
                     face_rgb[c, n_out, ch] = np.uint8(min(max(val, 0.0), 255.0))
                 face_tag[c, n_out] = tags[p]
                 face_inst[c, n_out] = insts[p]
+                face_nrm[c, n_out, 0] = nwx
+                face_nrm[c, n_out, 1] = nwy
+                face_nrm[c, n_out, 2] = nwz
+                face_emis[c, n_out] = emissive[p]
+                face_prim[c, n_out] = p
+                face_side[c, n_out] = f
                 n_out += 1
         counts[c] = n_out
-    return verts, nverts, planes, face_rgb, face_tag, face_inst, bounds, counts
+    return verts, nverts, planes, face_rgb, face_tag, face_inst, bounds, counts, face_nrm, face_emis, face_prim, face_side
 
 
 @njit(cache=True, inline="always")
@@ -222,13 +232,101 @@ def _ground_pixel(out_rgb, out_sem, c, i, j, fxw, fyw, surface, s_rows, s_cols, 
     out_sem[c, i, j] = surf_tag[cls]
 
 
+# -- night: lighting fused into the raster (fog_gym.render.lights builds the inputs) --------------------------
+# box face axes: for face f, (normal axis, first in-plane axis, second in-plane axis) in the primitive's frame
+FACE_AXES = np.array([[0, 1, 2], [0, 1, 2], [1, 0, 2], [1, 0, 2], [2, 0, 1], [2, 0, 1]], np.int64)
+
+
+@njit(cache=True, inline="always")
+def _enc(x, knee):
+    """Exposed linear radiance → uint8 through the tone curve (linear to ``knee``, a smooth shoulder above)."""
+    if x > knee:
+        x = knee + (1.0 - knee) * (1.0 - np.exp(-(x - knee) / (1.0 - knee)))
+    return np.uint8(x * 255.0 + 0.5)
+
+
+@njit(cache=True, inline="always")
+def _light_ground(out_rgb, c, i, j, wx, wy, g, knee, ambient, wmap, w_ox, w_oy, w_inv, smap, s_ox, s_oy, s_inv):
+    e0 = ambient
+    e1 = ambient
+    e2 = ambient
+    fi = (wy - w_oy) * w_inv - 0.5
+    fj = (wx - w_ox) * w_inv - 0.5
+    if fi >= 0.0 and fj >= 0.0 and fi < wmap.shape[0] - 1 and fj < wmap.shape[1] - 1:
+        mi = int(fi)
+        mj = int(fj)
+        ti = fi - mi
+        tj = fj - mj
+        b00 = (1.0 - ti) * (1.0 - tj)
+        b01 = (1.0 - ti) * tj
+        b10 = ti * (1.0 - tj)
+        b11 = ti * tj
+        e0 += b00 * wmap[mi, mj, 0] + b01 * wmap[mi, mj + 1, 0] + b10 * wmap[mi + 1, mj, 0] + b11 * wmap[mi + 1, mj + 1, 0]
+        e1 += b00 * wmap[mi, mj, 1] + b01 * wmap[mi, mj + 1, 1] + b10 * wmap[mi + 1, mj, 1] + b11 * wmap[mi + 1, mj + 1, 1]
+        e2 += b00 * wmap[mi, mj, 2] + b01 * wmap[mi, mj + 1, 2] + b10 * wmap[mi + 1, mj, 2] + b11 * wmap[mi + 1, mj + 1, 2]
+    else:
+        fi = (wy - s_oy) * s_inv
+        fj = (wx - s_ox) * s_inv
+        if fi >= 0.0 and fj >= 0.0 and fi < smap.shape[0] and fj < smap.shape[1]:
+            mi = int(fi)
+            mj = int(fj)
+            e0 += smap[mi, mj, 0]
+            e1 += smap[mi, mj, 1]
+            e2 += smap[mi, mj, 2]
+    k = g * (1.0 / 255.0)
+    out_rgb[c, i, j, 0] = _enc(out_rgb[c, i, j, 0] * k * e0, knee)
+    out_rgb[c, i, j, 1] = _enc(out_rgb[c, i, j, 1] * k * e1, knee)
+    out_rgb[c, i, j, 2] = _enc(out_rgb[c, i, j, 2] * k * e2, knee)
+
+
+@njit(cache=True, inline="always")
+def _face_irradiance(p, fs, wx, wy, wz, centers, halves, cossin, g_off, g_dims, g_data):
+    """Bilinear irradiance (RGB) of face ``fs`` of primitive ``p`` at world point w from its grid (0 if unlit)."""
+    o = g_off[p, fs]
+    if o < 0:
+        return 0.0, 0.0, 0.0
+    dx = wx - centers[p, 0]
+    dy = wy - centers[p, 1]
+    lx = dx * cossin[p, 0] + dy * cossin[p, 1]
+    ly = -dx * cossin[p, 1] + dy * cossin[p, 0]
+    lz = wz - centers[p, 2]
+    ax1 = FACE_AXES[fs, 1]
+    ax2 = FACE_AXES[fs, 2]
+    q1 = lx if ax1 == 0 else ly
+    q2 = ly if ax2 == 1 else lz
+    n1 = g_dims[p, fs, 0]
+    n2 = g_dims[p, fs, 1]
+    s1 = min(max((q1 / halves[p, ax1] + 1.0) * 0.5 * n1 - 0.5, 0.0), n1 - 1.0)
+    s2 = min(max((q2 / halves[p, ax2] + 1.0) * 0.5 * n2 - 0.5, 0.0), n2 - 1.0)
+    u0 = min(int(s1), n1 - 1)
+    v0 = min(int(s2), n2 - 1)
+    u1 = min(u0 + 1, n1 - 1)
+    v1 = min(v0 + 1, n2 - 1)
+    fu = s1 - u0
+    fv = s2 - v0
+    w00 = (1.0 - fu) * (1.0 - fv)
+    w01 = (1.0 - fu) * fv
+    w10 = fu * (1.0 - fv)
+    w11 = fu * fv
+    k00 = o + u0 * n2 + v0
+    k01 = o + u0 * n2 + v1
+    k10 = o + u1 * n2 + v0
+    k11 = o + u1 * n2 + v1
+    e0 = w00 * g_data[k00, 0] + w01 * g_data[k01, 0] + w10 * g_data[k10, 0] + w11 * g_data[k11, 0]
+    e1 = w00 * g_data[k00, 1] + w01 * g_data[k01, 1] + w10 * g_data[k10, 1] + w11 * g_data[k11, 1]
+    e2 = w00 * g_data[k00, 2] + w01 * g_data[k01, 2] + w10 * g_data[k10, 2] + w11 * g_data[k11, 2]
+    return e0, e1, e2
+
+
 @njit(cache=True, parallel=True, fastmath=False)
 def _raster_bands(
     cam_rot, cam_trans, cam_k, width, height, far,
     surface, s_rows, s_cols, tiles_x, surf_x0, surf_y0, surf_res, surf_lut, surf_tag,
     sky_horizon, sky_zenith,
     verts, nverts, planes, face_rgb, face_tag, face_inst, bounds, counts,
-    out_rgb, out_depth, out_sem, out_inst,
+    out_rgb, out_depth, out_sem, out_inst, want_face, out_face,
+    night, gains, knee, ambient, emis_gain, sky_gain, wmap, w_ox, w_oy, w_inv, smap, s_ox, s_oy, s_inv,
+    face_emis, face_prim, face_side, centers, halves, cossin, g_off, g_dims, g_data,
 ):  # fmt: skip
     n_cam = cam_rot.shape[0]
     n_bands = (height + BAND_ROWS - 1) // BAND_ROWS
@@ -248,6 +346,8 @@ def _raster_bands(
         sy = R[0, 1] / fx
         sz = R[0, 2] / fx
         out_inst[c, r0:r1] = 0
+        if want_face:
+            out_face[c, r0:r1] = -1
         for i in range(r0, r1):
             ry = (i + 0.5 - cy) / fy
             bx = R[2, 0] + R[1, 0] * ry
@@ -262,6 +362,11 @@ def _raster_bands(
             s0 = np.uint8(sky_horizon[0] * (1.0 - w) + sky_zenith[0] * w)
             s1 = np.uint8(sky_horizon[1] * (1.0 - w) + sky_zenith[1] * w)
             s2 = np.uint8(sky_horizon[2] * (1.0 - w) + sky_zenith[2] * w)
+            if night:
+                ks = sky_gain * gains[c] * (1.0 / 255.0)
+                s0 = _enc(s0 * ks, knee)
+                s1 = _enc(s1 * ks, knee)
+                s2 = _enc(s2 * ks, knee)
             if abs(sz) < 1e-15:
                 # no roll: the ray's height component is constant along the row, so is the ground distance
                 if bz < -1e-12 and -ccz / bz < far and -ccz / bz > 0.0:
@@ -275,6 +380,10 @@ def _raster_bands(
                         _ground_pixel(out_rgb, out_sem, c, i, j, fxw + kx * j, fyw + ky * j, surface,
                                       s_rows, s_cols, tiles_x, surf_lut, surf_tag)
                         out_depth[c, i, j] = tf
+                        if night:
+                            _light_ground(out_rgb, c, i, j, surf_x0 + (fxw + kx * j) * surf_res,
+                                          surf_y0 + (fyw + ky * j) * surf_res, gains[c], knee, ambient,
+                                          wmap, w_ox, w_oy, w_inv, smap, s_ox, s_oy, s_inv)
                 else:
                     for j in range(width):
                         out_rgb[c, i, j, 0] = s0
@@ -294,6 +403,9 @@ def _raster_bands(
                                   (ccy + t * (by + sy * u) - surf_y0) * inv_res, surface,
                                   s_rows, s_cols, tiles_x, surf_lut, surf_tag)
                     out_depth[c, i, j] = t
+                    if night:
+                        _light_ground(out_rgb, c, i, j, ccx + t * (bx + sx * u), ccy + t * (by + sy * u), gains[c],
+                                      knee, ambient, wmap, w_ox, w_oy, w_inv, smap, s_ox, s_oy, s_inv)
                 else:
                     out_rgb[c, i, j, 0] = s0
                     out_rgb[c, i, j, 1] = s1
@@ -306,6 +418,25 @@ def _raster_bands(
             if fy1 < fy0:
                 continue
             m = nverts[c, f]
+            fr0 = face_rgb[c, f, 0]
+            fr1 = face_rgb[c, f, 1]
+            fr2 = face_rgb[c, f, 2]
+            lit = False
+            p_f = 0
+            s_f = 0
+            if night:
+                p_f = face_prim[c, f]
+                s_f = face_side[c, f]
+                kf = gains[c] * (1.0 / 255.0)
+                if face_emis[c, f]:
+                    fr0 = _enc(face_rgb[c, f, 0] * kf * emis_gain, knee)
+                    fr1 = _enc(face_rgb[c, f, 1] * kf * emis_gain, knee)
+                    fr2 = _enc(face_rgb[c, f, 2] * kf * emis_gain, knee)
+                else:
+                    lit = g_off[p_f, s_f] >= 0
+                    fr0 = _enc(face_rgb[c, f, 0] * kf * ambient, knee)
+                    fr1 = _enc(face_rgb[c, f, 1] * kf * ambient, knee)
+                    fr2 = _enc(face_rgb[c, f, 2] * kf * ambient, knee)
             pa = planes[c, f, 0]
             pb = planes[c, f, 1]
             pc = planes[c, f, 2]
@@ -338,11 +469,47 @@ def _raster_bands(
                     invz = pa * (j + 0.5) + rowz
                     if invz * out_depth[c, i, j] > 1.0:  # nearer than what is there (no division)
                         out_depth[c, i, j] = 1.0 / invz
-                        out_rgb[c, i, j, 0] = face_rgb[c, f, 0]
-                        out_rgb[c, i, j, 1] = face_rgb[c, f, 1]
-                        out_rgb[c, i, j, 2] = face_rgb[c, f, 2]
+                        if lit:
+                            zz = 1.0 / invz
+                            xc = (j + 0.5 - cx) / fx * zz - T[0]
+                            yc = (v - cy) / fy * zz - T[1]
+                            zc = zz - T[2]
+                            e0, e1, e2 = _face_irradiance(
+                                p_f, s_f, R[0, 0] * xc + R[1, 0] * yc + R[2, 0] * zc,
+                                R[0, 1] * xc + R[1, 1] * yc + R[2, 1] * zc, R[0, 2] * xc + R[1, 2] * yc + R[2, 2] * zc,
+                                centers, halves, cossin, g_off, g_dims, g_data)  # fmt: skip
+                            kf = gains[c] * (1.0 / 255.0)
+                            out_rgb[c, i, j, 0] = _enc(face_rgb[c, f, 0] * kf * (ambient + e0), knee)
+                            out_rgb[c, i, j, 1] = _enc(face_rgb[c, f, 1] * kf * (ambient + e1), knee)
+                            out_rgb[c, i, j, 2] = _enc(face_rgb[c, f, 2] * kf * (ambient + e2), knee)
+                        else:
+                            out_rgb[c, i, j, 0] = fr0
+                            out_rgb[c, i, j, 1] = fr1
+                            out_rgb[c, i, j, 2] = fr2
                         out_sem[c, i, j] = face_tag[c, f]
                         out_inst[c, i, j] = face_inst[c, f]
+                        if want_face:
+                            out_face[c, i, j] = f
+
+
+_NO_MAP = np.zeros((1, 1, 3), np.float32)
+
+
+def _night_args(night: dict | None, n_cam: int) -> tuple:
+    if night is None:
+        return (False, np.ones(n_cam), 0.6, 0.0, 1.0, 1.0, _NO_MAP, 0.0, 0.0, 1.0, _NO_MAP, 0.0, 0.0, 1.0)
+    w, s = night["window"], night["static"]
+    return (True, np.ascontiguousarray(night["gains"], np.float64), float(night["knee"]), float(night["ambient"]),
+            float(night["emissive_gain"]), float(night["sky_gain"]), w.irradiance, w.origin[0], w.origin[1],
+            1.0 / w.resolution, s.irradiance, s.origin[0], s.origin[1], 1.0 / s.resolution)  # fmt: skip
+
+
+def _night_prims(night: dict | None) -> tuple:
+    if night is None:
+        z3 = np.zeros((1, 3))
+        return (z3, z3, np.zeros((1, 2)), np.full((1, 6), -1, np.int64), np.ones((1, 6, 2), np.int64),
+                np.zeros((1, 3), np.float32))  # fmt: skip
+    return night["centers"], night["halves"], night["cossin"], night["g_off"], night["g_dims"], night["g_data"]
 
 
 class TiledSurface(NamedTuple):
@@ -390,6 +557,8 @@ def render(
     ambient: float,
     sun_intensity: float,
     out: dict[str, np.ndarray] | None = None,
+    face_ids: bool = False,
+    night: dict | None = None,
 ) -> dict[str, np.ndarray]:
     """Render ``C`` cameras of one resolution.
 
@@ -398,7 +567,14 @@ def render(
     ``colors`` (P, 3) albedo in [0, 1], ``tags`` (P,) uint8, ``insts`` (P,) uint16, ``emissive`` (P,) bool.
     ``surface_lut_rgb`` comes from :func:`surface_lut`, ``surface_tag`` maps surface class → semantic tag.
     Returns ``rgb`` (C, H, W, 3) uint8, ``depth`` (C, H, W) float32, ``sem`` (C, H, W) uint8,
-    ``inst`` (C, H, W) uint16.
+    ``inst`` (C, H, W) uint16. With ``face_ids`` (for lighting passes) also ``face`` (C, H, W) int32, the index of
+    the face seen at each pixel (−1: ground or sky), ``face_normal`` (C, F, 3) float32 world-frame normals and
+    ``face_emissive`` (C, F) bool, ``face_prim`` (C, F) int32 (the primitive each face belongs to) and
+    ``face_side`` (C, F) int8 (which of its
+    six faces: +x, −x, +y, −y, +z, −z in the primitive's frame).
+
+    ``night`` (from :func:`fog_gym.render.lights.night_inputs`) lights, exposes and encodes the RGB in the same
+    pass (the surface map and face colours then hold albedo); depth, semantics and instances are unaffected.
     """
     n_cam = cam_rot.shape[0]
     if out is None:
@@ -416,11 +592,16 @@ def render(
         prims["centers"], prims["halves"], prims["yaws"], prims["colors"], prims["tags"], prims["insts"],
         prims["emissive"], np.asarray(sun_dir, np.float64), float(ambient), float(sun_intensity),
     )  # fmt: skip
+    face = np.empty((n_cam, height, width), np.int32) if face_ids else np.empty((1, 1, 1), np.int32)
     _raster_bands(
         cam_rot, cam_trans, cam_k, int(width), int(height), float(far),
         surface.flat, surface.rows, surface.cols, surface.tiles_x, surface.origin[0], surface.origin[1],
         surface.resolution, surface_lut_rgb, np.asarray(surface_tag, np.uint8),
         np.asarray(sky_horizon, np.float64), np.asarray(sky_zenith, np.float64),
-        *faces, out["rgb"], out["depth"], out["sem"], out["inst"],
+        *faces[:8], out["rgb"], out["depth"], out["sem"], out["inst"], bool(face_ids), face,
+        *_night_args(night, n_cam), faces[9], faces[10], faces[11], *_night_prims(night),
     )  # fmt: skip
+    if face_ids:
+        out = {**out, "face": face, "face_normal": faces[8], "face_emissive": faces[9], "face_prim": faces[10],
+               "face_side": faces[11]}
     return out

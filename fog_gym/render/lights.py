@@ -1,0 +1,693 @@
+"""Night lighting for the RGB cameras: street lamps, headlight beams and histogram auto-exposure (numba kernels).
+
+Pure functions over numpy arrays; nothing here imports the environment. :func:`render_night` draws a night
+frame in one raster pass that lights, exposes and encodes each pixel as it is drawn (the surface map and face
+colours hold albedo; the ground's irradiance comes from light maps, the faces' from small irradiance grids
+over each lit box face); :func:`shade_night` is the two-pass reference that lights an albedo render
+(``face_ids=True``) afterwards. Depth, semantics and instance ids are never touched.
+
+Light model (all in linear "albedo × irradiance" units, in which the day renderer's sun gives ≈ 0.45–1.05):
+
+* irradiance of a point ``p`` with normal ``n`` from a light at ``q``:
+  ``E = I · P(ω) · max(n·ω, 0) / max(d², 1 m²) · W(d)``, ``ω = (q − p)/d``, with Unreal's windowed inverse
+  square ``W(d) = clamp(1 − (d/R)⁴, 0, 1)²`` that brings each light to exactly zero at its radius ``R``;
+* street lamp (full cut-off luminaire): ``P = clamp(ω_z / 0.15, 0, 1)`` (light only below the lamp head);
+* low beam, along the vehicle's heading: horizontally 1 within ±12° fading to 0 at ±22°; vertically a sharp
+  cut-off above the horizon (``0.1·exp(−(φ/1.5°)²)`` for rays rising by φ), rising linearly from 0.1 at the
+  horizon to 1 at the hot spot ``φ_h`` and ``(φ_h/φ)²`` below it, with
+  ``φ_h = atan(h/45 m)``: the hot spot just under the cut-off reaches the road at 45 m and the pool fades out
+  by ≈ 60 m (the road's irradiance ∝ I·h/d³ stays nearly flat from 10 to 45 m, as real beam patterns do);
+* radiance ``L = albedo · (A + Σ E_l · colour_l)`` with the night ambient ``A``; emissive faces (lamps) emit
+  ``albedo · EMISSIVE_GAIN``, the sky its colour × ``SKY_GAIN``; street-lamp heads are drawn as emissive discs
+  (RGB only: they are not geometry, so depth and semantics stay unchanged).
+
+No shadows: a light reaches every point within its radius that faces it (documented limitation).
+
+Auto-exposure (in the spirit of CARLA's default ``exposure_mode = "histogram"``): per camera and frame (measured
+on the view rendered :data:`EXPOSURE_DOWNSCALE`× smaller), a histogram of ``log2`` luminance over ``[LOG_MIN, LOG_MAX]``; the mean log luminance of the pixels between the
+``LOW_PERCENT`` and ``HIGH_PERCENT`` of that histogram (the darkest half and the brightest 2 % — black sky,
+lamp heads — do not steer it) is mapped to ``KEY``: ``gain = KEY / 2^mean``, clamped to ``[GAIN_MIN,
+GAIN_MAX]`` (0 to +4 EV). Encoding: ``round(tone(L · gain) · 255)`` with a filmic-like shoulder (:func:`tone`)
+that keeps headlit cars from clipping flat.
+
+Example (one lamp 7 m above a grey floor point, straight down):
+    >>> import numpy as np
+    >>> e = irradiance(np.array([0.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0]), street_lamp_lights(np.array([[0.0, 0.0, 7.0]])))
+    >>> bool(round(float(e[0]), 4) == round(LAMP_INTENSITY / 49 * (1 - (7 / LAMP_RADIUS) ** 4) ** 2 * LAMP_COLOR[0], 4))
+    True
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+from numba import njit, prange
+
+from fog_gym.render import raster  # noqa: F401  (fork-safe threading layer before any kernel runs)
+
+LAMP, HEADLIGHT = 0, 1
+#: Street lamp: luminous intensity in albedo·m² units, radius of influence [m], colour (warm white LED).
+LAMP_INTENSITY, LAMP_RADIUS = 40.0, 40.0
+LAMP_COLOR = np.array([1.0, 0.88, 0.70])
+LAMP_HEAD_RADIUS = 0.3  # drawn disc [m]
+LAMP_HEAD_RADIANCE = 6.0
+#: Low beam: peak intensity (both lamps together), radius of influence [m], colour, hot-spot distance [m].
+BEAM_INTENSITY, BEAM_RADIUS, BEAM_HOTSPOT = 4000.0, 60.0, 45.0
+BEAM_COLOR = np.array([1.0, 0.97, 0.90])
+BEAM_HALF_ANGLE, BEAM_FADE_ANGLE, BEAM_CUTOFF = math.radians(12.0), math.radians(22.0), math.radians(1.5)
+#: Night ambient (sky glow) irradiance, emissive and sky radiance scales.
+NIGHT_AMBIENT = 0.02
+EMISSIVE_GAIN = 4.0
+SKY_GAIN = 0.1
+#: Auto-exposure.
+LOG_MIN, LOG_MAX, N_BINS = -12.0, 4.0, 128
+LOW_PERCENT, HIGH_PERCENT = 0.5, 0.98
+KEY = 0.18
+GAIN_MIN, GAIN_MAX = 1.0, 16.0
+#: Highlight shoulder of the encoding: linear up to ``KNEE``, then ``KNEE + (1 − KNEE)(1 − e^{−(x − KNEE)/(1 − KNEE)})``.
+KNEE = 0.6
+TILE = 32
+MAX_LIGHTS = 4096
+
+
+class Lights(NamedTuple):
+    """Point lights: position (L, 3), unit axis (L, 3), colour (L, 3), intensity (L,), radius (L,), kind (L,) int64.
+
+    ``kind`` is :data:`LAMP` (axis unused, emits downwards) or :data:`HEADLIGHT` (axis = horizontal heading).
+    ``height`` (L,) is the lamp's height above the road (sets the beam's hot spot).
+    """
+
+    pos: np.ndarray
+    axis: np.ndarray
+    color: np.ndarray
+    intensity: np.ndarray
+    radius: np.ndarray
+    kind: np.ndarray
+    height: np.ndarray
+
+    def __len__(self) -> int:
+        return len(self.kind)
+
+
+def _lights(pos, axis, color, intensity, radius, kind, height) -> Lights:
+    n = len(pos)
+    return Lights(
+        np.ascontiguousarray(np.reshape(pos, (n, 3)), np.float64),
+        np.ascontiguousarray(np.reshape(axis, (n, 3)), np.float64),
+        np.ascontiguousarray(np.broadcast_to(color, (n, 3)), np.float64),
+        np.ascontiguousarray(np.broadcast_to(intensity, (n,)), np.float64),
+        np.ascontiguousarray(np.broadcast_to(radius, (n,)), np.float64),
+        np.full(n, kind, np.int64),
+        np.ascontiguousarray(np.broadcast_to(height, (n,)), np.float64),
+    )
+
+
+def street_lamp_lights(heads: np.ndarray) -> Lights:
+    """Street lamps at the given head positions (N, 3)."""
+    heads = np.asarray(heads, np.float64).reshape(-1, 3)
+    axis = np.tile([0.0, 0.0, -1.0], (len(heads), 1))
+    return _lights(heads, axis, LAMP_COLOR, LAMP_INTENSITY, LAMP_RADIUS, LAMP, heads[:, 2])
+
+
+def headlight_lights(centers: np.ndarray, sizes: np.ndarray, yaws: np.ndarray, lamp_z: np.ndarray) -> Lights:
+    """One low-beam source per vehicle, 0.3 m ahead of the front face at lamp height ``lamp_z`` (N,)."""
+    centers, sizes = np.asarray(centers, np.float64).reshape(-1, 3), np.asarray(sizes, np.float64).reshape(-1, 3)
+    yaws = np.asarray(yaws, np.float64).reshape(-1)
+    fwd = np.c_[np.cos(yaws), np.sin(yaws), np.zeros_like(yaws)]
+    pos = centers + fwd * (sizes[:, :1] / 2 + 0.3)
+    pos[:, 2] = lamp_z
+    return _lights(pos, fwd, BEAM_COLOR, BEAM_INTENSITY, BEAM_RADIUS, HEADLIGHT, lamp_z)
+
+
+def concat_lights(*groups: Lights) -> Lights:
+    return Lights(*(np.ascontiguousarray(np.concatenate([getattr(g, f) for g in groups])) for f in Lights._fields))
+
+
+def cull_lights(lights: Lights, center: np.ndarray, radius: float) -> Lights:
+    """Lights whose sphere of influence comes within ``radius`` of ``center`` (at most :data:`MAX_LIGHTS`)."""
+    d = np.linalg.norm(lights.pos - np.asarray(center, np.float64)[None, :], axis=1) - lights.radius
+    keep = np.flatnonzero(d <= radius)[:MAX_LIGHTS]
+    return Lights(*(np.ascontiguousarray(getattr(lights, f)[keep]) for f in Lights._fields))
+
+
+@njit(cache=True, inline="always")
+def _light_at(px, py, pz, nx, ny, nz, k, lpos, laxis, lint, lrad, lkind, lheight):
+    """Irradiance weight (before colour) of light ``k`` at point p with normal n."""
+    dx = lpos[k, 0] - px
+    dy = lpos[k, 1] - py
+    dz = lpos[k, 2] - pz
+    d2 = dx * dx + dy * dy + dz * dz
+    r2 = lrad[k] * lrad[k]
+    if d2 >= r2:
+        return 0.0
+    d = math.sqrt(d2)
+    if d < 1e-6:
+        return 0.0
+    wx, wy, wz = dx / d, dy / d, dz / d
+    cosn = nx * wx + ny * wy + nz * wz
+    if cosn <= 0.0:
+        return 0.0
+    q = d2 / r2
+    win = 1.0 - q * q
+    win *= win
+    if lkind[k] == 0:  # street lamp: light below the head only
+        prof = min(max(wz / 0.15, 0.0), 1.0)
+    else:  # low beam: emission direction is -w
+        ax, ay = laxis[k, 0], laxis[k, 1]
+        fwd = -(wx * ax + wy * ay)
+        if fwd <= 1e-6:
+            return 0.0
+        lat = abs(-(wx * -ay + wy * ax))
+        psi = math.atan2(lat, fwd)
+        if psi >= 0.3839724354387525:  # BEAM_FADE_ANGLE
+            return 0.0
+        h = 1.0
+        if psi > 0.20943951023931953:  # BEAM_HALF_ANGLE
+            h = (0.3839724354387525 - psi) / (0.3839724354387525 - 0.20943951023931953)
+        # elevation of the emitted ray: positive = downwards (the point lies below the lamp)
+        phi = math.atan2(wz, math.sqrt(fwd * fwd + lat * lat))
+        if phi <= 0.0:
+            v = 0.1 * math.exp(-(phi / 0.02617993877991494) ** 2)  # BEAM_CUTOFF
+        else:
+            ph = math.atan2(max(lheight[k], 0.1), 45.0)  # BEAM_HOTSPOT
+            if phi >= ph:
+                v = (ph / phi) ** 2
+            else:  # between the cut-off and the hot spot: from a tenth up to full intensity
+                v = 0.1 + 0.9 * phi / ph
+        prof = h * v
+    return lint[k] * prof * cosn / max(d2, 1.0) * win
+
+
+def irradiance(point: np.ndarray, normal: np.ndarray, lights: Lights) -> np.ndarray:
+    """RGB irradiance at one world point with unit ``normal`` from ``lights`` (no ambient): reference for tests."""
+    e = np.zeros(3)
+    for k in range(len(lights)):
+        w = _light_at(float(point[0]), float(point[1]), float(point[2]), float(normal[0]), float(normal[1]),
+                      float(normal[2]), k, lights.pos, lights.axis, lights.intensity, lights.radius, lights.kind,
+                      lights.height)  # fmt: skip
+        e += w * lights.color[k]
+    return e
+
+
+@njit(cache=True, parallel=True)
+def _splat_ground(out, origin_x, origin_y, res, lpos, laxis, lcol, lint, lrad, lkind, lheight, add):
+    """Ground (z = 0, normal up) irradiance of each light, splatted over its footprint into ``out`` (rows, cols, 3)."""
+    rows, cols, _ = out.shape
+    n_l = lpos.shape[0]
+    # rows are split across threads; each thread visits every light's footprint rows it owns (no write races)
+    n_tasks = min(rows, 64)
+    for t in prange(n_tasks):
+        for k in range(n_l):
+            r = lrad[k]
+            bx0, bx1 = lpos[k, 0] - r, lpos[k, 0] + r
+            by0, by1 = lpos[k, 1] - r, lpos[k, 1] + r
+            if lkind[k] == 1:  # a beam lights only its sector: bound the apex and the arc's extreme points
+                bx0, bx1, by0, by1 = lpos[k, 0], lpos[k, 0], lpos[k, 1], lpos[k, 1]
+                yaw = math.atan2(laxis[k, 1], laxis[k, 0])
+                for q in range(9):
+                    a = yaw + (q / 4.0 - 1.0) * 0.3839724354387525  # BEAM_FADE_ANGLE
+                    ex = lpos[k, 0] + r * math.cos(a)
+                    ey = lpos[k, 1] + r * math.sin(a)
+                    bx0, bx1 = min(bx0, ex), max(bx1, ex)
+                    by0, by1 = min(by0, ey), max(by1, ey)
+            i0 = max(int((by0 - origin_y) / res), 0)
+            i1 = min(int((by1 - origin_y) / res) + 1, rows)
+            j0 = max(int((bx0 - origin_x) / res), 0)
+            j1 = min(int((bx1 - origin_x) / res) + 1, cols)
+            for i in range(i0, i1):
+                if i % n_tasks != t:
+                    continue
+                y = origin_y + (i + 0.5) * res
+                for j in range(j0, j1):
+                    x = origin_x + (j + 0.5) * res
+                    w = _light_at(x, y, 0.01, 0.0, 0.0, 1.0, k, lpos, laxis, lint, lrad, lkind, lheight)
+                    if w > 0.0:
+                        out[i, j, 0] += w * lcol[k, 0]
+                        out[i, j, 1] += w * lcol[k, 1]
+                        out[i, j, 2] += w * lcol[k, 2]
+
+
+@njit(cache=True)
+def _prim_lights(centers, halves, lpos, lrad, max_per):
+    """For each primitive, the lights whose sphere of influence touches its bounding sphere (at most ``max_per``)."""
+    n_p = centers.shape[0]
+    idx = np.zeros((max(n_p, 1), max_per), np.int32)
+    cnt = np.zeros(max(n_p, 1), np.int32)
+    for p in range(n_p):
+        rp = math.sqrt(halves[p, 0] ** 2 + halves[p, 1] ** 2 + halves[p, 2] ** 2)
+        for k in range(lpos.shape[0]):
+            dx = lpos[k, 0] - centers[p, 0]
+            dy = lpos[k, 1] - centers[p, 1]
+            dz = lpos[k, 2] - centers[p, 2]
+            rr = lrad[k] + rp
+            if dx * dx + dy * dy + dz * dz < rr * rr and cnt[p] < max_per:
+                idx[p, cnt[p]] = k
+                cnt[p] += 1
+    return idx, cnt
+
+
+_FACE_AXES = raster.FACE_AXES
+_FACE_SIGN = np.array([1.0, -1.0, 1.0, -1.0, 1.0, -1.0])
+
+
+@njit(cache=True, parallel=True)
+def _face_grids(centers, halves, yaws, emissive, prim_l, prim_n, lpos, laxis, lcol, lint, lrad, lkind, lheight,
+                cell, max_cells):  # fmt: skip
+    """Irradiance on a grid of points over each lit box face (bilinear between cell centres when shading).
+
+    Returns offsets (P, 6) into ``data`` (−1: unlit face), dims (P, 6, 2) and ``data`` (N, 3) float32.
+    """
+    n_p = centers.shape[0]
+    offsets = np.full((max(n_p, 1), 6), -1, np.int64)
+    dims = np.ones((max(n_p, 1), 6, 2), np.int64)
+    total = 0
+    for p in range(n_p):
+        if prim_n[p] == 0 or emissive[p]:
+            continue
+        for f in range(5):  # the bottom face (−z) is never seen from above the ground
+            a1 = _FACE_AXES[f, 1]
+            a2 = _FACE_AXES[f, 2]
+            n1 = min(max(int(math.ceil(2.0 * halves[p, a1] / cell)), 1), max_cells)
+            n2 = min(max(int(math.ceil(2.0 * halves[p, a2] / cell)), 1), max_cells)
+            dims[p, f, 0] = n1
+            dims[p, f, 1] = n2
+            offsets[p, f] = total
+            total += n1 * n2
+    data = np.zeros((max(total, 1), 3), np.float32)
+    for p in prange(n_p):
+        if offsets[p, 0] < 0:
+            continue
+        cy = math.cos(yaws[p])
+        sy = math.sin(yaws[p])
+        for f in range(5):
+            a0 = _FACE_AXES[f, 0]
+            a1 = _FACE_AXES[f, 1]
+            a2 = _FACE_AXES[f, 2]
+            sign = _FACE_SIGN[f]
+            n1 = dims[p, f, 0]
+            n2 = dims[p, f, 1]
+            loc = np.zeros(3)
+            nl = np.zeros(3)
+            nl[a0] = sign
+            nx = nl[0] * cy - nl[1] * sy
+            ny = nl[0] * sy + nl[1] * cy
+            nz = nl[2]
+            for u in range(n1):
+                for v in range(n2):
+                    loc[a0] = sign * halves[p, a0]
+                    loc[a1] = ((u + 0.5) / n1 * 2.0 - 1.0) * halves[p, a1]
+                    loc[a2] = ((v + 0.5) / n2 * 2.0 - 1.0) * halves[p, a2]
+                    wx = centers[p, 0] + loc[0] * cy - loc[1] * sy + 0.01 * nx
+                    wy = centers[p, 1] + loc[0] * sy + loc[1] * cy + 0.01 * ny
+                    wz = centers[p, 2] + loc[2] + 0.01 * nz
+                    e0, e1, e2 = 0.0, 0.0, 0.0
+                    for s in range(prim_n[p]):
+                        k = prim_l[p, s]
+                        w = _light_at(wx, wy, wz, nx, ny, nz, k, lpos, laxis, lint, lrad, lkind, lheight)
+                        if w > 0.0:
+                            e0 += w * lcol[k, 0]
+                            e1 += w * lcol[k, 1]
+                            e2 += w * lcol[k, 2]
+                    o = offsets[p, f] + u * n2 + v
+                    data[o, 0] = e0
+                    data[o, 1] = e1
+                    data[o, 2] = e2
+    return offsets, dims, data
+
+
+@njit(cache=True, inline="always")
+def _map_at(m, ox, oy, inv_res, x, y):
+    fj = (x - ox) * inv_res
+    fi = (y - oy) * inv_res
+    if fi < 0.0 or fj < 0.0 or fi >= m.shape[0] or fj >= m.shape[1]:
+        return -1, -1
+    return int(fi), int(fj)
+
+
+@njit(cache=True, parallel=True, fastmath=False)
+def _shade_pass(
+    cam_rot, cam_trans, cam_k, far, rgb, depth, face, face_emis, face_prim, face_side,
+    centers, halves, yaws, g_off, g_dims, g_data,
+    smap, s_ox, s_oy, s_inv, wmap, w_ox, w_oy, w_inv,
+    ambient, emissive_gain, sky_gain, step, gains, knee, encode, hist, log_min, log_max,
+):  # fmt: skip
+    n_cam, height, width = depth.shape
+    n_rows = (height + step - 1) // step
+    n_bins = hist.shape[2]
+    scale = n_bins / (log_max - log_min)
+    for task in prange(n_cam * n_rows):
+        c = task // n_rows
+        i = (task % n_rows) * step
+        R = cam_rot[c]
+        T = cam_trans[c]
+        fx, fy, cx, cy = cam_k[c, 0], cam_k[c, 1], cam_k[c, 2], cam_k[c, 3]
+        yn = (i + 0.5 - cy) / fy
+        g = gains[c]
+        for j in range(0, width, step):
+            z = depth[c, i, j]
+            a0 = rgb[c, i, j, 0] * 0.00392156862745098
+            a1 = rgb[c, i, j, 1] * 0.00392156862745098
+            a2 = rgb[c, i, j, 2] * 0.00392156862745098
+            if z >= far:
+                l0, l1, l2 = a0 * sky_gain, a1 * sky_gain, a2 * sky_gain
+            else:
+                f = face[c, i, j]
+                if f >= 0 and face_emis[c, f]:
+                    l0, l1, l2 = a0 * emissive_gain, a1 * emissive_gain, a2 * emissive_gain
+                else:
+                    xc = (j + 0.5 - cx) / fx * z - T[0]
+                    yc = yn * z - T[1]
+                    zc = z - T[2]
+                    wx = R[0, 0] * xc + R[1, 0] * yc + R[2, 0] * zc
+                    wy = R[0, 1] * xc + R[1, 1] * yc + R[2, 1] * zc
+                    e0, e1, e2 = ambient, ambient, ambient
+                    if f < 0:  # ground: light maps (window near the ego, bilinear, with the beams; lamps beyond it)
+                        fi = (wy - w_oy) * w_inv - 0.5
+                        fj = (wx - w_ox) * w_inv - 0.5
+                        if fi >= 0.0 and fj >= 0.0 and fi < wmap.shape[0] - 1 and fj < wmap.shape[1] - 1:
+                            mi = int(fi)
+                            mj = int(fj)
+                            ti = fi - mi
+                            tj = fj - mj
+                            b00 = (1.0 - ti) * (1.0 - tj)
+                            b01 = (1.0 - ti) * tj
+                            b10 = ti * (1.0 - tj)
+                            b11 = ti * tj
+                            e0 += (b00 * wmap[mi, mj, 0] + b01 * wmap[mi, mj + 1, 0] + b10 * wmap[mi + 1, mj, 0]
+                                   + b11 * wmap[mi + 1, mj + 1, 0])
+                            e1 += (b00 * wmap[mi, mj, 1] + b01 * wmap[mi, mj + 1, 1] + b10 * wmap[mi + 1, mj, 1]
+                                   + b11 * wmap[mi + 1, mj + 1, 1])
+                            e2 += (b00 * wmap[mi, mj, 2] + b01 * wmap[mi, mj + 1, 2] + b10 * wmap[mi + 1, mj, 2]
+                                   + b11 * wmap[mi + 1, mj + 1, 2])
+                        else:
+                            mi, mj = _map_at(smap, s_ox, s_oy, s_inv, wx, wy)
+                            if mi >= 0:
+                                e0 += smap[mi, mj, 0]
+                                e1 += smap[mi, mj, 1]
+                                e2 += smap[mi, mj, 2]
+                    else:  # a face: bilinear in its irradiance grid
+                        p = face_prim[c, f]
+                        fs = face_side[c, f]
+                        o = g_off[p, fs]
+                        if o >= 0:
+                            wz = R[0, 2] * xc + R[1, 2] * yc + R[2, 2] * zc
+                            dx = wx - centers[p, 0]
+                            dy = wy - centers[p, 1]
+                            cyw = yaws[p, 0]
+                            syw = yaws[p, 1]
+                            lx = dx * cyw + dy * syw
+                            ly = -dx * syw + dy * cyw
+                            lz = wz - centers[p, 2]
+                            ax1 = _FACE_AXES[fs, 1]
+                            ax2 = _FACE_AXES[fs, 2]
+                            q1 = lx if ax1 == 0 else ly
+                            q2 = ly if ax2 == 1 else lz
+                            n1 = g_dims[p, fs, 0]
+                            n2 = g_dims[p, fs, 1]
+                            s1 = min(max((q1 / halves[p, ax1] + 1.0) * 0.5 * n1 - 0.5, 0.0), n1 - 1.0)
+                            s2 = min(max((q2 / halves[p, ax2] + 1.0) * 0.5 * n2 - 0.5, 0.0), n2 - 1.0)
+                            u0 = min(int(s1), n1 - 1)
+                            v0 = min(int(s2), n2 - 1)
+                            u1 = min(u0 + 1, n1 - 1)
+                            v1 = min(v0 + 1, n2 - 1)
+                            fu = s1 - u0
+                            fv = s2 - v0
+                            w00 = (1.0 - fu) * (1.0 - fv)
+                            w01 = (1.0 - fu) * fv
+                            w10 = fu * (1.0 - fv)
+                            w11 = fu * fv
+                            k00 = o + u0 * n2 + v0
+                            k01 = o + u0 * n2 + v1
+                            k10 = o + u1 * n2 + v0
+                            k11 = o + u1 * n2 + v1
+                            e0 += w00 * g_data[k00, 0] + w01 * g_data[k01, 0] + w10 * g_data[k10, 0] + w11 * g_data[k11, 0]
+                            e1 += w00 * g_data[k00, 1] + w01 * g_data[k01, 1] + w10 * g_data[k10, 1] + w11 * g_data[k11, 1]
+                            e2 += w00 * g_data[k00, 2] + w01 * g_data[k01, 2] + w10 * g_data[k10, 2] + w11 * g_data[k11, 2]
+                    l0, l1, l2 = a0 * e0, a1 * e1, a2 * e2
+            if encode:
+                rgb[c, i, j, 0] = np.uint8(_tone(l0 * g, knee) * 255.0 + 0.5)
+                rgb[c, i, j, 1] = np.uint8(_tone(l1 * g, knee) * 255.0 + 0.5)
+                rgb[c, i, j, 2] = np.uint8(_tone(l2 * g, knee) * 255.0 + 0.5)
+            else:
+                y = 0.2126 * l0 + 0.7152 * l1 + 0.0722 * l2
+                b = 0
+                if y > 0.0:
+                    b = min(max(int((math.log2(y) - log_min) * scale), 0), n_bins - 1)
+                hist[c, task % n_rows, b] += 1
+
+
+@njit(cache=True)
+def _draw_heads(cam_rot, cam_trans, cam_k, depth, rgb, heads, head_rad, color):
+    """Lamp heads as discs (RGB only) where nothing nearer hides them; ``color`` is the encoded uint8 triple."""
+    n_cam, height, width = depth.shape
+    for c in range(n_cam):
+        R = cam_rot[c]
+        T = cam_trans[c]
+        fx, fy, cx, cy = cam_k[c, 0], cam_k[c, 1], cam_k[c, 2], cam_k[c, 3]
+        for k in range(heads.shape[0]):
+            pxc = R[0, 0] * heads[k, 0] + R[0, 1] * heads[k, 1] + R[0, 2] * heads[k, 2] + T[0]
+            pyc = R[1, 0] * heads[k, 0] + R[1, 1] * heads[k, 1] + R[1, 2] * heads[k, 2] + T[1]
+            pzc = R[2, 0] * heads[k, 0] + R[2, 1] * heads[k, 1] + R[2, 2] * heads[k, 2] + T[2]
+            if pzc < 0.5:
+                continue
+            u = fx * pxc / pzc + cx
+            v = fy * pyc / pzc + cy
+            rp = max(fx * head_rad / pzc, 0.75)
+            for i in range(max(int(v - rp), 0), min(int(v + rp) + 1, height)):
+                for j in range(max(int(u - rp), 0), min(int(u + rp) + 1, width)):
+                    du = j + 0.5 - u
+                    dv = i + 0.5 - v
+                    if du * du + dv * dv <= rp * rp and pzc < depth[c, i, j]:
+                        rgb[c, i, j, 0] = color[0]
+                        rgb[c, i, j, 1] = color[1]
+                        rgb[c, i, j, 2] = color[2]
+
+
+@njit(cache=True, parallel=True)
+def _log_histograms(lin, log_min, log_max, n_bins):
+    n_cam, height, width, _ = lin.shape
+    hist = np.zeros((n_cam, height, n_bins), np.int64)
+    scale = n_bins / (log_max - log_min)
+    for task in prange(n_cam * height):
+        c = task // height
+        i = task % height
+        for j in range(width):
+            y = 0.2126 * lin[c, i, j, 0] + 0.7152 * lin[c, i, j, 1] + 0.0722 * lin[c, i, j, 2]
+            b = 0
+            if y > 0.0:
+                b = int((math.log2(y) - log_min) * scale)
+                b = min(max(b, 0), n_bins - 1)
+            hist[c, i, b] += 1
+    return hist.sum(axis=1)
+
+
+def exposure_gains(lin: np.ndarray) -> np.ndarray:
+    """Auto-exposure gain per camera from linear radiance ``lin`` (C, H, W, 3); see the module docstring.
+
+    >>> lin = np.full((1, 4, 4, 3), 0.05, np.float32)
+    >>> g = exposure_gains(lin)[0]
+    >>> bool(abs(g * 0.05 - KEY) / KEY < 0.1)
+    True
+    """
+    return gains_from_histograms(_log_histograms(np.ascontiguousarray(lin, np.float32), LOG_MIN, LOG_MAX, N_BINS))
+
+
+def gains_from_histograms(hist: np.ndarray) -> np.ndarray:
+    """Exposure gain per camera from (C, N_BINS) log-luminance histograms."""
+    centres = LOG_MIN + (np.arange(N_BINS) + 0.5) * (LOG_MAX - LOG_MIN) / N_BINS
+    gains = np.empty(len(hist))
+    for c, h in enumerate(hist):
+        cum = np.cumsum(h) / max(h.sum(), 1)
+        lo = np.r_[0.0, cum[:-1]]
+        # the fraction of each bin that lies inside [LOW_PERCENT, HIGH_PERCENT]
+        w = np.clip(np.minimum(cum, HIGH_PERCENT) - np.maximum(lo, LOW_PERCENT), 0.0, None)
+        mean_log = float((w * centres).sum() / max(w.sum(), 1e-12))
+        gains[c] = float(np.clip(KEY / 2.0**mean_log, GAIN_MIN, GAIN_MAX))
+    return gains
+
+
+@njit(cache=True, inline="always")
+def _tone(x, knee):
+    if x <= knee:
+        return x
+    return knee + (1.0 - knee) * (1.0 - math.exp(-(x - knee) / (1.0 - knee)))
+
+
+def tone(x: np.ndarray | float) -> np.ndarray:
+    """The encoding's tone curve on exposed radiance (identity below :data:`KNEE`, a smooth shoulder to 1 above).
+
+    >>> tone(np.array([0.3, 0.6, 1.0, 100.0])).round(3).tolist()
+    [0.3, 0.6, 0.853, 1.0]
+    """
+    x = np.asarray(x, np.float64)
+    return np.where(x <= KNEE, x, KNEE + (1 - KNEE) * (1 - np.exp(-(np.maximum(x, KNEE) - KNEE) / (1 - KNEE))))
+
+
+class GroundLightMap(NamedTuple):
+    """Ground irradiance (rows, cols, 3) float32 on a grid: cell (0, 0)'s corner at ``origin``, ``resolution`` m."""
+
+    irradiance: np.ndarray
+    origin: tuple[float, float]
+    resolution: float
+
+    @classmethod
+    def empty(cls) -> GroundLightMap:
+        return cls(np.zeros((1, 1, 3), np.float32), (0.0, 0.0), 1.0)
+
+
+#: Ground light maps: cell size [m]; half-width of the per-frame window (beams) around the ego [m].
+MAP_RESOLUTION, WINDOW_HALF = 0.5, 120.0
+
+
+def lamp_light_map(lamps: Lights, extent: tuple[float, float, float, float], resolution: float = MAP_RESOLUTION) -> GroundLightMap:
+    """Street lamps' ground irradiance over ``extent`` = (x_min, x_max, y_min, y_max): built once per static world."""
+    x0, x1, y0, y1 = extent
+    rows, cols = max(1, int(math.ceil((y1 - y0) / resolution))), max(1, int(math.ceil((x1 - x0) / resolution)))
+    out = np.zeros((rows, cols, 3), np.float32)
+    if len(lamps):
+        _splat_ground(out, float(x0), float(y0), float(resolution), *_light_args(lamps), True)
+    return GroundLightMap(out, (float(x0), float(y0)), float(resolution))
+
+
+def beam_window(static: GroundLightMap, beams: Lights, center: np.ndarray, half: float = WINDOW_HALF) -> GroundLightMap:
+    """A window of ``static`` around ``center`` (snapped to its grid) with the low beams added."""
+    res = static.resolution
+    ox, oy = static.origin
+    j0 = int(math.floor((center[0] - half - ox) / res))
+    i0 = int(math.floor((center[1] - half - oy) / res))
+    n = int(math.ceil(2 * half / res))
+    out = np.zeros((n, n, 3), np.float32)
+    rows, cols = static.irradiance.shape[:2]
+    si0, sj0, si1, sj1 = max(i0, 0), max(j0, 0), min(i0 + n, rows), min(j0 + n, cols)
+    if si1 > si0 and sj1 > sj0:
+        out[si0 - i0 : si1 - i0, sj0 - j0 : sj1 - j0] = static.irradiance[si0:si1, sj0:sj1]
+    origin = (ox + j0 * res, oy + i0 * res)
+    if len(beams):
+        _splat_ground(out, origin[0], origin[1], res, *_light_args(beams), True)
+    return GroundLightMap(out, origin, res)
+
+
+def _light_args(lights: Lights):
+    return lights.pos, lights.axis, lights.color, lights.intensity, lights.radius, lights.kind, lights.height
+
+
+#: Face irradiance grids: cell size [m] and at most this many cells along each side of a face.
+FACE_CELL, FACE_MAX_CELLS = 1.0, 8
+#: Lights per primitive at most (the nearest are not preferred: the first found are kept).
+MAX_PRIM_LIGHTS = 16
+#: The exposure histogram samples every ``EXPOSURE_STEP``-th pixel in each direction.
+EXPOSURE_STEP = 4
+
+
+def shade_night(
+    cam_rot: np.ndarray, cam_trans: np.ndarray, cam_k: np.ndarray, far: float, buffers: dict[str, np.ndarray],
+    prims: dict[str, np.ndarray], lights: Lights, ground: tuple[GroundLightMap, GroundLightMap], heads: np.ndarray,
+    ambient: float = NIGHT_AMBIENT, gains: np.ndarray | None = None,
+) -> np.ndarray:
+    """Light, expose and encode in place the RGB of an albedo-mode render; returns the exposure gain per camera.
+
+    The reference (two-pass) form of :func:`render_night`; ``gains`` fixes the exposure instead of measuring it.
+
+    ``buffers`` is :func:`fog_gym.render.raster.render`'s output with ``face_ids=True`` (its ``rgb`` holding
+    albedo) for the primitives ``prims``; faces are lit per pixel by ``lights``, the ground by the light maps
+    ``ground`` = (whole-world lamp map, per-frame window with the beams); ``heads`` (N, 3) are lamp heads to draw.
+    The exposure comes from a histogram of every :data:`EXPOSURE_STEP`-th pixel's radiance (each direction).
+    Only ``buffers["rgb"]`` changes.
+    """
+    missing = [k for k in ("rgb", "depth", "face", "face_emissive", "face_prim", "face_side") if k not in buffers]
+    if missing:
+        raise ValueError(f"buffers lack {missing}: pass the output of render(..., face_ids=True)")
+    rgb = buffers["rgb"]
+    n_cam, height = rgb.shape[:2]
+    rot = np.ascontiguousarray(cam_rot, np.float64)
+    trans = np.ascontiguousarray(cam_trans, np.float64)
+    ks = np.ascontiguousarray(cam_k, np.float64)
+    prim_l, prim_n = _prim_lights(prims["centers"], prims["halves"], lights.pos, lights.radius, MAX_PRIM_LIGHTS)
+    g_off, g_dims, g_data = _face_grids(prims["centers"], prims["halves"], prims["yaws"], prims["emissive"], prim_l,
+                                        prim_n, *_light_args(lights), FACE_CELL, FACE_MAX_CELLS)  # fmt: skip
+    smap, wmap = ground
+
+    def run(step, gains, encode, hist):
+        _shade_pass(
+            rot, trans, ks, float(far), rgb, buffers["depth"], buffers["face"], buffers["face_emissive"],
+            buffers["face_prim"], buffers["face_side"], prims["centers"], prims["halves"],
+            np.ascontiguousarray(np.c_[np.cos(prims["yaws"]), np.sin(prims["yaws"])]), g_off, g_dims, g_data,
+            smap.irradiance, smap.origin[0], smap.origin[1], 1.0 / smap.resolution,
+            wmap.irradiance, wmap.origin[0], wmap.origin[1], 1.0 / wmap.resolution,
+            float(ambient), float(EMISSIVE_GAIN), float(SKY_GAIN), step, gains, float(KNEE), encode, hist,
+            LOG_MIN, LOG_MAX,
+        )  # fmt: skip
+
+    if gains is None:
+        hist = np.zeros((n_cam, (height + EXPOSURE_STEP - 1) // EXPOSURE_STEP, N_BINS), np.int64)
+        run(EXPOSURE_STEP, np.ones(n_cam), False, hist)
+        gains = gains_from_histograms(hist.sum(axis=1))
+    run(1, gains, True, np.zeros((1, 1, 1), np.int64))
+    heads = np.ascontiguousarray(np.reshape(heads, (-1, 3)), np.float64)
+    for c in range(n_cam):
+        color = np.round(tone(LAMP_COLOR * LAMP_HEAD_RADIANCE * gains[c]) * 255).astype(np.uint8)
+        _draw_heads(rot[c : c + 1], trans[c : c + 1], ks[c : c + 1], buffers["depth"][c : c + 1], rgb[c : c + 1],
+                    heads, float(LAMP_HEAD_RADIUS), color)  # fmt: skip
+    return gains
+
+
+#: The exposure of :func:`render_night` is measured on a render this many times smaller in each direction.
+EXPOSURE_DOWNSCALE = 4
+
+
+def render_night(
+    cam_rot: np.ndarray, cam_trans: np.ndarray, cam_k: np.ndarray, width: int, height: int, far: float,
+    prims: dict[str, np.ndarray], surface, albedo_lut: np.ndarray, surface_tag: np.ndarray,
+    sky_horizon: np.ndarray, sky_zenith: np.ndarray, lights: Lights, ground: tuple[GroundLightMap, GroundLightMap],
+    heads: np.ndarray, ambient: float = NIGHT_AMBIENT,
+) -> tuple[dict[str, np.ndarray], np.ndarray]:
+    """Render night frames in one lit pass; returns (buffers as :func:`~fog_gym.render.raster.render`, gains).
+
+    1. the exposure: an albedo render :data:`EXPOSURE_DOWNSCALE`× smaller, lit by :func:`shade_night`'s
+       kernel, gives the histogram and so the gain of each camera;
+    2. the full-size render lights, exposes and encodes every pixel as it is drawn (ground from the light maps,
+       faces from their irradiance grids), so the night costs one raster pass plus small set-ups;
+    3. the lamp heads are drawn on top.
+    """
+    from fog_gym.render.raster import render
+
+    n_cam = len(cam_rot)
+    prim_l, prim_n = _prim_lights(prims["centers"], prims["halves"], lights.pos, lights.radius, MAX_PRIM_LIGHTS)
+    g_off, g_dims, g_data = _face_grids(prims["centers"], prims["halves"], prims["yaws"], prims["emissive"], prim_l,
+                                        prim_n, *_light_args(lights), FACE_CELL, FACE_MAX_CELLS)  # fmt: skip
+    cossin = np.ascontiguousarray(np.c_[np.cos(prims["yaws"]), np.sin(prims["yaws"])])
+    smap, wmap = ground
+    # 1. exposure on a small render
+    lw, lh = max(8, width // EXPOSURE_DOWNSCALE), max(8, height // EXPOSURE_DOWNSCALE)
+    scale = np.array([lw / width, lh / height, lw / width, lh / height])
+    k_low = np.asarray(cam_k, np.float64) * scale
+    sun = np.array([0.0, 0.0, -1.0])
+    low = render(cam_rot, cam_trans, k_low, lw, lh, far, prims, surface, albedo_lut, surface_tag, sky_horizon,
+                 sky_zenith, sun, 1.0, 0.0, face_ids=True)  # fmt: skip
+    hist = np.zeros((n_cam, lh, N_BINS), np.int64)
+    _shade_pass(
+        np.ascontiguousarray(cam_rot, np.float64), np.ascontiguousarray(cam_trans, np.float64), k_low, float(far),
+        low["rgb"], low["depth"], low["face"], low["face_emissive"], low["face_prim"], low["face_side"],
+        prims["centers"], prims["halves"], cossin, g_off, g_dims, g_data,
+        smap.irradiance, smap.origin[0], smap.origin[1], 1.0 / smap.resolution,
+        wmap.irradiance, wmap.origin[0], wmap.origin[1], 1.0 / wmap.resolution,
+        float(ambient), float(EMISSIVE_GAIN), float(SKY_GAIN), 1, np.ones(n_cam), float(KNEE), False, hist,
+        LOG_MIN, LOG_MAX,
+    )  # fmt: skip
+    gains = gains_from_histograms(hist.sum(axis=1))
+    # 2. the lit full-size render
+    night = {"gains": gains, "knee": KNEE, "ambient": ambient, "emissive_gain": EMISSIVE_GAIN, "sky_gain": SKY_GAIN,
+             "window": wmap, "static": smap, "centers": prims["centers"], "halves": prims["halves"],
+             "cossin": cossin, "g_off": g_off, "g_dims": g_dims, "g_data": g_data}  # fmt: skip
+    out = render(cam_rot, cam_trans, cam_k, width, height, far, prims, surface, albedo_lut, surface_tag,
+                 sky_horizon, sky_zenith, sun, 1.0, 0.0, night=night)  # fmt: skip
+    # 3. lamp heads
+    heads = np.ascontiguousarray(np.reshape(heads, (-1, 3)), np.float64)
+    rot, trans, ks = (np.ascontiguousarray(a, np.float64) for a in (cam_rot, cam_trans, cam_k))
+    for c in range(n_cam):
+        color = np.round(tone(LAMP_COLOR * LAMP_HEAD_RADIANCE * gains[c]) * 255).astype(np.uint8)
+        _draw_heads(rot[c : c + 1], trans[c : c + 1], ks[c : c + 1], out["depth"][c : c + 1], out["rgb"][c : c + 1],
+                    heads, float(LAMP_HEAD_RADIUS), color)  # fmt: skip
+    return out, gains
