@@ -1,0 +1,93 @@
+"""The traffic core reproduces highway-env's own path exactly (trajectories, rewards, flags, random draws)."""
+
+from __future__ import annotations
+
+import gymnasium as gym
+import highway_env  # noqa: F401  (registers the envs)
+import numpy as np
+import pytest
+
+from fog_gym.traffic import accelerate, is_accelerated
+from fog_gym.traffic.core import check_traffic_mode
+
+SCENARIOS = [
+    ("highway-v0", {"vehicles_count": 30}),
+    ("highway-fast-v0", {}),
+    ("merge-v0", {}),
+    ("roundabout-v0", {}),
+    ("intersection-v0", {}),
+    ("racetrack-v0", {}),
+    ("exit-v0", {}),
+]
+
+
+def _state(env) -> np.ndarray:
+    road = env.unwrapped.road
+    return np.array([[*v.position, v.heading, v.speed] for v in road.vehicles], dtype=np.float64)
+
+
+def run_pair(env_id: str, config: dict, seed: int, steps: int) -> None:
+    ref = gym.make(env_id, config=config)
+    fast = accelerate(gym.make(env_id, config=config))
+    ref.reset(seed=seed)
+    fast.reset(seed=seed)
+    ref.action_space.seed(seed)
+    for k in range(steps):
+        action = ref.action_space.sample()
+        _, r_ref, term_ref, trunc_ref, info_ref = ref.step(action)
+        _, r_fast, term_fast, trunc_fast, info_fast = fast.step(action)
+        a, b = _state(ref), _state(fast)
+        assert a.shape == b.shape, f"{env_id} seed {seed} step {k}: vehicle count differs"
+        np.testing.assert_allclose(b, a, rtol=0, atol=1e-9, err_msg=f"{env_id} seed {seed} step {k}")
+        assert r_fast == r_ref
+        assert (term_fast, trunc_fast) == (term_ref, trunc_ref)
+        assert info_fast["crashed"] == info_ref["crashed"]
+        if term_ref or trunc_ref:
+            ref.reset(seed=seed + 1000 + k)
+            fast.reset(seed=seed + 1000 + k)
+    ref.close()
+    fast.close()
+
+
+@pytest.mark.parametrize(("env_id", "config"), SCENARIOS, ids=[s[0] for s in SCENARIOS])
+def test_accelerated_env_matches_highway_env_step_for_step(env_id, config):
+    run_pair(env_id, config, seed=3, steps=15)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(("env_id", "config"), SCENARIOS, ids=[s[0] for s in SCENARIOS])
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_accelerated_env_matches_highway_env_over_300_steps(env_id, config, seed):
+    run_pair(env_id, config, seed=seed, steps=300)
+
+
+def test_accelerate_is_per_instance_and_idempotent():
+    from highway_env.road.road import Road
+
+    plain = gym.make("highway-fast-v0")
+    fast = accelerate(gym.make("highway-fast-v0"))
+    plain.reset(seed=0)
+    fast.reset(seed=0)
+    assert is_accelerated(fast) and not is_accelerated(plain)
+    assert "neighbour_vehicles" in vars(fast.unwrapped.road)
+    assert "neighbour_vehicles" not in vars(plain.unwrapped.road)
+    assert Road.neighbour_vehicles.__module__ == "highway_env.road.road"
+    assert accelerate(fast) is fast  # no-op the second time
+    fast.reset(seed=1)  # re-installed on the new road
+    assert "neighbour_vehicles" in vars(fast.unwrapped.road)
+
+
+def test_accelerate_rejects_other_envs():
+    with pytest.raises(TypeError, match="highway-env environment"):
+        accelerate(gym.make("CartPole-v1"))
+    with pytest.raises(TypeError, match="highway-env environment"):
+        accelerate(gym.make("parking-v0"))
+    with pytest.raises(TypeError):
+        accelerate(object())
+
+
+def test_unknown_traffic_mode_names_the_allowed_values():
+    with pytest.raises(ValueError, match=r"traffic must be one of \('fast', 'reference'\)"):
+        check_traffic_mode("numba")
+    with pytest.raises(ValueError):
+        check_traffic_mode(None)
