@@ -91,3 +91,57 @@ def test_unknown_traffic_mode_names_the_allowed_values():
         check_traffic_mode("numba")
     with pytest.raises(ValueError):
         check_traffic_mode(None)
+
+
+def run_towns(town: str, seed: int, steps: int) -> None:
+    from fog_gym.world import TrafficWorld
+
+    ref, fast = TrafficWorld(town, traffic="reference"), TrafficWorld(town, traffic="fast")
+    assert is_accelerated(fast.hw) and not is_accelerated(ref.hw)
+    ref.reset(seed=seed)
+    fast.reset(seed=seed)
+    ref.action_space.seed(seed)
+    for k in range(steps):
+        action = ref.action_space.sample()
+        r_ref, t_ref, _ = ref.step(action)
+        r_fast, t_fast, _ = fast.step(action)
+        a, b = ref.vehicle_state(), fast.vehicle_state()
+        np.testing.assert_array_equal(b.ids, a.ids)
+        np.testing.assert_allclose(b.centers, a.centers, rtol=0, atol=1e-9, err_msg=f"{town} step {k}")
+        np.testing.assert_allclose(b.yaws, a.yaws, rtol=0, atol=1e-9)
+        np.testing.assert_allclose(b.velocities, a.velocities, rtol=0, atol=1e-9)
+        assert (r_fast, t_fast) == (r_ref, t_ref)
+        if t_ref:
+            ref.reset(seed=seed + k + 1)
+            fast.reset(seed=seed + k + 1)
+
+
+@pytest.mark.parametrize("town", ["highway", "merge", "roundabout", "intersection", "exit", "racetrack"])
+def test_fogdrive_towns_match_reference_traffic(town):
+    from fog_gym.config import TOWNS
+
+    if town not in TOWNS:
+        pytest.skip(f"{town} is not a fog-gym town")
+    run_towns(town, seed=5, steps=12)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("town", ["highway", "merge", "roundabout", "intersection", "exit", "racetrack"])
+@pytest.mark.parametrize("seed", [0, 1])
+def test_fogdrive_towns_match_reference_traffic_over_300_steps(town, seed):
+    from fog_gym.config import TOWNS
+
+    if town not in TOWNS:
+        pytest.skip(f"{town} is not a fog-gym town")
+    run_towns(town, seed=seed, steps=300)
+
+
+def test_fogdrive_env_rejects_unknown_traffic_before_building():
+    from fog_gym.config import FogDriveConfig
+    from fog_gym.env import FogDriveEnv
+
+    with pytest.raises(ValueError, match="traffic must be one of"):
+        FogDriveEnv(traffic="numba")
+    with pytest.raises(ValueError, match="traffic must be one of"):
+        FogDriveConfig(traffic="compiled")
+    assert FogDriveConfig().traffic == "fast"
