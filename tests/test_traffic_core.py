@@ -145,3 +145,38 @@ def test_fogdrive_env_rejects_unknown_traffic_before_building():
     with pytest.raises(ValueError, match="traffic must be one of"):
         FogDriveConfig(traffic="compiled")
     assert FogDriveConfig().traffic == "fast"
+
+
+def test_straight_lane_projection_is_bit_identical_to_highway_env():
+    from highway_env.road.lane import StraightLane
+
+    from fog_gym.traffic.core import straight_lane_projection
+
+    rng = np.random.default_rng(7)
+    lane = StraightLane(rng.uniform(-50, 50, 2), rng.uniform(100, 300, 2), width=4.0)
+    pos = rng.uniform(-100, 350, (2000, 2))
+    pos[:50] = lane.start + np.outer(rng.uniform(-6, lane.length + 6, 50), lane.direction)  # near both ends
+    s, on = straight_lane_projection(pos, lane.start, lane.direction, lane.direction_lateral, lane.width,
+                                     lane.length, lane.VEHICLE_LENGTH)  # fmt: skip
+    ref = [lane.local_coordinates(p) for p in pos]
+    np.testing.assert_array_equal(s, [r[0] for r in ref])
+    np.testing.assert_array_equal(on, [lane.on_lane(p, *r, margin=1) for p, r in zip(pos, ref)])
+    assert on.any() and not on.all()
+
+
+def test_fast_neighbour_search_matches_highway_env_for_every_vehicle_and_lane():
+    from highway_env.road.road import Road
+
+    from fog_gym.traffic.core import lane_cache
+
+    env = accelerate(gym.make("highway-v0", config={"vehicles_count": 40}))
+    env.reset(seed=11)
+    road = env.unwrapped.road
+    road._fog_lane_cache = lane_cache(road)  # as inside Road.act
+    queries = 0
+    for v in road.vehicles:
+        for lane_index in road.network.all_side_lanes(v.lane_index):
+            assert road.neighbour_vehicles(v, lane_index) == Road.neighbour_vehicles(road, v, lane_index)
+            queries += 1
+    road._fog_lane_cache = None
+    assert queries == 4 * len(road.vehicles)
