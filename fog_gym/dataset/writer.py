@@ -17,6 +17,8 @@ import json
 import os
 import struct
 import uuid
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -66,18 +68,40 @@ def encode_npy(array: np.ndarray) -> bytes:
     return buf.getvalue()
 
 
+def default_workers() -> int:
+    """Threads for encoding one sample's files: the cores this process may run on."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not on Linux
+        return max(1, os.cpu_count() or 1)
+
+
 class SceneWriter:
     """Writes one scene's samples in the FogDrive layout under ``root``.
 
     ``write_sample`` takes a paired-fog observation (clean + ``*_FOG_{LIGHT,MODERATE,DENSE}``) and the env's
     ``info`` (``boxes_2d``, ``boxes_3d``); ``write_extrinsics`` the ``info["extrinsics"]`` dict.
+
+    A sample's files are encoded and written by ``workers`` threads (default: one per core; cv2's PNG encoder
+    and file I/O release the GIL). ``BBOX_3D`` is still written alone after every other file of the sample has
+    been renamed into place. ``workers=1`` encodes and writes one file after another.
     """
 
-    def __init__(self, root: str | Path, folder: str) -> None:
+    def __init__(self, root: str | Path, folder: str, workers: int | None = None) -> None:
         if parse_scene_folder(folder) is None:
             raise ValueError(f"not a FogDrive scene folder name: {folder!r}")
+        if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+            raise ValueError(f"workers must be a positive integer or None, got {workers!r}")
         self.root = Path(root)
         self.folder = folder
+        self.workers = default_workers() if workers is None else workers
+        self._pool: ThreadPoolExecutor | None = None
+
+    def close(self) -> None:
+        """Stop the encoding threads (a later write starts them again)."""
+        if self._pool is not None:
+            self._pool.shutdown(wait=True)
+            self._pool = None
 
     def _path(self, channel: str, index: int) -> Path:
         return self.root / channel_path(channel, self.folder, index)
@@ -86,33 +110,46 @@ class SceneWriter:
         data = {k: np.asarray(v).tolist() for k, v in extrinsics.items()}
         _atomic_write(self.root / DATA_ROOT / self.folder / EXTRINSIC_FILE, json.dumps(data).encode())
 
-    def encode_sample(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> dict[str, bytes]:
-        """Every channel's file contents for one sample (no I/O), in write order (``BBOX_3D`` last)."""
+    def encode_jobs(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> dict[str, Callable[[], bytes]]:
+        """One zero-argument encoder per channel, in write order (``BBOX_3D`` last); each returns file bytes."""
         from fog_gym.points import unpack_points
 
-        files: dict[str, bytes] = {}
-        for cam in CAMERAS:
-            files[cam] = encode_png(obs[cam])
-            for lv in FOG_LEVELS:
-                files[f"{cam}_FOG_{lv}"] = encode_png(obs[f"{cam}_FOG_{lv}"])
-            files[f"{cam}_DEPTH"] = encode_png(encode_depth(obs[f"{cam}_DEPTH"]))
-            files[f"{cam}_SEM"] = encode_png(semantic_to_carla_rgb(obs[f"{cam}_SEM"]))
+        def png(key: str, convert: Callable[[np.ndarray], np.ndarray] | None = None) -> Callable[[], bytes]:
+            return lambda: encode_png(obs[key] if convert is None else convert(obs[key]))
+
+        def npy(key: str) -> Callable[[], bytes]:
+            return lambda: encode_npy(unpack_points(obs, key))
+
+        def box2d(cam: str) -> Callable[[], bytes]:
             b = info["boxes_2d"][cam]
-            files[f"{cam}_BBOX"] = json.dumps({
+            return lambda: json.dumps({
                 "bboxes": np.asarray(b["bboxes"]).tolist(), "vehicle_ids": np.asarray(b["vehicle_ids"]).tolist(),
                 "vehicle_class": np.asarray(b["vehicle_class"]).tolist(),
             }).encode()  # fmt: skip
-        files["LIDAR_TOP"] = encode_npy(unpack_points(obs, "LIDAR_TOP"))
+
+        jobs: dict[str, Callable[[], bytes]] = {}
+        for cam in CAMERAS:
+            jobs[cam] = png(cam)
+            for lv in FOG_LEVELS:
+                jobs[f"{cam}_FOG_{lv}"] = png(f"{cam}_FOG_{lv}")
+            jobs[f"{cam}_DEPTH"] = png(f"{cam}_DEPTH", encode_depth)
+            jobs[f"{cam}_SEM"] = png(f"{cam}_SEM", semantic_to_carla_rgb)
+            jobs[f"{cam}_BBOX"] = box2d(cam)
+        jobs["LIDAR_TOP"] = npy("LIDAR_TOP")
         for lv in FOG_LEVELS:
-            files[f"LIDAR_TOP_FOG_{lv}"] = encode_npy(unpack_points(obs, f"LIDAR_TOP_FOG_{lv}"))
-        files["SEM_LIDAR_TOP"] = encode_npy(unpack_points(obs, "SEM_LIDAR_TOP"))
-        files["RADAR_FRONT"] = encode_npy(unpack_points(obs, "RADAR_FRONT"))
+            jobs[f"LIDAR_TOP_FOG_{lv}"] = npy(f"LIDAR_TOP_FOG_{lv}")
+        jobs["SEM_LIDAR_TOP"] = npy("SEM_LIDAR_TOP")
+        jobs["RADAR_FRONT"] = npy("RADAR_FRONT")
         b3 = info["boxes_3d"]
-        files["BBOX_3D"] = json.dumps({
+        jobs["BBOX_3D"] = lambda: json.dumps({
             "bboxes_3d": np.asarray(b3["corners"]).tolist(), "vehicle_ids": np.asarray(b3["vehicle_ids"]).tolist(),
         }).encode()  # fmt: skip
-        assert list(files) == list(CHANNELS) or set(files) == set(CHANNELS)
-        return files
+        assert list(jobs) == list(CHANNELS) or set(jobs) == set(CHANNELS)
+        return jobs
+
+    def encode_sample(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> dict[str, bytes]:
+        """Every channel's file contents for one sample (no I/O, one after another), ``BBOX_3D`` last."""
+        return {channel: job() for channel, job in self.encode_jobs(obs, info).items()}
 
     def write_files(self, index: int, files: dict[str, bytes]) -> None:
         """Write encoded files; ``BBOX_3D`` goes last so its presence marks the sample complete."""
@@ -122,7 +159,23 @@ class SceneWriter:
         _atomic_write(self._path("BBOX_3D", index), files["BBOX_3D"])
 
     def write_sample(self, index: int, obs: dict[str, np.ndarray], info: dict[str, Any]) -> None:
-        self.write_files(index, self.encode_sample(obs, info))
+        """Encode and write one sample; with ``workers > 1`` its files in parallel, ``BBOX_3D`` after all."""
+        if self.workers == 1:
+            self.write_files(index, self.encode_sample(obs, info))
+            return
+        if self._pool is None:
+            self._pool = ThreadPoolExecutor(self.workers, thread_name_prefix="fogdrive-writer")
+        jobs = self.encode_jobs(obs, info)
+        last = jobs.pop("BBOX_3D")
+
+        def write(channel: str, job: Callable[[], bytes]) -> None:
+            _atomic_write(self._path(channel, index), job())
+
+        futures = [self._pool.submit(write, channel, job) for channel, job in jobs.items()]
+        errors = [e for e in (f.exception() for f in futures) if e is not None]  # waits for every file
+        if errors:
+            raise errors[0]  # the sample stays incomplete: BBOX_3D is not written
+        _atomic_write(self._path("BBOX_3D", index), last())
 
 
 def _png_size(path: Path) -> tuple[int, int]:
