@@ -9,44 +9,11 @@ import pytest
 
 from fog_gym.traffic import accelerate, is_accelerated
 from fog_gym.traffic.core import check_traffic_mode
+from fog_gym.traffic.identity import PLAIN_SCENARIOS, compare_plain, compare_town
 
-SCENARIOS = [
-    ("highway-v0", {"vehicles_count": 30}),
-    ("highway-fast-v0", {}),
-    ("merge-v0", {}),
-    ("roundabout-v0", {}),
-    ("intersection-v0", {}),
-    ("racetrack-v0", {}),
-    ("exit-v0", {}),
-]
-
-
-def _state(env) -> np.ndarray:
-    road = env.unwrapped.road
-    return np.array([[*v.position, v.heading, v.speed] for v in road.vehicles], dtype=np.float64)
-
-
-def run_pair(env_id: str, config: dict, seed: int, steps: int) -> None:
-    ref = gym.make(env_id, config=config)
-    fast = accelerate(gym.make(env_id, config=config))
-    ref.reset(seed=seed)
-    fast.reset(seed=seed)
-    ref.action_space.seed(seed)
-    for k in range(steps):
-        action = ref.action_space.sample()
-        _, r_ref, term_ref, trunc_ref, info_ref = ref.step(action)
-        _, r_fast, term_fast, trunc_fast, info_fast = fast.step(action)
-        a, b = _state(ref), _state(fast)
-        assert a.shape == b.shape, f"{env_id} seed {seed} step {k}: vehicle count differs"
-        np.testing.assert_allclose(b, a, rtol=0, atol=1e-9, err_msg=f"{env_id} seed {seed} step {k}")
-        assert r_fast == r_ref
-        assert (term_fast, trunc_fast) == (term_ref, trunc_ref)
-        assert info_fast["crashed"] == info_ref["crashed"]
-        if term_ref or trunc_ref:
-            ref.reset(seed=seed + 1000 + k)
-            fast.reset(seed=seed + 1000 + k)
-    ref.close()
-    fast.close()
+SCENARIOS = list(PLAIN_SCENARIOS)
+run_pair = compare_plain
+run_towns = compare_town
 
 
 @pytest.mark.parametrize(("env_id", "config"), SCENARIOS, ids=[s[0] for s in SCENARIOS])
@@ -91,29 +58,6 @@ def test_unknown_traffic_mode_names_the_allowed_values():
         check_traffic_mode("numba")
     with pytest.raises(ValueError):
         check_traffic_mode(None)
-
-
-def run_towns(town: str, seed: int, steps: int) -> None:
-    from fog_gym.world import TrafficWorld
-
-    ref, fast = TrafficWorld(town, traffic="reference"), TrafficWorld(town, traffic="fast")
-    assert is_accelerated(fast.hw) and not is_accelerated(ref.hw)
-    ref.reset(seed=seed)
-    fast.reset(seed=seed)
-    ref.action_space.seed(seed)
-    for k in range(steps):
-        action = ref.action_space.sample()
-        r_ref, t_ref, _ = ref.step(action)
-        r_fast, t_fast, _ = fast.step(action)
-        a, b = ref.vehicle_state(), fast.vehicle_state()
-        np.testing.assert_array_equal(b.ids, a.ids)
-        np.testing.assert_allclose(b.centers, a.centers, rtol=0, atol=1e-9, err_msg=f"{town} step {k}")
-        np.testing.assert_allclose(b.yaws, a.yaws, rtol=0, atol=1e-9)
-        np.testing.assert_allclose(b.velocities, a.velocities, rtol=0, atol=1e-9)
-        assert (r_fast, t_fast) == (r_ref, t_ref)
-        if t_ref:
-            ref.reset(seed=seed + k + 1)
-            fast.reset(seed=seed + k + 1)
 
 
 @pytest.mark.parametrize("town", ["highway", "merge", "roundabout", "intersection", "exit", "racetrack"])
