@@ -24,7 +24,7 @@ __version__ = "0.1.0"
 
 __all__ = [
     "CAMERA_NAMES", "TIMES_OF_DAY", "TOWNS", "CameraConfig", "FogDriveConfig", "Pose", "RigConfig", "FogDriveEnv",
-    "LidarConfig", "RadarConfig", "unpack_points",
+    "LidarConfig", "RadarConfig", "unpack_points", "accelerate",
 ]  # fmt: skip
 
 register(id="FogDrive-v0", entry_point="fog_gym.env:make_fogdrive", max_episode_steps=None, disable_env_checker=False)
@@ -36,4 +36,8 @@ def __getattr__(name: str):
         from fog_gym.env import FogDriveEnv
 
         return FogDriveEnv
+    if name == "accelerate":
+        from fog_gym.traffic import accelerate
+
+        return accelerate
     raise AttributeError(name)

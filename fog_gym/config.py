@@ -234,10 +234,14 @@ class FogDriveConfig:
     surface_resolution: float = 0.1  # metres per cell of the road-surface map
     far_distance: float = 1000.0  # camera far plane; sky depth, as CARLA's depth camera saturates at 1 km
     labels: LabelConfig | None = field(default_factory=lambda: _default_labels())  # None: no boxes in info
+    traffic: str = "fast"  # "fast": fog_gym.traffic core; "reference": highway-env's own Python path
 
     def __post_init__(self) -> None:
         if self.town not in TOWNS:
             raise ValueError(f"town must be one of {TOWNS}, got {self.town!r}")
+        from fog_gym.traffic.core import check_traffic_mode
+
+        check_traffic_mode(self.traffic)
         if self.time_of_day not in TIMES_OF_DAY:
             raise ValueError(f"time_of_day must be one of {TIMES_OF_DAY}, got {self.time_of_day!r}")
         if not isinstance(self.rig, RigConfig):

@@ -47,7 +47,9 @@ class FogDriveEnv(gym.Env):
     Arguments (all optional): ``town`` (one of :data:`fog_gym.TOWNS`), ``time_of_day`` ("day"/"night"),
     ``resolution`` (W, H) for every camera, ``cameras`` (subset of camera names), ``rig`` (a full
     :class:`RigConfig`), ``episode_seconds``, ``simulation_frequency``, ``keyframe_frequency``,
-    ``highway_config`` (highway-env config overrides), or ``config`` (a complete :class:`FogDriveConfig`).
+    ``highway_config`` (highway-env config overrides), ``traffic`` ("fast", the default traffic core, or
+    "reference", highway-env's own Python path; same trajectories), or ``config`` (a complete
+    :class:`FogDriveConfig`).
 
     >>> env = FogDriveEnv(town="merge", resolution=(32, 24), cameras=["CAM_FRONT"])
     >>> sorted(env.observation_space.spaces)
@@ -71,6 +73,7 @@ class FogDriveEnv(gym.Env):
         labels: LabelConfig | None | str = "default",
         config: FogDriveConfig | None = None,
         render_mode: str | None = None,
+        traffic: str | None = None,
     ) -> None:
         cfg = config if config is not None else FogDriveConfig()
         if not isinstance(cfg, FogDriveConfig):
@@ -90,7 +93,7 @@ class FogDriveEnv(gym.Env):
             for k, v in dict(
                 town=town, time_of_day=time_of_day, episode_seconds=episode_seconds,
                 simulation_frequency=simulation_frequency, keyframe_frequency=keyframe_frequency,
-                highway_config=highway_config,
+                highway_config=highway_config, traffic=traffic,
             ).items()
             if v is not None
         }  # fmt: skip
@@ -101,7 +104,8 @@ class FogDriveEnv(gym.Env):
 
         c = self.config
         announce_compilation()
-        self.world = TrafficWorld(c.town, c.simulation_frequency, c.keyframe_frequency, c.episode_seconds, dict(c.highway_config))
+        self.world = TrafficWorld(c.town, c.simulation_frequency, c.keyframe_frequency, c.episode_seconds, dict(c.highway_config),
+                                  traffic=c.traffic)  # fmt: skip
         self.cameras = CameraRig(c.rig, far=c.far_distance)
         self.action_space = self.world.action_space
         obs_spaces: dict[str, spaces.Space] = {}

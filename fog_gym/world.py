@@ -24,6 +24,7 @@ import numpy as np
 
 from fog_gym.config import TOWNS
 from fog_gym.scenery import LaneGeometry
+from fog_gym.traffic.core import accelerate, check_traffic_mode
 
 EGO_ID = 1
 #: Tesla Model 3 (CARLA ``vehicle.tesla.model3`` bounding box): length, width, height [m].
@@ -86,7 +87,8 @@ class VehicleState:
 class TrafficWorld:
     """One highway-env scenario with FogDrive vehicle classes and stable ids.
 
-    ``highway_config`` overrides highway-env config keys (``action``, ``vehicles_count``, …).
+    ``highway_config`` overrides highway-env config keys (``action``, ``vehicles_count``, …). ``traffic="fast"``
+    steps it through :mod:`fog_gym.traffic` (identical trajectories); ``"reference"`` through highway-env alone.
     """
 
     def __init__(
@@ -96,11 +98,13 @@ class TrafficWorld:
         keyframe_frequency: int = 10,
         episode_seconds: float = 20.0,
         highway_config: dict[str, Any] | None = None,
+        traffic: str = "fast",
     ) -> None:
         import highway_env.envs as hw_envs  # noqa: F401  (registers highway-env and its vehicle classes)
 
         if town not in TOWN_SPECS:
             raise ValueError(f"town must be one of {TOWNS}, got {town!r}")
+        self.traffic = check_traffic_mode(traffic)
         self.town = town
         self.spec = TOWN_SPECS[town]
         self._idm_profile = _IDM_INTERSECTION if town == "intersection" else _IDM_DEFAULT
@@ -117,6 +121,8 @@ class TrafficWorld:
         self.episode_seconds = float(episode_seconds)
         self._apply_idm_profile()
         self.hw = getattr(hw_envs, self.spec.env_class)(config=config)
+        if traffic == "fast":
+            accelerate(self.hw)
         self.action_space = self.hw.action_space
         self._rng = np.random.default_rng(0)
         self._next_id = EGO_ID + 1

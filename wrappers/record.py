@@ -2,11 +2,14 @@
 
 from __future__ import annotations
 
+import copy
 import hashlib
+from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
 import gymnasium as gym
+import numpy as np
 
 from fog_gym.dataset.layout import CAMERAS, DATA_ROOT, parse_scene_folder, scene_folder_name
 from fog_gym.dataset.writer import SceneWriter, build_index
@@ -24,6 +27,11 @@ class RecordFogDrive(gym.Wrapper):
     FogDrive levels. The rig must be the full FogDrive rig (4 cameras, LiDAR, semantic LiDAR, radar) with
     ground truth on. Runs are numbered after those already under ``root`` for the same town and time of day.
 
+    Writing overlaps simulation: sample k is encoded and written (its files in parallel by ``workers``
+    threads, default one per core, ``BBOX_3D`` last) while the env simulates sample k + 1; ``step`` waits for
+    sample k before handing sample k + 1 over, so at most one sample is in flight. The index is rebuilt, and
+    ``close`` returns, only after every write has finished; a failed write is raised at the next call.
+
     >>> import tempfile, fog_gym
     >>> env = RecordFogDrive(fog_gym.FogDriveEnv(resolution=(32, 24), episode_seconds=0.2), tempfile.mkdtemp())
     >>> _ = env.reset(seed=0); _ = env.step(1); _ = env.step(1)
@@ -31,7 +39,7 @@ class RecordFogDrive(gym.Wrapper):
     3
     """
 
-    def __init__(self, env: gym.Env, root: str | Path) -> None:
+    def __init__(self, env: gym.Env, root: str | Path, workers: int | None = None) -> None:
         base = env.unwrapped
         rig = getattr(base, "config", None) and base.config.rig
         if rig is None:
@@ -50,9 +58,29 @@ class RecordFogDrive(gym.Wrapper):
             (self.root / DATA_ROOT).mkdir(parents=True, exist_ok=True)
         except OSError as e:
             raise ValueError(f"cannot write the dataset root {self.root}: {e}") from None
+        if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+            raise ValueError(f"workers must be a positive integer or None, got {workers!r}")
         super().__init__(env)
+        self.workers = workers
         self._writer: SceneWriter | None = None
         self._index = 0
+        self._background: ThreadPoolExecutor | None = None
+        self._pending: Future | None = None
+
+    def _flush(self) -> None:
+        """Wait for the sample in flight; re-raise its error."""
+        pending, self._pending = self._pending, None
+        if pending is not None:
+            pending.result()
+
+    def _submit(self, index: int, obs: dict[str, Any], info: dict[str, Any]) -> None:
+        self._flush()
+        assert self._writer is not None
+        frozen_obs = {k: np.array(v, copy=True) for k, v in obs.items()}  # the env may reuse its buffers
+        frozen_info = {k: copy.deepcopy(info[k]) for k in ("boxes_2d", "boxes_3d")}
+        if self._background is None:
+            self._background = ThreadPoolExecutor(1, thread_name_prefix="fogdrive-record")
+        self._pending = self._background.submit(self._writer.write_sample, index, frozen_obs, frozen_info)
 
     def _next_run(self, town: int, tod: str) -> int:
         runs = [p[2] for p in (parse_scene_folder(d.name) for d in (self.root / DATA_ROOT).iterdir()) if p and p[:2] == (town, tod)]
@@ -60,15 +88,17 @@ class RecordFogDrive(gym.Wrapper):
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         if self._writer is not None:
+            self._flush()
+            self._writer.close()
             build_index(self.root)
         obs, info = self.env.reset(seed=seed, options=options)
         base = self.env.unwrapped
         town, tod = base.config.town_number, base.config.time_of_day
         run = self._next_run(town, tod)
         scene_id = hashlib.sha256(f"{town}|{tod}|{run}|{base.episode_seed}".encode()).hexdigest()[:8]
-        self._writer = SceneWriter(self.root, scene_folder_name(town, tod, run, scene_id))
+        self._writer = SceneWriter(self.root, scene_folder_name(town, tod, run, scene_id), workers=self.workers)
         self._writer.write_extrinsics(info["extrinsics"])
-        self._writer.write_sample(0, obs, info)
+        self._submit(0, obs, info)
         self._index = 1
         info["scene_folder"] = self._writer.folder
         return obs, info
@@ -77,15 +107,23 @@ class RecordFogDrive(gym.Wrapper):
         obs, reward, terminated, truncated, info = self.env.step(action)
         if self._writer is None:
             raise RuntimeError("call reset() before step()")
-        self._writer.write_sample(self._index, obs, info)
+        self._submit(self._index, obs, info)
         self._index += 1
         if terminated or truncated:
+            self._flush()
             build_index(self.root)
         return obs, reward, terminated, truncated, info
 
     def close(self) -> None:
-        if self._writer is not None:
-            build_index(self.root)
+        try:
+            self._flush()
+        finally:
+            if self._background is not None:
+                self._background.shutdown(wait=True)
+                self._background = None
+            if self._writer is not None:
+                self._writer.close()
+                build_index(self.root)
         super().close()
 
 

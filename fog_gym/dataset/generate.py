@@ -115,6 +115,7 @@ def generate_scene(root: str | Path, spec: SceneSpec | dict[str, Any]) -> str:
         writer.write_sample(index, obs, info)
         index += 1
         done = terminated or truncated
+    writer.close()
     env.close()
     marker = root / PROGRESS_DIR / f"{spec.folder}.json"
     marker.parent.mkdir(parents=True, exist_ok=True)

@@ -17,6 +17,8 @@ import json
 import os
 import struct
 import uuid
+from collections.abc import Callable
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
@@ -66,23 +68,46 @@ def encode_npy(array: np.ndarray) -> bytes:
     return buf.getvalue()
 
 
+def default_workers() -> int:
+    """Threads for encoding one sample's files: the cores this process may run on."""
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not on Linux
+        return max(1, os.cpu_count() or 1)
+
+
 class SceneWriter:
     """Writes one scene's samples in the FogDrive layout under ``root``.
 
     ``write_sample`` takes a paired-fog observation (clean + ``*_FOG_{LIGHT,MODERATE,DENSE}``) and the env's
     ``info`` (``boxes_2d``, ``boxes_3d``); ``write_extrinsics`` the ``info["extrinsics"]`` dict.
+
+    A sample's files are encoded and written by ``workers`` threads (default: one per core; cv2's PNG encoder
+    and file I/O release the GIL). ``BBOX_3D`` is still written alone after every other file of the sample has
+    been renamed into place. ``workers=1`` encodes and writes one file after another.
     """
 
-    def __init__(self, root: str | Path, folder: str, channels: tuple[str, ...] | None = None) -> None:
+    def __init__(self, root: str | Path, folder: str, channels: tuple[str, ...] | None = None,
+                 workers: int | None = None) -> None:  # fmt: skip
         if parse_scene_folder(folder) is None:
             raise ValueError(f"not a FogDrive scene folder name: {folder!r}")
         channels = tuple(CHANNELS) if channels is None else tuple(channels)
         unknown = [c for c in channels if c not in CHANNELS]
         if unknown or "BBOX_3D" not in channels:
             raise ValueError(f"channels must be FogDrive channels including BBOX_3D, got {list(channels)}")
+        if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+            raise ValueError(f"workers must be a positive integer or None, got {workers!r}")
         self.root = Path(root)
         self.folder = folder
         self.channels = channels
+        self.workers = default_workers() if workers is None else workers
+        self._pool: ThreadPoolExecutor | None = None
+
+    def close(self) -> None:
+        """Stop the encoding threads (a later write starts them again)."""
+        if self._pool is not None:
+            self._pool.shutdown(wait=True)
+            self._pool = None
 
     def _path(self, channel: str, index: int) -> Path:
         return self.root / channel_path(channel, self.folder, index)
@@ -91,34 +116,49 @@ class SceneWriter:
         data = {k: np.asarray(v).tolist() for k, v in extrinsics.items()}
         _atomic_write(self.root / DATA_ROOT / self.folder / EXTRINSIC_FILE, json.dumps(data).encode())
 
-    def encode_sample(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> dict[str, bytes]:
-        """The file contents of the writer's channels for one sample (no I/O), in write order (``BBOX_3D`` last)."""
+    def encode_jobs(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> dict[str, Callable[[], bytes]]:
+        """One zero-argument encoder per channel of the writer, in write order (``BBOX_3D`` last); each returns
+        the file's bytes."""
         from fog_gym.points import unpack_points
 
-        files: dict[str, bytes] = {}
+        def png(key: str, convert: Callable[[np.ndarray], np.ndarray] | None = None) -> Callable[[], bytes]:
+            return lambda: encode_png(obs[key] if convert is None else convert(obs[key]))
+
+        def npy(key: str) -> Callable[[], bytes]:
+            return lambda: encode_npy(unpack_points(obs, key))
+
+        def box2d(cam: str) -> Callable[[], bytes]:
+            b = info["boxes_2d"][cam]
+            return lambda: json.dumps({
+                "bboxes": np.asarray(b["bboxes"]).tolist(), "vehicle_ids": np.asarray(b["vehicle_ids"]).tolist(),
+                "vehicle_class": np.asarray(b["vehicle_class"]).tolist(),
+            }).encode()  # fmt: skip
+
+        jobs: dict[str, Callable[[], bytes]] = {}
         for channel in self.channels:
             if channel == "BBOX_3D":
                 continue
             cam = next((c for c in CAMERAS if channel == c or channel.startswith(c + "_")), None)
             if cam is None:  # a point channel
-                files[channel] = encode_npy(unpack_points(obs, channel))
+                jobs[channel] = npy(channel)
             elif channel.endswith("_DEPTH"):
-                files[channel] = encode_png(encode_depth(obs[channel]))
+                jobs[channel] = png(channel, encode_depth)
             elif channel.endswith("_SEM"):
-                files[channel] = encode_png(semantic_to_carla_rgb(obs[channel]))
+                jobs[channel] = png(channel, semantic_to_carla_rgb)
             elif channel.endswith("_BBOX"):
-                b = info["boxes_2d"][cam]
-                files[channel] = json.dumps({
-                    "bboxes": np.asarray(b["bboxes"]).tolist(), "vehicle_ids": np.asarray(b["vehicle_ids"]).tolist(),
-                    "vehicle_class": np.asarray(b["vehicle_class"]).tolist(),
-                }).encode()  # fmt: skip
+                jobs[channel] = box2d(cam)
             else:  # clean or fogged RGB
-                files[channel] = encode_png(obs[channel])
+                jobs[channel] = png(channel)
         b3 = info["boxes_3d"]
-        files["BBOX_3D"] = json.dumps({
+        jobs["BBOX_3D"] = lambda: json.dumps({
             "bboxes_3d": np.asarray(b3["corners"]).tolist(), "vehicle_ids": np.asarray(b3["vehicle_ids"]).tolist(),
         }).encode()  # fmt: skip
-        return files
+        return jobs
+
+    def encode_sample(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> dict[str, bytes]:
+        """The file contents of the writer's channels for one sample (no I/O, one after another), ``BBOX_3D``
+        last."""
+        return {channel: job() for channel, job in self.encode_jobs(obs, info).items()}
 
     def write_files(self, index: int, files: dict[str, bytes]) -> None:
         """Write encoded files; ``BBOX_3D`` goes last so its presence marks the sample complete."""
@@ -128,7 +168,23 @@ class SceneWriter:
         _atomic_write(self._path("BBOX_3D", index), files["BBOX_3D"])
 
     def write_sample(self, index: int, obs: dict[str, np.ndarray], info: dict[str, Any]) -> None:
-        self.write_files(index, self.encode_sample(obs, info))
+        """Encode and write one sample; with ``workers > 1`` its files in parallel, ``BBOX_3D`` after all."""
+        if self.workers == 1:
+            self.write_files(index, self.encode_sample(obs, info))
+            return
+        if self._pool is None:
+            self._pool = ThreadPoolExecutor(self.workers, thread_name_prefix="fogdrive-writer")
+        jobs = self.encode_jobs(obs, info)
+        last = jobs.pop("BBOX_3D")
+
+        def write(channel: str, job: Callable[[], bytes]) -> None:
+            _atomic_write(self._path(channel, index), job())
+
+        futures = [self._pool.submit(write, channel, job) for channel, job in jobs.items()]
+        errors = [e for e in (f.exception() for f in futures) if e is not None]  # waits for every file
+        if errors:
+            raise errors[0]  # the sample stays incomplete: BBOX_3D is not written
+        _atomic_write(self._path("BBOX_3D", index), last())
 
 
 def _png_size(path: Path) -> tuple[int, int]:

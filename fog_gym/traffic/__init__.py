@@ -1,0 +1,9 @@
+"""Traffic core: highway-env's O(N²) hot paths over structure-of-arrays, installed per env instance.
+
+``accelerate(env)`` speeds up a highway-env environment in place while keeping its trajectories, rewards and
+random draws identical to highway-env's own Python path (see ``fog_gym.traffic.core``).
+"""
+
+from fog_gym.traffic.core import SUPPORTED_ENVS, TRAFFIC_MODES, accelerate, is_accelerated
+
+__all__ = ["SUPPORTED_ENVS", "TRAFFIC_MODES", "accelerate", "is_accelerated"]

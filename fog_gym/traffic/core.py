@@ -1,0 +1,287 @@
+"""highway-env's neighbour search and collision pre-check over structure-of-arrays, per road instance.
+
+highway-env 1.12.1 spends most of a traffic step in two O(N²) Python loops:
+
+* ``Road.neighbour_vehicles`` — every vehicle asks, for its own lane and for each MOBIL candidate lane,
+  which vehicle is ahead and behind; each query projects *all* vehicles on the lane.
+* ``Road.step``'s collision loop — every pair of vehicles (and every vehicle–object pair) runs
+  ``handle_collisions``, whose first test is a spherical distance pre-check.
+
+This module keeps highway-env's ``Vehicle`` objects as the source of truth and replaces only those loops:
+
+* During ``Road.act`` no position changes, so each lane's projection of every road entity
+  (``lane.local_coordinates`` and ``lane.on_lane(..., margin=1)``, highway-env's own scalar functions, hence
+  the very same floats) is computed once per lane and cached as arrays; each query is then a masked
+  arg-min/arg-max over those arrays with highway-env's tie rules (front: the *last* entity at the smallest
+  ``s_v >= s``; rear: the *first* entity at the largest ``s_v < s``).
+* Collisions: the spherical pre-check runs vectorised over all pairs with a small safety margin; only the
+  surviving pairs call highway-env's own ``handle_collisions`` — in the original (i, j) order, so impacts,
+  ``crashed`` and ``hit`` flags come out identical. Pairs the pre-check rejects have no side effect in
+  highway-env either.
+
+Everything else (IDM, MOBIL with its random draws, lane updates, spawning and removal, regulation) runs
+unchanged, so seeds mean the same thing and trajectories equal the reference path. The replacement is
+installed as bound methods on one env's ``road`` object (re-installed after every reset): no class is
+modified, and other highway-env environments in the process behave exactly as before.
+
+Why not numba here: the per-lane projections must call highway-env's lane objects (straight, sine, circular
+and poly-lanes) to be bit-identical; the remaining per-query work is a few numpy reductions.
+"""
+
+from __future__ import annotations
+
+import types
+from typing import Any
+
+import numpy as np
+
+#: Allowed values of the ``traffic=`` argument of FogDrive environments.
+TRAFFIC_MODES: tuple[str, ...] = ("fast", "reference")
+
+#: highway-env classes ``accelerate`` accepts (by class name; subclasses are accepted too).
+SUPPORTED_ENVS: tuple[str, ...] = (
+    "HighwayEnv",
+    "HighwayEnvFast",
+    "MergeEnv",
+    "RoundaboutEnv",
+    "IntersectionEnv",
+    "RacetrackEnv",
+    "ExitEnv",
+)
+
+#: Extra metres added to the vectorised collision pre-check so rounding never rejects a pair that
+#: highway-env's scalar pre-check would keep (the exact test still runs on every kept pair).
+_PRECHECK_MARGIN = 1e-6
+
+
+def check_traffic_mode(traffic: str) -> str:
+    """Validate a ``traffic=`` value.
+
+    >>> check_traffic_mode("fast")
+    'fast'
+    >>> check_traffic_mode("numba")
+    Traceback (most recent call last):
+    ...
+    ValueError: traffic must be one of ('fast', 'reference'), got 'numba'
+    """
+    if not isinstance(traffic, str) or traffic not in TRAFFIC_MODES:
+        raise ValueError(f"traffic must be one of {TRAFFIC_MODES}, got {traffic!r}")
+    return traffic
+
+
+def _supported(unwrapped: Any) -> bool:
+    from highway_env.envs.common.abstract import AbstractEnv
+
+    if not isinstance(unwrapped, AbstractEnv):
+        return False
+    names = {c.__name__ for c in type(unwrapped).__mro__}
+    return any(n in names for n in SUPPORTED_ENVS)
+
+
+def is_accelerated(env: Any) -> bool:
+    """Whether ``accelerate`` was applied to ``env`` (a gymnasium env or its unwrapped highway-env env)."""
+    return bool(getattr(getattr(env, "unwrapped", env), "_fog_traffic_core", False))
+
+
+def accelerate(env: Any) -> Any:
+    """Install the traffic core on a highway-env environment, in place, and return it.
+
+    Accepts what ``gym.make`` returns for highway-v0, highway-fast-v0, merge-v0, roundabout-v0,
+    intersection-v0, racetrack-v0 and exit-v0 (or the bare env). Trajectories, rewards, terminations and
+    random draws stay identical to highway-env's own path. Calling it again on the same env is a no-op.
+
+    >>> import gymnasium as gym, highway_env  # doctest: +SKIP
+    >>> env = accelerate(gym.make("highway-v0"))  # doctest: +SKIP
+
+    Raises ``TypeError`` for anything that is not one of the supported highway-env environments.
+    """
+    unwrapped = getattr(env, "unwrapped", env)
+    if not _supported(unwrapped):
+        raise TypeError(
+            "accelerate() needs a highway-env environment of one of the classes "
+            f"{SUPPORTED_ENVS}, got {type(unwrapped).__name__}"
+        )
+    if getattr(unwrapped, "_fog_traffic_core", False):
+        return env  # documented no-op
+    original_reset = unwrapped._reset  # bound method of the class
+
+    def _reset(self: Any) -> None:
+        original_reset()
+        install(self.road)
+
+    unwrapped._reset = types.MethodType(_reset, unwrapped)
+    unwrapped._fog_traffic_core = True
+    if getattr(unwrapped, "road", None) is not None:
+        install(unwrapped.road)
+    return env
+
+
+def install(road: Any) -> None:
+    """Bind the fast ``act``, ``neighbour_vehicles`` and ``step`` on this one ``road`` instance."""
+    from highway_env.road.regulation import RegulatedRoad
+    from highway_env.road.road import Road
+
+    if type(road) not in (Road, RegulatedRoad):
+        return  # an unknown Road subclass keeps highway-env's path
+    road._fog_lane_cache = None
+    road.act = types.MethodType(_act, road)
+    road.neighbour_vehicles = types.MethodType(_neighbour_vehicles, road)
+    road.step = types.MethodType(_regulated_step if type(road) is RegulatedRoad else _step, road)
+
+
+# -- neighbour search ---------------------------------------------------------------------------------
+
+
+def lane_cache(road: Any) -> dict:
+    """A snapshot of ``road``'s entities for the per-lane projection cache (valid while no position changes)."""
+    from highway_env.vehicle.objects import Landmark
+
+    entities = road.vehicles + road.objects
+    return {
+        "entities": entities,
+        "index": {id(v): i for i, v in enumerate(entities)},
+        "landmark": np.array([isinstance(v, Landmark) for v in entities], dtype=bool),
+        "pos": np.array([v.position for v in entities], dtype=np.float64).reshape(len(entities), 2),
+        "lanes": {},
+    }
+
+
+def _act(self: Any) -> None:
+    """``Road.act`` with a per-call lane-projection cache (positions are frozen during act)."""
+    self._fog_lane_cache = lane_cache(self)
+    try:
+        for vehicle in self.vehicles:
+            vehicle.act()
+    finally:
+        self._fog_lane_cache = None
+
+
+def _lane_arrays(cache: dict, lane: Any) -> tuple[np.ndarray, np.ndarray]:
+    key = id(lane)
+    hit = cache["lanes"].get(key)
+    if hit is not None and hit[0] is lane:
+        return hit[1], hit[2]
+    from highway_env.road.lane import StraightLane
+
+    entities = cache["entities"]
+    landmark = cache["landmark"]
+    if type(lane) is StraightLane:
+        s, on = straight_lane_projection(cache["pos"], lane.start, lane.direction, lane.direction_lateral,
+                                         lane.width, lane.length, lane.VEHICLE_LENGTH)  # fmt: skip
+        on &= ~landmark
+        cache["lanes"][key] = (lane, s, on)
+        return s, on
+    n = len(entities)
+    s = np.empty(n)
+    on = np.zeros(n, dtype=bool)
+    for i, v in enumerate(entities):
+        if landmark[i]:
+            continue
+        s_v, lat_v = lane.local_coordinates(v.position)
+        s[i] = s_v
+        on[i] = bool(lane.on_lane(v.position, s_v, lat_v, margin=1))
+    cache["lanes"][key] = (lane, s, on)
+    return s, on
+
+
+def straight_lane_projection(
+    pos: np.ndarray,
+    start: np.ndarray,
+    direction: np.ndarray,
+    direction_lateral: np.ndarray,
+    width: float,
+    length: float,
+    vehicle_length: float,
+    margin: float = 1.0,
+) -> tuple[np.ndarray, np.ndarray]:
+    """``StraightLane.local_coordinates`` and ``on_lane(margin=1)`` for (N, 2) positions, bit-identical.
+
+    The 2-vector dot products are written out as ``dx * ux + dy * uy``, the same rounding as highway-env's
+    ``np.dot`` on two-element vectors.
+
+    >>> s, on = straight_lane_projection(np.array([[5.0, 1.0], [5.0, 4.0], [-10.0, 0.0]]), np.zeros(2),
+    ...                                  np.array([1.0, 0.0]), np.array([0.0, 1.0]), 4.0, 100.0, 5.0)
+    >>> s.tolist(), on.tolist()
+    ([5.0, 5.0, -10.0], [True, False, False])
+    """
+    dx = pos[:, 0] - start[0]
+    dy = pos[:, 1] - start[1]
+    s = dx * direction[0] + dy * direction[1]
+    lat = dx * direction_lateral[0] + dy * direction_lateral[1]
+    on = (np.abs(lat) <= width / 2 + margin) & (-vehicle_length <= s) & (s < length + vehicle_length)
+    return s, on
+
+
+def _neighbour_vehicles(self: Any, vehicle: Any, lane_index: Any = None) -> tuple[Any, Any]:
+    """``Road.neighbour_vehicles`` over cached per-lane arrays; identical results and tie rules."""
+    cache = self._fog_lane_cache
+    if cache is None or self.neighbour_vehicles_connected_lanes:
+        return type(self).neighbour_vehicles(self, vehicle, lane_index)
+    lane_index = lane_index or vehicle.lane_index
+    if not lane_index:
+        return None, None
+    lane = self.network.get_lane(lane_index)
+    s_all, on = _lane_arrays(cache, lane)
+    i_self = cache["index"].get(id(vehicle))
+    if i_self is not None and not cache["landmark"][i_self]:
+        s = s_all[i_self]
+    else:
+        s = lane.local_coordinates(vehicle.position)[0]
+    if i_self is not None and on[i_self]:
+        on = on.copy()
+        on[i_self] = False
+    entities = cache["entities"]
+    front = on & (s_all >= s)
+    v_front = None
+    if front.any():
+        idx = np.flatnonzero(front)
+        vals = s_all[idx]
+        best = idx[vals == vals.min()]
+        v_front = entities[int(best[-1])]  # highway-env keeps the last one at equal s (s_v <= s_front)
+    rear = on & (s_all < s)
+    v_rear = None
+    if rear.any():
+        idx = np.flatnonzero(rear)
+        vals = s_all[idx]
+        best = idx[vals == vals.max()]
+        v_rear = entities[int(best[0])]  # and the first one at equal s (s_v > s_rear)
+    return v_front, v_rear
+
+
+# -- collisions ---------------------------------------------------------------------------------------
+
+
+def _collide(self: Any, dt: float) -> None:
+    vehicles = self.vehicles
+    objects = self.objects
+    n = len(vehicles)
+    if n == 0:
+        return
+    others = vehicles + objects
+    m = len(others)
+    pos = np.array([v.position for v in others], dtype=np.float64).reshape(m, 2)
+    diag = np.array([v.diagonal for v in others], dtype=np.float64)
+    speed = np.array([v.speed for v in vehicles], dtype=np.float64)
+    d = np.sqrt(((pos[None, :, :] - pos[:n, None, :]) ** 2).sum(axis=-1))  # (n, m)
+    reach = (diag[:n, None] + diag[None, :]) / 2 + speed[:, None] * dt + _PRECHECK_MARGIN
+    keep = d <= reach
+    cols = np.arange(m)[None, :]
+    rows = np.arange(n)[:, None]
+    keep &= (cols > rows) | (cols >= n)  # vehicles[i + 1:], then every object
+    for i, j in zip(*np.nonzero(keep)):
+        vehicles[int(i)].handle_collisions(others[int(j)], dt)
+
+
+def _step(self: Any, dt: float) -> None:
+    """``Road.step`` with the collision pre-check vectorised."""
+    for vehicle in self.vehicles:
+        vehicle.step(dt)
+    _collide(self, dt)
+
+
+def _regulated_step(self: Any, dt: float) -> None:
+    """``RegulatedRoad.step``: its road-rule enforcement, then the fast ``Road.step``."""
+    self.steps += 1
+    if self.steps % int(1 / dt / self.REGULATION_FREQUENCY) == 0:
+        self.enforce_road_rules()
+    _step(self, dt)
