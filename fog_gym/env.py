@@ -29,6 +29,7 @@ from fog_gym.scenery import STYLES, build_surface, place_props
 from fog_gym.points import LIDAR, RADAR, SEMANTIC_LIDAR, lidar_space, pack_points, radar_space
 from fog_gym.sensors import CameraFrame, CameraRig, PointSensors
 from fog_gym.world import EGO_ID, TOWN_SPECS, TrafficWorld
+from fog_gym.seeds import stream
 
 MAX_SPEED = 40.0  # highway-env's Vehicle.MAX_SPEED [m/s]: bounds where the ego can get in one episode
 MAX_TAG = max(SEMANTIC_TAGS.values())
@@ -145,10 +146,10 @@ class FogDriveEnv(gym.Env):
         self.episode_seed = world_seed  # everything random in the episode derives from it (fog noise too)
         self.world.reset(seed=world_seed)
         self.action_space = self.world.action_space
-        rng = np.random.default_rng(np.random.SeedSequence([world_seed, 0x5CE]))
+        rng = stream(world_seed, "scenery")
         self._static = self._build_static(rng)
         self._lighting = Lighting.for_time_of_day(self.config.time_of_day, rng)
-        self._sensor_rng = np.random.default_rng(np.random.SeedSequence([world_seed, 0x11DA]))
+        self._sensor_rng = stream(world_seed, "sensors")
         self._steps = 0
         obs = self._observe()
         return obs, self._info({})

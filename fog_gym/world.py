@@ -25,6 +25,7 @@ import numpy as np
 from fog_gym.config import TOWNS
 from fog_gym.scenery import LaneGeometry
 from fog_gym.traffic.core import accelerate, check_traffic_mode
+from fog_gym.seeds import stream
 
 EGO_ID = 1
 #: Tesla Model 3 (CARLA ``vehicle.tesla.model3`` bounding box): length, width, height [m].
@@ -145,7 +146,7 @@ class TrafficWorld:
         self.hw.reset(seed=seed)
         self._skip_observation()
         self.action_space = self.hw.action_space
-        self._rng = np.random.default_rng(np.random.SeedSequence([0 if seed is None else int(seed), 0xF06]))
+        self._rng = stream(seed, "world")
         self._next_id = EGO_ID + 1
         ego = self.hw.vehicle
         self._assign(ego, is_ego=True)

@@ -11,6 +11,7 @@ import numpy as np
 
 from fog_gym.fog import FogLevel, add_glow, atmospheric_light, fog_images, fog_lidar, night_airlight, parse_fog
 from fog_gym.points import LIDAR, pack_points, unpack_points
+from fog_gym.seeds import stream
 
 FogSpec = str | float | int | FogLevel
 
@@ -111,7 +112,7 @@ class FogWrapper(gym.Wrapper):
             for cam in self.cameras
         }
         self._rngs = {
-            lv.name: np.random.default_rng(np.random.SeedSequence([base.episode_seed, 0xF06, _level_key(lv)]))
+            lv.name: stream(base.episode_seed, "fog", _level_key(lv))
             for lv in self.levels
         }
         return self._apply(obs), self._info(info)

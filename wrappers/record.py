@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import copy
-import hashlib
 from concurrent.futures import Future, ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
@@ -11,7 +10,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from fog_gym.dataset.layout import CAMERAS, DATA_ROOT, parse_scene_folder, scene_folder_name
+from fog_gym.dataset.layout import CAMERAS, DATA_ROOT, parse_scene_folder, scene_folder_name, scene_id
 from fog_gym.dataset.writer import SceneWriter, build_index
 from fog_gym.wrappers.fog import FogWrapper
 
@@ -95,8 +94,8 @@ class RecordFogDrive(gym.Wrapper):
         base = self.env.unwrapped
         town, tod = base.config.town_number, base.config.time_of_day
         run = self._next_run(town, tod)
-        scene_id = hashlib.sha256(f"{town}|{tod}|{run}|{base.episode_seed}".encode()).hexdigest()[:8]
-        self._writer = SceneWriter(self.root, scene_folder_name(town, tod, run, scene_id), workers=self.workers)
+        folder = scene_folder_name(town, tod, run, scene_id(town, tod, run, base.episode_seed))
+        self._writer = SceneWriter(self.root, folder, workers=self.workers)
         self._writer.write_extrinsics(info["extrinsics"])
         self._submit(0, obs, info)
         self._index = 1

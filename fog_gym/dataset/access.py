@@ -18,8 +18,9 @@ import json
 from pathlib import Path, PurePosixPath
 from typing import Any
 
+from fog_gym.dataset.layout import SPLITS
+
 TABLES = ("scene", "sample", "sample_data")
-SPLITS = ("train", "val", "test")
 
 
 class DatasetError(ValueError):

@@ -13,7 +13,6 @@ Example:
 
 from __future__ import annotations
 
-import hashlib
 import json
 import shutil
 from dataclasses import asdict, dataclass
@@ -23,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from fog_gym.config import TOWNS
-from fog_gym.dataset.layout import DATA_ROOT, MODALITIES, scene_folder_name
+from fog_gym.dataset.layout import DATA_ROOT, MODALITIES, scene_folder_name, scene_id
 from fog_gym.dataset.manifest import MANIFEST_FILE, differences, make_manifest, read_manifest, write_manifest
 from fog_gym.dataset.validate import stats, validate  # noqa: F401  (kept importable from here)
 from fog_gym.dataset.writer import SceneWriter, build_index
@@ -48,8 +47,7 @@ class SceneSpec:
     @property
     def folder(self) -> str:
         number = TOWNS.index(self.town) + 1
-        scene_id = hashlib.sha256(f"{number}|{self.time_of_day}|{self.run}|{self.seed}".encode()).hexdigest()[:8]
-        return scene_folder_name(number, self.time_of_day, self.run, scene_id)
+        return scene_folder_name(number, self.time_of_day, self.run, scene_id(number, self.time_of_day, self.run, self.seed))
 
     @property
     def expected_samples(self) -> int:

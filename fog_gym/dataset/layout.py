@@ -10,11 +10,13 @@ Example:
 
 from __future__ import annotations
 
+import hashlib
 import re
 
 CAMERAS = ("CAM_FRONT", "CAM_BACK", "CAM_LEFT", "CAM_RIGHT")
 FOG_LEVELS = ("LIGHT", "MODERATE", "DENSE")
 DATA_ROOT = "data_root"
+SPLITS = ("train", "val", "test")
 
 
 def _channels() -> dict[str, tuple[str, str]]:
@@ -47,6 +49,15 @@ MODALITIES: dict[str, tuple[str, ...]] = {
 EXTRINSIC_FILE = "extrinsic_config/extrinsic_config.json"
 SAMPLE_PERIOD_US = 100_000  # 10 Hz keyframes
 _SCENE_RE = re.compile(r"^data_collection_T(\d+)_(day|night)_run(\d+)_([0-9a-f]+)$")
+
+
+def scene_id(town_number: int, time_of_day: str, run: int, seed: int) -> str:
+    """The 8-hex-digit id of a scene folder, derived from its town, time of day, run and episode seed.
+
+    >>> scene_id(1, "day", 1, 0)
+    '1f31afbd'
+    """
+    return hashlib.sha256(f"{town_number}|{time_of_day}|{run}|{seed}".encode()).hexdigest()[:8]
 
 
 def scene_folder_name(town_number: int, time_of_day: str, run: int, scene_id: str) -> str:

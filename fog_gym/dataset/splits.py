@@ -20,7 +20,8 @@ from collections import Counter, defaultdict
 
 import numpy as np
 
-SPLITS = ("train", "val", "test")
+from fog_gym.dataset.layout import SPLITS
+
 FRACTIONS = (0.70, 0.15, 0.15)
 _NAME = re.compile(r"^T(\d+)_(day|night)_scene(\d+)$")
 
