@@ -14,6 +14,7 @@ import time
 from pathlib import Path
 
 from fog_gym.config import TIMES_OF_DAY, TOWNS
+from fog_gym.fog import FOG_PRESETS
 
 
 def _fail(command: str, message: str) -> SystemExit:
@@ -67,7 +68,7 @@ def build_parser() -> argparse.ArgumentParser:
     demo.add_argument("--resolution", type=_resolution, default=(1280, 960), help="camera resolution WxH (default 1280x960)")
     demo.add_argument("--steps", type=int, default=20, help="env steps (0.1 s each) before the snapshot (default 20)")
     demo.add_argument("--seed", type=int, default=0, help="episode seed (default 0)")
-    demo.add_argument("--fog", type=_fog_level, nargs="+", default=["light", "moderate", "dense"], metavar="LEVEL",
+    demo.add_argument("--fog", type=_fog_level, nargs="+", default=list(FOG_PRESETS), metavar="LEVEL",
                       help="fog levels shown beside clear: light, moderate, dense or a visibility in metres "
                       "(default: light moderate dense)")
     demo.add_argument("--out", type=Path, default=Path("out/demo"), help="output folder (default out/demo)")
@@ -217,7 +218,7 @@ def _add_view_parser(sub) -> None:
     src.add_argument("--root", type=Path, help="a recorded FogDrive dataset")
     src.add_argument("--town", choices=TOWNS, help="drive a live paired-fog episode in this town")
     view.add_argument("--scene", default=None, help="scene name of the dataset, e.g. T1_day_scene001 (default: the first)")
-    view.add_argument("--fog", type=_fog_level, nargs="+", default=["light", "moderate", "dense"], metavar="LEVEL",
+    view.add_argument("--fog", type=_fog_level, nargs="+", default=list(FOG_PRESETS), metavar="LEVEL",
                       help="live: fog levels beside clear (default: light moderate dense)")
     view.add_argument("--steps", type=int, default=50, help="live: keyframes to log (default 50)")
     view.add_argument("--time-of-day", choices=TIMES_OF_DAY, default="day", help="live: day or night (default day)")

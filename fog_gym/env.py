@@ -104,6 +104,7 @@ class FogDriveEnv(gym.Env):
         self.render_mode = render_mode
 
         c = self.config
+        self.metadata = {**self.metadata, "render_fps": c.keyframe_frequency}
         announce_compilation()
         self.world = TrafficWorld(c.town, c.simulation_frequency, c.keyframe_frequency, c.episode_seconds, dict(c.highway_config),
                                   traffic=c.traffic)  # fmt: skip

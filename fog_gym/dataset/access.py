@@ -18,9 +18,7 @@ import json
 from pathlib import Path, PurePosixPath
 from typing import Any
 
-from fog_gym.dataset.layout import SPLITS
-
-TABLES = ("scene", "sample", "sample_data")
+from fog_gym.dataset.layout import SPLITS, TABLES
 
 
 class DatasetError(ValueError):

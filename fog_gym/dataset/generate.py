@@ -22,7 +22,7 @@ from typing import Any
 import numpy as np
 
 from fog_gym.config import TOWNS
-from fog_gym.dataset.layout import DATA_ROOT, MODALITIES, scene_folder_name, scene_id
+from fog_gym.dataset.layout import DATA_ROOT, MODALITIES, SAMPLE_PERIOD_US, scene_folder_name, scene_id
 from fog_gym.dataset.manifest import MANIFEST_FILE, differences, make_manifest, read_manifest, write_manifest
 from fog_gym.dataset.validate import stats, validate  # noqa: F401  (kept importable from here)
 from fog_gym.dataset.writer import SceneWriter, build_index
@@ -51,7 +51,7 @@ class SceneSpec:
 
     @property
     def expected_samples(self) -> int:
-        return int(round(self.seconds * 10)) + 1  # the reset frame plus one per 0.1 s step
+        return int(round(self.seconds * 1e6 / SAMPLE_PERIOD_US)) + 1  # the reset frame plus one per keyframe
 
 
 def plan_scenes(n_scenes: int, towns: tuple[str, ...] = TOWNS, seed: int = 0, resolution: tuple[int, int] = (1280, 960),

@@ -17,6 +17,7 @@ CAMERAS = ("CAM_FRONT", "CAM_BACK", "CAM_LEFT", "CAM_RIGHT")
 FOG_LEVELS = ("LIGHT", "MODERATE", "DENSE")
 DATA_ROOT = "data_root"
 SPLITS = ("train", "val", "test")
+TABLES = ("scene", "sample", "sample_data")  # the index tables, index/<table>.json
 
 
 def _channels() -> dict[str, tuple[str, str]]:

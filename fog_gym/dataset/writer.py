@@ -35,7 +35,6 @@ from fog_gym.encoding import encode_depth, semantic_to_carla_rgb
 # with no row filter 450 ms / 3.6 MB; level 1 with cv2's default filters 1 220 ms / 3.4 MB; level 3 1 390 ms /
 # 3.0 MB; level 6 1 880 ms / 2.3 MB; level 0 (stored) 310 ms / 89 MB; Pillow level 1 800 ms / 3.5 MB.
 PNG_PARAMS = [cv2.IMWRITE_PNG_COMPRESSION, 1, cv2.IMWRITE_PNG_FILTER, cv2.IMWRITE_PNG_FILTER_NONE]
-INDEX_TABLES = ("scene", "sample", "sample_data")
 
 
 def token_for(*parts: object) -> str:
