@@ -11,75 +11,20 @@ Example:
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-if TYPE_CHECKING:
-    from fog_gym.labels import LabelConfig
-    from fog_gym.lidar import LidarConfig, RadarConfig
+from fog_gym.labels import LabelConfig
+from fog_gym.lidar import LidarConfig, RadarConfig
+from fog_gym.pose import Pose
+from fog_gym.pose import finite as _finite
 
 #: FogDrive camera channel names (Table 3), in the order the rig lists them.
 CAMERA_NAMES: tuple[str, ...] = ("CAM_FRONT", "CAM_BACK", "CAM_LEFT", "CAM_RIGHT")
 #: Towns in FogDrive order; a town's FogDrive number ``T<n>`` is its 1-based position.
 TOWNS: tuple[str, ...] = ("highway", "merge", "roundabout", "intersection", "racetrack", "exit")
 TIMES_OF_DAY: tuple[str, ...] = ("day", "night")
-
-
-def _finite(name: str, value: Any) -> float:
-    """``value`` as a finite float, or a ValueError naming ``name`` (booleans are not numbers here)."""
-    if isinstance(value, bool):
-        raise ValueError(f"{name} must be a finite number, got {value!r}")
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise ValueError(f"{name} must be a finite number, got {value!r}") from None
-    if not math.isfinite(v):
-        raise ValueError(f"{name} must be a finite number, got {value!r}")
-    return v
-
-
-@dataclass(frozen=True)
-class Pose:
-    """A sensor pose relative to the ego origin (ground under the vehicle centre), CARLA convention.
-
-    Location in metres (+x forward, +y right, +z up), rotation in degrees (pitch, roll, yaw).
-
-    >>> Pose(1.8, 0.0, 1.2).location
-    (1.8, 0.0, 1.2)
-    """
-
-    x: float = 0.0
-    y: float = 0.0
-    z: float = 0.0
-    pitch: float = 0.0
-    roll: float = 0.0
-    yaw: float = 0.0
-
-    def __post_init__(self) -> None:
-        for name in ("x", "y", "z", "pitch", "roll", "yaw"):
-            object.__setattr__(self, name, _finite(f"pose.{name}", getattr(self, name)))
-
-    @property
-    def location(self) -> tuple[float, float, float]:
-        return (self.x, self.y, self.z)
-
-    @property
-    def rotation(self) -> tuple[float, float, float]:
-        return (self.pitch, self.roll, self.yaw)
-
-    @classmethod
-    def coerce(cls, value: Pose | Sequence[float] | Mapping[str, float]) -> Pose:
-        """Accept a Pose, a mapping of its fields, or a 3- or 6-sequence (x, y, z[, pitch, roll, yaw])."""
-        if isinstance(value, Pose):
-            return value
-        if isinstance(value, Mapping):
-            return cls(**value)
-        values = list(value)
-        if len(values) not in (3, 6):
-            raise ValueError(f"pose must have 3 or 6 numbers (x, y, z[, pitch, roll, yaw]), got {value!r}")
-        return cls(*values)
 
 
 @dataclass(frozen=True)
@@ -155,7 +100,6 @@ class RigConfig:
     radar: RadarConfig | None = None  # RADAR_FRONT
 
     def __post_init__(self) -> None:
-        from fog_gym.lidar import LidarConfig, RadarConfig
 
         cams = tuple(self.cameras)
         for cam in cams:
@@ -183,7 +127,6 @@ class RigConfig:
     ) -> RigConfig:
         """The FogDrive rig (Table 2, D5), optionally at another resolution, with a subset of cameras, other camera
         poses, or without the LiDAR, semantic LiDAR or radar."""
-        from fog_gym.lidar import LidarConfig, RadarConfig
 
         w, h = parse_resolution(resolution)
         names = CAMERA_NAMES if cameras is None else tuple(cameras)
@@ -266,7 +209,6 @@ class FogDriveConfig:
         far = _finite("far_distance", self.far_distance)
         if far <= 1.0:
             raise ValueError(f"far_distance must be > 1 m, got {self.far_distance!r}")
-        from fog_gym.labels import LabelConfig
 
         if self.labels is not None and not isinstance(self.labels, LabelConfig):
             raise ValueError(f"labels must be a LabelConfig or None, got {type(self.labels).__name__}")
@@ -288,6 +230,5 @@ class FogDriveConfig:
 
 
 def _default_labels():
-    from fog_gym.labels import LabelConfig
 
     return LabelConfig()

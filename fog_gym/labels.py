@@ -31,7 +31,7 @@ from numba import njit
 
 from fog_gym import geometry
 from fog_gym.polygon import polygon_area as _area
-from fog_gym.config import _finite
+from fog_gym.pose import finite as _finite
 
 VISIBILITY_RULES = ("lidar", "camera")
 NEAR_PLANE = 0.05  # metres, as the renderer's near plane

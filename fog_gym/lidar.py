@@ -37,8 +37,8 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from fog_gym.config import Pose
-from fog_gym.config import _finite as _number  # one finite-number check for every config
+from fog_gym.pose import Pose
+from fog_gym.pose import finite as _number  # one finite-number check for every config
 from fog_gym.geometry import transform_matrix, yaw_transform
 from fog_gym.render.raycast import MISS, cast_rays
 from fog_gym.scenery import SURFACE_TAGS, SurfaceMap
