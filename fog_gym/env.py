@@ -273,19 +273,3 @@ def _camera(rig: RigConfig, name: str):
     except KeyError:
         ref = rig.cameras[0] if rig.cameras else None
         return CameraConfig(name, FOGDRIVE_CAMERA_POSES[name], *((ref.width, ref.height, ref.fov) if ref else ()))
-
-
-def make_fogdrive(fog: Any = None, airlight: Any = "estimate", **kwargs: Any) -> gym.Env:
-    """Entry point of ``FogDrive-v0``: :class:`FogDriveEnv`, wrapped in :class:`fog_gym.wrappers.FogWrapper` when
-    ``fog`` is given ("clear", "light", "moderate", "dense", metres, or a list for paired mode).
-
-    >>> env = make_fogdrive(fog="light", town="merge", resolution=(16, 12), cameras=["CAM_FRONT"])
-    >>> type(env).__name__, env.unwrapped.config.town
-    ('FogWrapper', 'merge')
-    """
-    if fog is None:
-        return FogDriveEnv(**kwargs)
-    from fog_gym.wrappers.fog import FogWrapper, parse_fog_levels
-
-    parse_fog_levels(fog)  # bad fog fails before the world is built
-    return FogWrapper(FogDriveEnv(**kwargs), fog, airlight=airlight)

@@ -22,9 +22,9 @@ from typing import Any
 
 import numpy as np
 
-from fog_gym.config import TOWNS
+from fog_gym.config import TOWNS, check_traffic_mode
 from fog_gym.scenery import LaneGeometry
-from fog_gym.traffic.core import accelerate, check_traffic_mode
+from fog_gym.traffic.core import accelerate
 from fog_gym.seeds import stream
 
 EGO_ID = 1

@@ -9,7 +9,7 @@ import pytest
 torch = pytest.importorskip("torch")  # the torch extra is part of the dev extra: never skipped in CI
 
 from fog_gym.dataset import FogDrive  # noqa: E402
-from fog_gym.dataset.generate import generate, plan_scenes  # noqa: E402
+from fog_gym.generate import generate, plan_scenes  # noqa: E402
 from fog_gym.dataset.layout import MODALITIES  # noqa: E402
 from fog_gym.dataset.validate import validate  # noqa: E402
 from fog_gym.detect3d.bev import BEVGrid, class_from_height, decode_cells, make_targets, point_features  # noqa: E402

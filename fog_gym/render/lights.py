@@ -45,7 +45,8 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit, prange
 
-from fog_gym.render import raster  # noqa: F401  (fork-safe threading layer before any kernel runs)
+import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
+from fog_gym.render import raster
 
 LAMP, HEADLIGHT = 0, 1
 #: Street lamp: luminous intensity in albedo·m² units, radius of influence [m], colour (warm white LED).

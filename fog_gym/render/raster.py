@@ -16,17 +16,10 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
-import os
-
-import numba
 import numpy as np
 from numba import njit, prange
 
-# GNU OpenMP, numba's usual pick, aborts a process that forks after a parallel kernel ran; Gymnasium's
-# AsyncVectorEnv and SB3's SubprocVecEnv fork. The workqueue layer is fork-safe (but not for concurrent
-# kernel launches from several Python threads). NUMBA_THREADING_LAYER still overrides.
-if "NUMBA_THREADING_LAYER" not in os.environ:
-    numba.config.THREADING_LAYER = "workqueue"
+import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
 
 # Box faces: corner indices (geometry.BOX_CORNER_SIGNS order) and local outward normals.
 _FACE_CORNERS = np.array(

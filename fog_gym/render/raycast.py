@@ -21,15 +21,11 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
-import os
-
-import numba
 import numpy as np
 from numba import njit, prange
 
-# Same fork-safety choice as raster.py: the workqueue layer survives fork (AsyncVectorEnv, SubprocVecEnv).
-if "NUMBA_THREADING_LAYER" not in os.environ:
-    numba.config.THREADING_LAYER = "workqueue"
+import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
+
 
 #: ``index`` of a ray that hit the ground plane.
 GROUND = -1

@@ -1,4 +1,7 @@
-"""Step a reference and an accelerated traffic path side by side and assert they agree (tests, benchmark)."""
+"""Step a reference and an accelerated traffic path side by side and assert they agree (tests, benchmark).
+
+It sits above both the traffic core and :class:`~fog_gym.world.TrafficWorld`, which it compares.
+"""
 
 from __future__ import annotations
 
