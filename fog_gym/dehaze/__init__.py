@@ -97,10 +97,13 @@ def dcp(image: np.ndarray, patch: int = 15, omega: float = 0.95, t0: float = 0.1
     return np.clip(out, 0, 255).round().astype(np.uint8)
 
 
-def oracle(fogged: np.ndarray, depth: np.ndarray, K: np.ndarray, alpha: float, airlight: Sequence[float]) -> np.ndarray:
+def oracle(fogged: np.ndarray, depth: np.ndarray, K: np.ndarray, alpha: float, airlight: Sequence[float],
+           t_min: float = 0.05) -> np.ndarray:  # fmt: skip
     """Invert fog-gym's Koschmieder fog exactly: ``J = (I − A·(1 − t)) / t``, ``t = exp(−α·ℓ)`` with the Euclidean
     ray length ℓ from planar ``depth`` and ``K`` — the same transmission the fog was made with. Only the 8-bit
-    rounding of I is lost (amplified by 1/t, so far pixels in dense fog come back noisier)."""
+    rounding of I is lost (amplified by 1/t, so far pixels in dense fog come back noisier). Where ``t < t_min``
+    (the sky, far road in dense fog) the fog has left almost nothing of J — at ``t = 0.05`` the rounding alone is
+    ±10 grey levels, and the sky's ``t`` is ~0 — so those pixels keep their fogged value."""
     from fog_gym.fog import ray_length_factor
 
     img = check_image(fogged, "fogged")
@@ -112,5 +115,8 @@ def oracle(fogged: np.ndarray, depth: np.ndarray, K: np.ndarray, alpha: float, a
     h, w = d.shape
     t = np.exp(-np.float32(alpha) * d * ray_length_factor(w, h, np.asarray(K, np.float64)))[..., None]
     A = np.asarray(airlight, np.float32).reshape(1, 1, 3)
-    out = (img.astype(np.float32) - A * (1.0 - t)) / np.maximum(t, 1e-6)
+    if not 0 < t_min < 1:
+        raise ValueError(f"t_min must lie in (0, 1), got {t_min!r}")
+    out = (img.astype(np.float32) - A * (1.0 - t)) / np.maximum(t, t_min)
+    out = np.where(t >= t_min, out, img.astype(np.float32))
     return np.clip(np.rint(out), 0, 255).astype(np.uint8)
