@@ -52,6 +52,13 @@ class FogDriveEnv(gym.Env):
     "reference", highway-env's own Python path; same trajectories), or ``config`` (a complete
     :class:`FogDriveConfig`).
 
+    Public attributes (what wrappers and tools may use): ``config`` (the validated :class:`FogDriveConfig`),
+    ``episode_seed`` (set by ``reset``; every random stream of the episode derives from it), ``scene`` (the
+    latest :class:`~fog_gym.scene.Scene`), ``frames`` (the latest :class:`~fog_gym.sensors.CameraFrame` per
+    camera), ``points`` (the latest ``(N, C)`` sweep per point sensor), :attr:`camera_names`, :attr:`intrinsics`,
+    :attr:`instance_buffers`, :attr:`idle_action`, :meth:`ground_truth`, ``cameras`` (the
+    :class:`~fog_gym.sensors.CameraRig`), ``point_sensors`` and ``world`` (the :class:`~fog_gym.world.TrafficWorld`).
+
     >>> env = FogDriveEnv(town="merge", resolution=(32, 24), cameras=["CAM_FRONT"])
     >>> sorted(env.observation_space.spaces)
     ['CAM_FRONT', 'CAM_FRONT_DEPTH', 'CAM_FRONT_SEM', 'LIDAR_TOP', 'RADAR_FRONT', 'SEM_LIDAR_TOP']
@@ -140,10 +147,18 @@ class FogDriveEnv(gym.Env):
         self._steps = 0
         self.episode_seed: int | None = None
 
+    @staticmethod
+    def episode_seed_for(seed: int) -> int:
+        """The :attr:`episode_seed` that ``reset(seed=seed)`` draws (the world's highway-env seed; every random
+        stream of the episode derives from it)."""
+        from gymnasium.utils import seeding
+
+        return int(seeding.np_random(seed)[0].integers(0, 2**31 - 1))
+
     # -- Gymnasium API --------------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
-        world_seed = int(self.np_random.integers(0, 2**31 - 1))
+        world_seed = int(self.np_random.integers(0, 2**31 - 1))  # = episode_seed_for(seed) when a seed is given
         self.episode_seed = world_seed  # everything random in the episode derives from it (fog noise too)
         self.world.reset(seed=world_seed)
         self.action_space = self.world.action_space
@@ -205,22 +220,21 @@ class FogDriveEnv(gym.Env):
             obs[name] = f.rgb
             obs[f"{name}_DEPTH"] = f.depth
             obs[f"{name}_SEM"] = f.semantic
-        tick = max(int(self.world.hw.steps) - 1, 0)  # the simulation tick this keyframe closes
+        tick = max(self.world.tick - 1, 0)  # the simulation tick this keyframe closes
         self.points = self.point_sensors.measure(self.scene, prims, self._sensor_rng, tick)
         for name, pts in self.points.items():
             obs[name] = pack_points(pts, self.observation_space[name].shape[0])
         return obs
 
     def _info(self, hw_info: dict) -> dict[str, Any]:
-        ego = self.world.hw.vehicle
         info = {
             "town": self.config.town,
             "town_number": self.config.town_number,
             "time_of_day": self.config.time_of_day,
             "sim_time": self.world.time,
             "step": self._steps,
-            "speed": float(ego.speed),
-            "crashed": bool(ego.crashed),
+            "speed": self.world.ego_speed,
+            "crashed": self.world.ego_crashed,
         }
         if "rewards" in hw_info:
             info["rewards"] = {k: float(v) for k, v in hw_info["rewards"].items()}
@@ -228,8 +242,16 @@ class FogDriveEnv(gym.Env):
             info.update(self.ground_truth())
         return info
 
-    def ground_truth(self) -> dict[str, Any]:
-        """``boxes_3d``, ``boxes_2d`` (per camera), ``intrinsics`` and ``extrinsics`` of the current frame."""
+    def ground_truth(self, labels: LabelConfig | None = None) -> dict[str, Any]:
+        """``boxes_3d``, ``boxes_2d`` (per camera), ``intrinsics`` and ``extrinsics`` of the current frame, under the
+        env's label config or, for this call only, ``labels`` (a :class:`LabelConfig`; the env is not changed)."""
+        if labels is not None and not isinstance(labels, LabelConfig):
+            raise ValueError(f"labels must be a LabelConfig or None, got {type(labels).__name__}")
+        label_cfg = labels if labels is not None else self.config.labels
+        if label_cfg is None:
+            raise ValueError("this env was built with labels=None: pass labels=LabelConfig(...)")
+        if self.scene is None:
+            raise RuntimeError("call reset() before ground_truth()")
         scene, rig = self.scene, self.config.rig
         ego_to_world = geometry.yaw_transform(*scene.ego_pose)
         world_to_lidar = np.linalg.inv(ego_to_world @ self._label_lidar_to_vehicle)
@@ -243,7 +265,7 @@ class FogDriveEnv(gym.Env):
         sem = self.points.get(SEMANTIC_LIDAR)
         boxes_3d, boxes_2d = annotate(v.ids[others], v.classes[others], v.centers[others], v.sizes[others],
                                       v.yaws[others], v.velocities[others], world_to_lidar, views, sem,
-                                      self.config.labels)  # fmt: skip
+                                      label_cfg)  # fmt: skip
         return {
             "boxes_3d": boxes_3d,
             "boxes_2d": boxes_2d,
@@ -256,6 +278,16 @@ class FogDriveEnv(gym.Env):
         """The action that keeps lane and speed: highway-env's ``IDLE`` meta-action (1), zeros if continuous."""
         space = self.action_space
         return 1 if space.shape == () else np.zeros(space.shape, space.dtype)
+
+    @property
+    def camera_names(self) -> tuple[str, ...]:
+        """The rig's camera names, in rig order."""
+        return self.cameras.names
+
+    @property
+    def intrinsics(self) -> dict[str, np.ndarray]:
+        """Each camera's 3×3 intrinsic matrix K (pixel centres at +0.5; CARLA's pinhole)."""
+        return self.cameras.intrinsics
 
     @property
     def instance_buffers(self) -> dict[str, np.ndarray]:

@@ -24,14 +24,12 @@ import numpy as np
 
 from fog_gym.config import TOWNS, check_traffic_mode
 from fog_gym.scenery import LaneGeometry
-from fog_gym.traffic.core import accelerate
+from fog_gym.traffic.core import accelerate, is_accelerated
 from fog_gym.seeds import stream
 
 EGO_ID = 1
 #: Tesla Model 3 (CARLA ``vehicle.tesla.model3`` bounding box): length, width, height [m].
 EGO_SIZE = (4.79, 2.16, 1.49)
-#: FogDrive taxonomy (supplementary D1) of the classes fog-gym spawns.
-CLASS_NAMES = {0: "car", 1: "truck", 4: "bigger car"}
 #: Spawn probability and (length, width, height) ranges of each class.
 CLASS_SPECS: dict[int, tuple[float, tuple[float, float], tuple[float, float], tuple[float, float]]] = {
     0: (0.72, (4.2, 4.9), (1.80, 2.00), (1.40, 1.60)),
@@ -43,30 +41,70 @@ _CAR_COLORS = np.array([
     [0.10, 0.22, 0.55], [0.05, 0.10, 0.25], [0.12, 0.32, 0.18], [0.85, 0.65, 0.10], [0.55, 0.32, 0.18],
 ])  # fmt: skip
 
-#: highway-env's IDM class constants, which IntersectionEnv overwrites process-wide (research note):
-#: each world re-applies its own profile before it steps, so towns in one process do not leak.
-_IDM_DEFAULT = {"DISTANCE_WANTED": 10.0, "COMFORT_ACC_MAX": 3.0, "COMFORT_ACC_MIN": -5.0}
-_IDM_INTERSECTION = {"DISTANCE_WANTED": 7.0, "COMFORT_ACC_MAX": 6.0, "COMFORT_ACC_MIN": -3.0}
+#: highway-env's IDM class constants, which IntersectionEnv overwrites process-wide (research note): each town
+#: names its profile in its :class:`TownSpec`, and a world re-applies it before it steps, so towns in one process
+#: do not leak.
+IDM_PROFILES: dict[str, dict[str, float]] = {
+    "default": {"DISTANCE_WANTED": 10.0, "COMFORT_ACC_MAX": 3.0, "COMFORT_ACC_MIN": -5.0},
+    "intersection": {"DISTANCE_WANTED": 7.0, "COMFORT_ACC_MAX": 6.0, "COMFORT_ACC_MIN": -3.0},
+}
 
 
 @dataclass(frozen=True)
 class TownSpec:
-    """A town: the highway-env scenario class, fog-gym's config on top of its defaults, and a scenery style."""
+    """A town: the highway-env scenario class, fog-gym's config on top of its defaults, a scenery style and the
+    IDM profile (a key of :data:`IDM_PROFILES`)."""
 
     env_class: str
     config: dict[str, Any]
     scenery: str
+    idm: str = "default"
+
+    def __post_init__(self) -> None:
+        if self.idm not in IDM_PROFILES:
+            raise ValueError(f"idm must be one of {tuple(IDM_PROFILES)}, got {self.idm!r}")
 
 
 TOWN_SPECS: dict[str, TownSpec] = {
     "highway": TownSpec("HighwayEnv", {"lanes_count": 4, "vehicles_count": 40, "vehicles_density": 1.2}, "freeway"),
     "merge": TownSpec("MergeEnv", {}, "freeway"),
     "roundabout": TownSpec("RoundaboutEnv", {}, "urban"),
-    "intersection": TownSpec("IntersectionEnv", {"initial_vehicle_count": 12}, "urban"),
+    "intersection": TownSpec("IntersectionEnv", {"initial_vehicle_count": 12}, "urban", idm="intersection"),
     "racetrack": TownSpec("RacetrackEnv", {"other_vehicles": 8}, "circuit"),
     "exit": TownSpec("ExitEnv", {"vehicles_count": 30}, "freeway"),
 }
 assert tuple(TOWN_SPECS) == TOWNS
+
+
+def highway_env_config(town: str, simulation_frequency: int = 20, keyframe_frequency: int = 10,
+                       overrides: dict[str, Any] | None = None) -> dict[str, Any]:  # fmt: skip
+    """The highway-env config of a town's scenario as :class:`TrafficWorld` builds it (benchmarks use it to build the
+    bare scenario for comparison).
+
+    >>> highway_env_config("highway")["vehicles_count"], highway_env_config("merge", overrides={"lanes_count": 3})["lanes_count"]
+    (40, 3)
+    """
+    if town not in TOWN_SPECS:
+        raise ValueError(f"town must be one of {TOWNS}, got {town!r}")
+    config = copy.deepcopy(TOWN_SPECS[town].config)
+    config.update(
+        {
+            "simulation_frequency": simulation_frequency,
+            "policy_frequency": keyframe_frequency,
+            "duration": 1e9,  # fog-gym truncates by its own episode length
+            "offscreen_rendering": True,
+        }
+    )
+    config.update(copy.deepcopy(dict(overrides or {})))
+    return config
+
+
+def apply_idm_profile(town: str) -> None:
+    """Set highway-env's process-wide IDM constants to ``town``'s profile (its :class:`TownSpec` names it)."""
+    from highway_env.vehicle.behavior import IDMVehicle
+
+    for k, v in IDM_PROFILES[TOWN_SPECS[town].idm].items():
+        setattr(IDMVehicle, k, v)
 
 
 @dataclass(frozen=True)
@@ -90,6 +128,12 @@ class TrafficWorld:
 
     ``highway_config`` overrides highway-env config keys (``action``, ``vehicles_count``, …). ``traffic="fast"``
     steps it through :mod:`fog_gym.traffic` (identical trajectories); ``"reference"`` through highway-env alone.
+
+    The world's surface — what the env, wrappers, audit and benchmarks use — is :meth:`reset`, :meth:`step`,
+    :meth:`vehicle_state`, :meth:`lane_geometry`, :attr:`ego_pose`, :attr:`ego_speed`, :attr:`ego_crashed`,
+    :attr:`tick`, :attr:`time`, :attr:`vehicle_count`, :attr:`accelerated`, :attr:`idm_profile`, ``action_space``,
+    ``town``, ``spec``, ``traffic`` and ``start_position``. ``hw`` (the highway-env environment) is for this module
+    and :mod:`fog_gym.traffic` only (``tests/test_world.py`` checks that nothing else reads it).
     """
 
     def __init__(
@@ -108,17 +152,8 @@ class TrafficWorld:
         self.traffic = check_traffic_mode(traffic)
         self.town = town
         self.spec = TOWN_SPECS[town]
-        self._idm_profile = _IDM_INTERSECTION if town == "intersection" else _IDM_DEFAULT
-        config = copy.deepcopy(self.spec.config)
-        config.update(
-            {
-                "simulation_frequency": simulation_frequency,
-                "policy_frequency": keyframe_frequency,
-                "duration": 1e9,  # fog-gym truncates by its own episode length
-                "offscreen_rendering": True,
-            }
-        )
-        config.update(copy.deepcopy(dict(highway_config or {})))
+        self.idm_profile: dict[str, float] = dict(IDM_PROFILES[self.spec.idm])
+        config = highway_env_config(town, simulation_frequency, keyframe_frequency, highway_config)
         self.episode_seconds = float(episode_seconds)
         self._apply_idm_profile()
         self.hw = getattr(hw_envs, self.spec.env_class)(config=config)
@@ -130,10 +165,7 @@ class TrafficWorld:
 
     # -- highway-env plumbing -------------------------------------------------------------------------
     def _apply_idm_profile(self) -> None:
-        from highway_env.vehicle.behavior import IDMVehicle
-
-        for k, v in self._idm_profile.items():
-            setattr(IDMVehicle, k, v)
+        apply_idm_profile(self.town)
 
     def _skip_observation(self) -> None:
         # FogDrive-v0 never uses highway-env's observation: make it free on the hot path.
@@ -216,7 +248,33 @@ class TrafficWorld:
 
     @property
     def time(self) -> float:
+        """Simulated seconds since the reset."""
         return float(self.hw.time)
+
+    @property
+    def tick(self) -> int:
+        """Simulation sub-steps since the reset (``simulation_frequency`` per second)."""
+        return int(self.hw.steps)
+
+    @property
+    def ego_speed(self) -> float:
+        """The ego's speed [m/s]."""
+        return float(self.hw.vehicle.speed)
+
+    @property
+    def ego_crashed(self) -> bool:
+        """Whether the ego has collided in this episode."""
+        return bool(self.hw.vehicle.crashed)
+
+    @property
+    def vehicle_count(self) -> int:
+        """Vehicles on the road, the ego included."""
+        return len(self.hw.road.vehicles)
+
+    @property
+    def accelerated(self) -> bool:
+        """Whether the traffic steps through :mod:`fog_gym.traffic`'s core."""
+        return is_accelerated(self.hw)
 
     # -- road geometry --------------------------------------------------------------------------------
     def lane_geometry(self, center: np.ndarray, radius: float, step: float = 1.0) -> list[LaneGeometry]:

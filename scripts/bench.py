@@ -64,7 +64,6 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import copy
 import cProfile
 import json
 import os
@@ -265,7 +264,7 @@ def measure_stages(env: Any, solos: dict[str, Any], action: Any, repeats: int, d
 
 def sensor_tick(env: Any) -> int:
     """The simulation tick that the current keyframe closes (as ``FogDriveEnv._observe`` computes it)."""
-    return max(int(env.world.hw.steps) - 1, 0)
+    return max(env.world.tick - 1, 0)
 
 
 def point_sensor_label(env: Any) -> str:
@@ -280,8 +279,10 @@ def measure_env_step(env: Any, action: Any, bare: Any, repeats: int, desc: str) 
     start from the same traffic, and each timed ``env.step`` is followed by one timed ``bare.step``. The two
     series therefore see the same machine load, and their ratio holds up when the load drifts.
     """
+    from fog_gym.env import FogDriveEnv
+
     env.reset(seed=0)
-    bare.reset(seed=fog_world_seed(0))
+    bare.reset(seed=FogDriveEnv.episode_seed_for(0))
     bare_action = idle_action(bare.action_space)
     keep = EpisodeKeeper(env, {})
     fog_ms, bare_ms, bare_resets = [], [], 0
@@ -293,7 +294,7 @@ def measure_env_step(env: Any, action: Any, bare: Any, repeats: int, desc: str) 
         bare_ms.append(ms)
         if terminated or truncated:
             bare_resets += 1
-            bare.reset(seed=fog_world_seed(bare_resets))
+            bare.reset(seed=FogDriveEnv.episode_seed_for(bare_resets))
     return {**summarize(fog_ms), "resets": keep.resets}, {**summarize(bare_ms), "resets": bare_resets}
 
 
@@ -531,45 +532,16 @@ def concat_prims(*groups: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
 
 
 def bare_highway_env(town: str, **overrides: Any) -> Any:
-    """The town's highway-env scenario with fog-gym's config and frequencies, with the observation kept."""
+    """The town's highway-env scenario with fog-gym's config and frequencies (``fog_gym.world.highway_env_config``),
+    with the observation kept."""
     import highway_env.envs as hw_envs
 
     from fog_gym.config import FogDriveConfig
-    from fog_gym.world import TOWN_SPECS
+    from fog_gym.world import TOWN_SPECS, highway_env_config
 
-    spec = TOWN_SPECS[town]
     defaults = FogDriveConfig()
-    config = copy.deepcopy(spec.config)
-    config.update({
-        "simulation_frequency": defaults.simulation_frequency,
-        "policy_frequency": defaults.keyframe_frequency,
-        "duration": 1e9,  # as in TrafficWorld: no time-limit truncation while timing
-        "offscreen_rendering": True,
-    })  # fmt: skip
-    config.update(overrides)
-    return getattr(hw_envs, spec.env_class)(config=config)
-
-
-def apply_idm_profile(town: str) -> None:
-    """Set highway-env's process-wide IDM constants for ``town``, as ``TrafficWorld`` does before each step."""
-    from highway_env.vehicle.behavior import IDMVehicle
-
-    from fog_gym import world
-
-    profile = world._IDM_INTERSECTION if town == "intersection" else world._IDM_DEFAULT
-    for k, v in profile.items():
-        setattr(IDMVehicle, k, v)
-
-
-def fog_world_seed(seed: int) -> int:
-    """The highway-env seed that ``FogDriveEnv.reset(seed=seed)`` passes to its world (same derivation as there).
-
-    A bare env reset with this seed starts from the same traffic as FogDrive-v0. Only the vehicle sizes differ.
-    """
-    from gymnasium.utils import seeding
-
-    rng, _ = seeding.np_random(seed)
-    return int(rng.integers(0, 2**31 - 1))
+    config = highway_env_config(town, defaults.simulation_frequency, defaults.keyframe_frequency, overrides)
+    return getattr(hw_envs, TOWN_SPECS[town].env_class)(config=config)
 
 
 def measure_bare(hw: Any, repeats: int, desc: str, seed: int = 0) -> dict[str, Any]:
@@ -630,12 +602,13 @@ def profile_bare(hw: Any, steps: int) -> dict[str, Any]:
 
 def bench_baselines(town: str, repeats: int, profile_steps: int) -> dict[str, Any]:
     """Bare highway-env for the town's config and for a dense highway (50 vehicles). Both are timed and profiled."""
-    from fog_gym.world import TOWN_SPECS
+    from fog_gym.env import FogDriveEnv
+    from fog_gym.world import TOWN_SPECS, apply_idm_profile
 
     out: dict[str, Any] = {}
     configs = {
         # the town as FogDrive-v0 runs it, from the same initial traffic as FogDriveEnv.reset(seed=0)
-        "town": (f"{town} ({TOWN_SPECS[town].env_class}, fog-gym config)", town, {}, fog_world_seed(0)),
+        "town": (f"{town} ({TOWN_SPECS[town].env_class}, fog-gym config)", town, {}, FogDriveEnv.episode_seed_for(0)),
         # the highway town with more vehicles: 1 ego + 50 others
         "dense": (f"highway, vehicles_count={DENSE_VEHICLES}", "highway", {"vehicles_count": DENSE_VEHICLES}, 0),
     }
@@ -718,7 +691,7 @@ def bench_fog(repeats: int) -> dict[str, Any]:
     env = FogWrapper(FogDriveEnv(town="highway"), list(levels))
     obs, _ = env.reset(seed=0)
     base = env.unwrapped
-    K = base.cameras.intrinsics["CAM_FRONT"]
+    K = base.intrinsics["CAM_FRONT"]
     rgb, depth = base.frames["CAM_FRONT"].rgb, base.frames["CAM_FRONT"].depth
     airlight = env.airlight["CAM_FRONT"]
     clean_lidar = base.points["LIDAR_TOP"]
