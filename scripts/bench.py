@@ -250,8 +250,8 @@ def measure_stages(env: Any, solos: dict[str, Any], action: Any, repeats: int, d
         for ch, pts in points.items():
             counts[f"points:{ch}"].append(len(pts))
         counts["vehicles"].append(len(scene.vehicles))
-        counts["vehicle_primitives"].append(len(scene.primitives["centers"]))
-        counts["render_primitives"].append(len(prims["centers"]))
+        counts["vehicle_primitives"].append(len(scene.primitives))
+        counts["render_primitives"].append(len(prims))
         counts["props"].append(len(scene.static.props))
         keep.after_step(terminated)
     out: dict[str, Any] = {k: summarize(v) for k, v in t.items()}
@@ -392,25 +392,23 @@ def night_figure(res: dict[str, Any], path: Path) -> None:
 # -- point sensors on a dense highway ------------------------------------------------------------------
 
 
-def far_boxes(template: dict[str, np.ndarray], ego_xy: np.ndarray, rng: np.random.Generator, n: int) -> dict:
-    """``n`` car-sized boxes on the ground with their centres ``FAR_RADIUS`` from ``ego_xy``, in ``template``'s format.
+def far_boxes(template: Any, ego_xy: np.ndarray, rng: np.random.Generator, n: int) -> Any:
+    """``n`` car-sized boxes (``Primitives``) on the ground with their centres ``FAR_RADIUS`` from ``ego_xy``.
 
     Their nearest points lie beyond 300 m from the ego (a car box reaches under 3 m from its centre), out of the
     LiDARs' 120 m and of the radar's rays (under 303 m from the bumper). Static world (``insts`` 0), car tag.
     """
+    from fog_gym.primitives import Primitives
+
     r = rng.uniform(*FAR_RADIUS, n)
     a = rng.uniform(0.0, 2.0 * np.pi, n)
     halves = np.tile([2.4, 1.0, 0.8], (n, 1))
     centers = np.c_[ego_xy[0] + r * np.cos(a), ego_xy[1] + r * np.sin(a), halves[:, 2]]
-    tag = template["tags"][template["insts"] > 0][:1]  # a vehicle's tag where there is one
-    values = {
+    tag = template.tags[template.insts > 0][:1]  # a vehicle's tag where there is one
+    return Primitives.coerce({
         "centers": centers, "halves": halves, "yaws": rng.uniform(-np.pi, np.pi, n), "colors": np.full((n, 3), 0.5),
         "tags": np.full(n, tag[0] if tag.size else 14), "insts": np.zeros(n), "emissive": np.zeros(n, bool),
-    }  # fmt: skip
-    missing = set(template) - set(values)
-    if missing:
-        raise KeyError(f"far_boxes: no values for primitive keys {sorted(missing)}")
-    return {k: np.asarray(values[k], dtype=template[k].dtype).reshape((n, *template[k].shape[1:])) for k in template}
+    })  # fmt: skip
 
 
 def point_sensor_calls(env: Any, scene: Any, prims: dict[str, np.ndarray]) -> dict[str, Callable[[], Any]]:
@@ -506,8 +504,8 @@ def bench_point_sensors(repeats: int) -> dict[str, Any]:
         dist = np.hypot(*(scene.vehicles.centers[others, :2] - ego_xy).T)
         counts["vehicles"].append(len(scene.vehicles.ids))
         counts["within_lidar_range"].append(int(np.count_nonzero(dist <= lidar_range)))
-        counts["prims"].append(len(prims["centers"]))
-        counts["prims_far"].append(len(with_far["centers"]))
+        counts["prims"].append(len(prims))
+        counts["prims_far"].append(len(with_far))
         keep.after_step(terminated, truncated)
     result = {
         "label": f"highway, {POINT_SENSOR_TRAFFIC}, no cameras",
@@ -523,9 +521,9 @@ def bench_point_sensors(repeats: int) -> dict[str, Any]:
 
 
 def concat_prims(*groups: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-    from fog_gym.scene import concat_primitives
+    from fog_gym.primitives import Primitives
 
-    return concat_primitives(*groups)
+    return Primitives.concat(*groups)
 
 
 # -- bare highway-env ----------------------------------------------------------------------------------

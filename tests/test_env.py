@@ -38,7 +38,7 @@ def test_observation_space_and_dtypes(small_env):
 def test_semantic_tags_are_those_of_the_scene(small_env):
     scene = small_env.scene
     present = set(SURFACE_TAGS[np.unique(scene.static.surface.grid)].tolist())
-    present |= set(scene.static.props.tags.tolist()) | set(scene.primitives["tags"].tolist()) | {11}
+    present |= set(scene.static.props.tags.tolist()) | set(scene.primitives.tags.tolist()) | {11}
     for name in small_env.cameras.names:
         assert set(np.unique(small_env.frames[name].semantic).tolist()) <= present
 

@@ -15,7 +15,7 @@ ROOT = Path(__file__).resolve().parents[1]
 #: The dataset format layer: reads and writes the FogDrive layout, knows nothing of how the data was made.
 FORMAT_LAYER = ("fog_gym.dataset",)
 #: Pure physics and geometry: numpy in, numpy out.
-PURE = ("fog_gym._numba", "fog_gym.pose", "fog_gym.geometry", "fog_gym.fog", "fog_gym.polygon", "fog_gym.encoding", "fog_gym.seeds")
+PURE = ("fog_gym._numba", "fog_gym.pose", "fog_gym.primitives", "fog_gym.geometry", "fog_gym.fog", "fog_gym.polygon", "fog_gym.encoding", "fog_gym.seeds")
 #: What builds or runs an environment (the format layer and the pure modules may import none of it).
 ENVIRONMENT = ("fog_gym.env", "fog_gym.world", "fog_gym.traffic", "fog_gym.wrappers", "fog_gym.make", "fog_gym.rl",
                "fog_gym.generate")  # fmt: skip

@@ -40,12 +40,14 @@ Example (one lamp 7 m above a grey floor point, straight down):
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from collections.abc import Mapping
+from typing import Any, NamedTuple
 
 import numpy as np
 from numba import njit, prange
 
 import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
+from fog_gym.primitives import Primitives
 from fog_gym.render import raster
 
 LAMP, HEADLIGHT = 0, 1
@@ -584,7 +586,7 @@ EXPOSURE_STEP = 4
 
 def shade_night(
     cam_rot: np.ndarray, cam_trans: np.ndarray, cam_k: np.ndarray, far: float, buffers: dict[str, np.ndarray],
-    prims: dict[str, np.ndarray], lights: Lights, ground: tuple[GroundLightMap, GroundLightMap], heads: np.ndarray,
+    prims: Primitives | Mapping[str, Any], lights: Lights, ground: tuple[GroundLightMap, GroundLightMap], heads: np.ndarray,
     ambient: float = NIGHT_AMBIENT, gains: np.ndarray | None = None,
 ) -> np.ndarray:
     """Light, expose and encode in place the RGB of an albedo-mode render; returns the exposure gain per camera.
@@ -605,16 +607,17 @@ def shade_night(
     rot = np.ascontiguousarray(cam_rot, np.float64)
     trans = np.ascontiguousarray(cam_trans, np.float64)
     ks = np.ascontiguousarray(cam_k, np.float64)
-    prim_l, prim_n = _prim_lights(prims["centers"], prims["halves"], lights.pos, lights.radius, MAX_PRIM_LIGHTS)
-    g_off, g_dims, g_data = _face_grids(prims["centers"], prims["halves"], prims["yaws"], prims["emissive"], prim_l,
+    prims = Primitives.coerce(prims)
+    prim_l, prim_n = _prim_lights(prims.centers, prims.halves, lights.pos, lights.radius, MAX_PRIM_LIGHTS)
+    g_off, g_dims, g_data = _face_grids(prims.centers, prims.halves, prims.yaws, prims.emissive, prim_l,
                                         prim_n, *_light_args(lights), FACE_CELL, FACE_MAX_CELLS)  # fmt: skip
     smap, wmap = ground
 
     def run(step, gains, encode, hist):
         _shade_pass(
             rot, trans, ks, float(far), rgb, buffers["depth"], buffers["face"], buffers["face_emissive"],
-            buffers["face_prim"], buffers["face_side"], prims["centers"], prims["halves"],
-            np.ascontiguousarray(np.c_[np.cos(prims["yaws"]), np.sin(prims["yaws"])]), g_off, g_dims, g_data,
+            buffers["face_prim"], buffers["face_side"], prims.centers, prims.halves,
+            np.ascontiguousarray(np.c_[np.cos(prims.yaws), np.sin(prims.yaws)]), g_off, g_dims, g_data,
             smap.irradiance, smap.origin[0], smap.origin[1], 1.0 / smap.resolution,
             wmap.irradiance, wmap.origin[0], wmap.origin[1], 1.0 / wmap.resolution,
             float(ambient), float(EMISSIVE_GAIN), float(SKY_GAIN), step, gains, float(KNEE), encode, hist,
@@ -640,7 +643,7 @@ EXPOSURE_DOWNSCALE = 4
 
 def render_night(
     cam_rot: np.ndarray, cam_trans: np.ndarray, cam_k: np.ndarray, width: int, height: int, far: float,
-    prims: dict[str, np.ndarray], surface, albedo_lut: np.ndarray, surface_tag: np.ndarray,
+    prims: Primitives | Mapping[str, Any], surface, albedo_lut: np.ndarray, surface_tag: np.ndarray,
     sky_horizon: np.ndarray, sky_zenith: np.ndarray, lights: Lights, ground: tuple[GroundLightMap, GroundLightMap],
     heads: np.ndarray, ambient: float = NIGHT_AMBIENT,
 ) -> tuple[dict[str, np.ndarray], np.ndarray]:
@@ -655,10 +658,11 @@ def render_night(
     from fog_gym.render.raster import render
 
     n_cam = len(cam_rot)
-    prim_l, prim_n = _prim_lights(prims["centers"], prims["halves"], lights.pos, lights.radius, MAX_PRIM_LIGHTS)
-    g_off, g_dims, g_data = _face_grids(prims["centers"], prims["halves"], prims["yaws"], prims["emissive"], prim_l,
+    prims = Primitives.coerce(prims)
+    prim_l, prim_n = _prim_lights(prims.centers, prims.halves, lights.pos, lights.radius, MAX_PRIM_LIGHTS)
+    g_off, g_dims, g_data = _face_grids(prims.centers, prims.halves, prims.yaws, prims.emissive, prim_l,
                                         prim_n, *_light_args(lights), FACE_CELL, FACE_MAX_CELLS)  # fmt: skip
-    cossin = np.ascontiguousarray(np.c_[np.cos(prims["yaws"]), np.sin(prims["yaws"])])
+    cossin = np.ascontiguousarray(np.c_[np.cos(prims.yaws), np.sin(prims.yaws)])
     smap, wmap = ground
     # 1. exposure on a small render
     lw, lh = max(8, width // EXPOSURE_DOWNSCALE), max(8, height // EXPOSURE_DOWNSCALE)
@@ -671,7 +675,7 @@ def render_night(
     _shade_pass(
         np.ascontiguousarray(cam_rot, np.float64), np.ascontiguousarray(cam_trans, np.float64), k_low, float(far),
         low["rgb"], low["depth"], low["face"], low["face_emissive"], low["face_prim"], low["face_side"],
-        prims["centers"], prims["halves"], cossin, g_off, g_dims, g_data,
+        prims.centers, prims.halves, cossin, g_off, g_dims, g_data,
         smap.irradiance, smap.origin[0], smap.origin[1], 1.0 / smap.resolution,
         wmap.irradiance, wmap.origin[0], wmap.origin[1], 1.0 / wmap.resolution,
         float(ambient), float(EMISSIVE_GAIN), float(SKY_GAIN), 1, np.ones(n_cam), float(KNEE), False, hist,
@@ -680,7 +684,7 @@ def render_night(
     gains = gains_from_histograms(hist.sum(axis=1))
     # 2. the lit full-size render
     night = {"gains": gains, "knee": KNEE, "ambient": ambient, "emissive_gain": EMISSIVE_GAIN, "sky_gain": SKY_GAIN,
-             "window": wmap, "static": smap, "centers": prims["centers"], "halves": prims["halves"],
+             "window": wmap, "static": smap, "centers": prims.centers, "halves": prims.halves,
              "cossin": cossin, "g_off": g_off, "g_dims": g_dims, "g_data": g_data}  # fmt: skip
     out = render(cam_rot, cam_trans, cam_k, width, height, far, prims, surface, albedo_lut, surface_tag,
                  sky_horizon, sky_zenith, sun, 1.0, 0.0, night=night)  # fmt: skip
