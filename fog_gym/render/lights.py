@@ -393,41 +393,11 @@ def _shade_pass(
                     else:  # a face: bilinear in its irradiance grid
                         p = face_prim[c, f]
                         fs = face_side[c, f]
-                        o = g_off[p, fs]
-                        if o >= 0:
-                            wz = R[0, 2] * xc + R[1, 2] * yc + R[2, 2] * zc
-                            dx = wx - centers[p, 0]
-                            dy = wy - centers[p, 1]
-                            cyw = yaws[p, 0]
-                            syw = yaws[p, 1]
-                            lx = dx * cyw + dy * syw
-                            ly = -dx * syw + dy * cyw
-                            lz = wz - centers[p, 2]
-                            ax1 = _FACE_AXES[fs, 1]
-                            ax2 = _FACE_AXES[fs, 2]
-                            q1 = lx if ax1 == 0 else ly
-                            q2 = ly if ax2 == 1 else lz
-                            n1 = g_dims[p, fs, 0]
-                            n2 = g_dims[p, fs, 1]
-                            s1 = min(max((q1 / halves[p, ax1] + 1.0) * 0.5 * n1 - 0.5, 0.0), n1 - 1.0)
-                            s2 = min(max((q2 / halves[p, ax2] + 1.0) * 0.5 * n2 - 0.5, 0.0), n2 - 1.0)
-                            u0 = min(int(s1), n1 - 1)
-                            v0 = min(int(s2), n2 - 1)
-                            u1 = min(u0 + 1, n1 - 1)
-                            v1 = min(v0 + 1, n2 - 1)
-                            fu = s1 - u0
-                            fv = s2 - v0
-                            w00 = (1.0 - fu) * (1.0 - fv)
-                            w01 = (1.0 - fu) * fv
-                            w10 = fu * (1.0 - fv)
-                            w11 = fu * fv
-                            k00 = o + u0 * n2 + v0
-                            k01 = o + u0 * n2 + v1
-                            k10 = o + u1 * n2 + v0
-                            k11 = o + u1 * n2 + v1
-                            e0 += w00 * g_data[k00, 0] + w01 * g_data[k01, 0] + w10 * g_data[k10, 0] + w11 * g_data[k11, 0]
-                            e1 += w00 * g_data[k00, 1] + w01 * g_data[k01, 1] + w10 * g_data[k10, 1] + w11 * g_data[k11, 1]
-                            e2 += w00 * g_data[k00, 2] + w01 * g_data[k01, 2] + w10 * g_data[k10, 2] + w11 * g_data[k11, 2]
+                        wz = R[0, 2] * xc + R[1, 2] * yc + R[2, 2] * zc
+                        f0, f1, f2 = raster.face_irradiance(p, fs, wx, wy, wz, centers, halves, yaws, g_off, g_dims, g_data)
+                        e0 += f0
+                        e1 += f1
+                        e2 += f2
                     l0, l1, l2 = a0 * e0, a1 * e1, a2 * e2
             if encode:
                 rgb[c, i, j, 0] = np.uint8(_tone(l0 * g, knee) * 255.0 + 0.5)

@@ -275,7 +275,7 @@ def _light_ground(out_rgb, c, i, j, wx, wy, g, knee, ambient, wmap, w_ox, w_oy, 
 
 
 @njit(cache=True, inline="always")
-def _face_irradiance(p, fs, wx, wy, wz, centers, halves, cossin, g_off, g_dims, g_data):
+def face_irradiance(p, fs, wx, wy, wz, centers, halves, cossin, g_off, g_dims, g_data):
     """Bilinear irradiance (RGB) of face ``fs`` of primitive ``p`` at world point w from its grid (0 if unlit)."""
     o = g_off[p, fs]
     if o < 0:
@@ -469,7 +469,7 @@ def _raster_bands(
                             xc = (j + 0.5 - cx) / fx * zz - T[0]
                             yc = (v - cy) / fy * zz - T[1]
                             zc = zz - T[2]
-                            e0, e1, e2 = _face_irradiance(
+                            e0, e1, e2 = face_irradiance(
                                 p_f, s_f, R[0, 0] * xc + R[1, 0] * yc + R[2, 0] * zc,
                                 R[0, 1] * xc + R[1, 1] * yc + R[2, 1] * zc, R[0, 2] * xc + R[1, 2] * yc + R[2, 2] * zc,
                                 centers, halves, cossin, g_off, g_dims, g_data)  # fmt: skip
