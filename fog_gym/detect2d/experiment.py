@@ -43,6 +43,7 @@ import torch
 from fog_gym.dataset.access import FogDrive
 from fog_gym.dataset.decode import load_channel
 from fog_gym.detect2d import STRIDE, CenterNet2D, decode, loss_fn, make_targets
+from fog_gym.detect3d.model import optimizer_step
 
 CAMERAS = ("CAM_FRONT", "CAM_LEFT")
 LEVELS = ("light", "moderate", "dense")
@@ -265,14 +266,8 @@ def train_detector(train: ImageSet, val_images: list[np.ndarray], val_gt: list[d
         for imgs, heat, bidx, cidx, wh, off in loader:
             o = model(imgs.to(device))
             loss, _ = loss_fn(o, heat.to(device), bidx.to(device), cidx.to(device), wh.to(device), off.to(device))
-            opt.zero_grad()
-            loss.backward()
-            opt.step()
-            sched.step()
+            value = optimizer_step(loss, opt, sched, bar)
             step += 1
-            value = float(loss.detach())
-            bar.update()
-            bar.set_postfix(loss=f"{value:.3f}")
             if tb is not None:
                 tb.add_scalar("loss", value, step)
         if (epoch + 1) % config.eval_every and epoch + 1 != config.epochs:

@@ -20,7 +20,7 @@ import torch
 from fog_gym.dataset.access import FogDrive
 from fog_gym.detect3d.bev import BEVGrid
 from fog_gym.detect3d.data import SweepDataset, collate
-from fog_gym.detect3d.model import BEVCenterNet, decode, detection_loss, parameter_count
+from fog_gym.detect3d.model import BEVCenterNet, decode, detection_loss, optimizer_step, parameter_count
 from fog_gym.detect3d.protocol import TEST_COLUMNS, TRAIN_ROWS, evaluation_subsets, training_subsets
 from fog_gym.metrics.detection3d import evaluate
 
@@ -137,14 +137,8 @@ def run_experiment1(root: str | Path, out: str | Path, config: Exp1Config = Exp1
             for feats, heat, bidx, cidx, reg, _ in loader:
                 o = model(feats.to(device))
                 loss, parts = detection_loss(o, heat.to(device), bidx.to(device), cidx.to(device), reg.to(device))
-                opt.zero_grad()
-                loss.backward()
-                opt.step()
-                sched.step()
+                value = optimizer_step(loss, opt, sched, bar)
                 step += 1
-                value = float(loss.detach())
-                bar.update()
-                bar.set_postfix(loss=f"{value:.3f}")
                 tb.add_scalar("loss/total", value, step)
                 for k, v in parts.items():
                     tb.add_scalar(f"loss/{k}", v, step)

@@ -48,6 +48,20 @@ class BEVCenterNet(nn.Module):
         return {"heatmap": self.heat(f), "regression": self.reg(f)}
 
 
+def optimizer_step(loss: torch.Tensor, opt: torch.optim.Optimizer, sched, bar=None) -> float:
+    """One training step shared by the experiments' detectors: zero the gradients, back-propagate, step the
+    optimiser and the learning-rate schedule; returns the loss value and shows it on ``bar`` (tqdm) if given."""
+    opt.zero_grad()
+    loss.backward()
+    opt.step()
+    sched.step()
+    value = float(loss.detach())
+    if bar is not None:
+        bar.update()
+        bar.set_postfix(loss=f"{value:.3f}")
+    return value
+
+
 def focal_loss(logits: torch.Tensor, target: torch.Tensor, alpha: float = 2.0, beta: float = 4.0) -> torch.Tensor:
     """CenterNet's penalty-reduced pixel-wise focal loss, normalised by the number of centres."""
     p = torch.sigmoid(logits).clamp(1e-4, 1 - 1e-4)
