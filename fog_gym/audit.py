@@ -13,7 +13,6 @@ Example:
 
 from __future__ import annotations
 
-from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -112,8 +111,7 @@ def run_audit(frames: int = 200, resolution: tuple[int, int] = (1280, 960), seed
         for _ in range(per_combo):
             _, _, terminated, truncated, _ = env.step(idle)
             for name, cfg in rules.items():
-                env.config = replace(env.config, labels=cfg)
-                gt = env.ground_truth()
+                gt = env.ground_truth(labels=cfg)
                 for cam, b in gt["boxes_2d"].items():
                     f = env.frames[cam]
                     r = audit_frame(f.semantic, f.depth, b["bboxes"], K=gt["intrinsics"][cam], instance=f.instance)

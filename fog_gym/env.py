@@ -52,9 +52,23 @@ class FogDriveEnv(gym.Env):
     "reference", highway-env's own Python path; same trajectories), or ``config`` (a complete
     :class:`FogDriveConfig`).
 
+    Attributes (the env's public surface, what wrappers and tools may read):
+        config: the validated :class:`FogDriveConfig` the env was built with (never reassigned).
+        world: the :class:`fog_gym.world.TrafficWorld` (ego state, tick, seeds, lane geometry).
+        episode_seed: the seed the current episode's world, scenery, sensors and fog noise derive from
+            (``None`` before the first reset).
+        camera_names: the rig's camera names, in rig order (a property).
+        intrinsics: each camera's 3×3 intrinsic matrix, by camera name (a property).
+        scene: the :class:`fog_gym.scene.Scene` of the latest frame (``None`` before the first reset).
+        frames: the latest :class:`fog_gym.sensors.CameraFrame` of each camera.
+        points: the latest sweep of each point sensor, (N, C) float32 arrays by channel name.
+        idle_action: the action that keeps lane and speed (a property).
+
     >>> env = FogDriveEnv(town="merge", resolution=(32, 24), cameras=["CAM_FRONT"])
     >>> sorted(env.observation_space.spaces)
     ['CAM_FRONT', 'CAM_FRONT_DEPTH', 'CAM_FRONT_SEM', 'LIDAR_TOP', 'RADAR_FRONT', 'SEM_LIDAR_TOP']
+    >>> env.camera_names, env.intrinsics["CAM_FRONT"].shape
+    (('CAM_FRONT',), (3, 3))
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
@@ -148,7 +162,7 @@ class FogDriveEnv(gym.Env):
         self.world.reset(seed=world_seed)
         self.action_space = self.world.action_space
         rng = stream(world_seed, "scenery")
-        self._static = self._build_static(rng)
+        self._static = self.build_static_world(rng)
         self._lighting = Lighting.for_time_of_day(self.config.time_of_day, rng)
         self._sensor_rng = stream(world_seed, "sensors")
         self._steps = 0
@@ -176,7 +190,9 @@ class FogDriveEnv(gym.Env):
         self.world.close()
 
     # -- internals ------------------------------------------------------------------------------------
-    def _build_static(self, rng: np.random.Generator) -> StaticWorld:
+    def build_static_world(self, rng: np.random.Generator) -> StaticWorld:
+        """The episode's static world (road surface map and props) around the world's start, drawn from ``rng``
+        (what ``reset`` builds from the episode's scenery stream)."""
         radius = MAX_SPEED * self.config.episode_seconds + 250.0
         lanes = self.world.lane_geometry(self.world.start_position, radius)
         surface = build_surface(lanes, resolution=self.config.surface_resolution)
@@ -205,22 +221,21 @@ class FogDriveEnv(gym.Env):
             obs[name] = f.rgb
             obs[f"{name}_DEPTH"] = f.depth
             obs[f"{name}_SEM"] = f.semantic
-        tick = max(int(self.world.hw.steps) - 1, 0)  # the simulation tick this keyframe closes
+        tick = max(self.world.tick - 1, 0)  # the simulation tick this keyframe closes
         self.points = self.point_sensors.measure(self.scene, prims, self._sensor_rng, tick)
         for name, pts in self.points.items():
             obs[name] = pack_points(pts, self.observation_space[name].shape[0])
         return obs
 
     def _info(self, hw_info: dict) -> dict[str, Any]:
-        ego = self.world.hw.vehicle
         info = {
             "town": self.config.town,
             "town_number": self.config.town_number,
             "time_of_day": self.config.time_of_day,
             "sim_time": self.world.time,
             "step": self._steps,
-            "speed": float(ego.speed),
-            "crashed": bool(ego.crashed),
+            "speed": self.world.ego_speed,
+            "crashed": self.world.ego_crashed,
         }
         if "rewards" in hw_info:
             info["rewards"] = {k: float(v) for k, v in hw_info["rewards"].items()}
@@ -228,8 +243,17 @@ class FogDriveEnv(gym.Env):
             info.update(self.ground_truth())
         return info
 
-    def ground_truth(self) -> dict[str, Any]:
-        """``boxes_3d``, ``boxes_2d`` (per camera), ``intrinsics`` and ``extrinsics`` of the current frame."""
+    def ground_truth(self, labels: LabelConfig | None = None) -> dict[str, Any]:
+        """``boxes_3d``, ``boxes_2d`` (per camera), ``intrinsics`` and ``extrinsics`` of the current frame.
+
+        ``labels`` overrides ``config.labels`` for this call only (``config`` is left as it is).
+        """
+        if labels is None:
+            labels = self.config.labels
+        if not isinstance(labels, LabelConfig):
+            raise TypeError(f"labels must be a LabelConfig (or None with config.labels set), got {type(labels).__name__}")
+        if self.scene is None:
+            raise RuntimeError("call reset() before ground_truth()")
         scene, rig = self.scene, self.config.rig
         ego_to_world = geometry.yaw_transform(*scene.ego_pose)
         world_to_lidar = np.linalg.inv(ego_to_world @ self._label_lidar_to_vehicle)
@@ -243,7 +267,7 @@ class FogDriveEnv(gym.Env):
         sem = self.points.get(SEMANTIC_LIDAR)
         boxes_3d, boxes_2d = annotate(v.ids[others], v.classes[others], v.centers[others], v.sizes[others],
                                       v.yaws[others], v.velocities[others], world_to_lidar, views, sem,
-                                      self.config.labels)  # fmt: skip
+                                      labels)  # fmt: skip
         return {
             "boxes_3d": boxes_3d,
             "boxes_2d": boxes_2d,
@@ -256,6 +280,16 @@ class FogDriveEnv(gym.Env):
         """The action that keeps lane and speed: highway-env's ``IDLE`` meta-action (1), zeros if continuous."""
         space = self.action_space
         return 1 if space.shape == () else np.zeros(space.shape, space.dtype)
+
+    @property
+    def camera_names(self) -> tuple[str, ...]:
+        """The rig's camera names, in rig order."""
+        return tuple(c.name for c in self.config.rig.cameras)
+
+    @property
+    def intrinsics(self) -> dict[str, np.ndarray]:
+        """Each camera's 3×3 intrinsic matrix (a copy), by camera name."""
+        return {c.name: np.array(self.cameras.intrinsics[c.name], copy=True) for c in self.config.rig.cameras}
 
     @property
     def instance_buffers(self) -> dict[str, np.ndarray]:

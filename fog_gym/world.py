@@ -17,7 +17,9 @@ from __future__ import annotations
 
 import copy
 import math
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from types import MappingProxyType
 from typing import Any
 
 import numpy as np
@@ -43,26 +45,41 @@ _CAR_COLORS = np.array([
     [0.10, 0.22, 0.55], [0.05, 0.10, 0.25], [0.12, 0.32, 0.18], [0.85, 0.65, 0.10], [0.55, 0.32, 0.18],
 ])  # fmt: skip
 
-#: highway-env's IDM class constants, which IntersectionEnv overwrites process-wide (research note):
-#: each world re-applies its own profile before it steps, so towns in one process do not leak.
-_IDM_DEFAULT = {"DISTANCE_WANTED": 10.0, "COMFORT_ACC_MAX": 3.0, "COMFORT_ACC_MIN": -5.0}
-_IDM_INTERSECTION = {"DISTANCE_WANTED": 7.0, "COMFORT_ACC_MAX": 6.0, "COMFORT_ACC_MIN": -3.0}
+#: highway-env's IDM class constants (``IDMVehicle.DISTANCE_WANTED`` …), which IntersectionEnv overwrites
+#: process-wide: each world re-applies its town's profile before it steps, so towns in one process do not leak.
+IDM_DEFAULT: Mapping[str, float] = MappingProxyType(
+    {"DISTANCE_WANTED": 10.0, "COMFORT_ACC_MAX": 3.0, "COMFORT_ACC_MIN": -5.0}
+)
+#: The profile IntersectionEnv sets for its traffic.
+IDM_INTERSECTION: Mapping[str, float] = MappingProxyType(
+    {"DISTANCE_WANTED": 7.0, "COMFORT_ACC_MAX": 6.0, "COMFORT_ACC_MIN": -3.0}
+)
 
 
 @dataclass(frozen=True)
 class TownSpec:
-    """A town: the highway-env scenario class, fog-gym's config on top of its defaults, and a scenery style."""
+    """A town: the highway-env scenario class, fog-gym's config on top of its defaults, a scenery style, and
+    the IDM profile (highway-env ``IDMVehicle`` class constants) its traffic drives with.
+
+    >>> TOWN_SPECS["intersection"].idm["DISTANCE_WANTED"], TOWN_SPECS["highway"].idm["DISTANCE_WANTED"]
+    (7.0, 10.0)
+    """
 
     env_class: str
     config: dict[str, Any]
     scenery: str
+    idm: Mapping[str, float] = field(default_factory=lambda: IDM_DEFAULT)
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.idm, Mapping) or set(self.idm) != set(IDM_DEFAULT):
+            raise ValueError(f"idm must be a mapping with the keys {sorted(IDM_DEFAULT)}, got {self.idm!r}")
 
 
 TOWN_SPECS: dict[str, TownSpec] = {
     "highway": TownSpec("HighwayEnv", {"lanes_count": 4, "vehicles_count": 40, "vehicles_density": 1.2}, "freeway"),
     "merge": TownSpec("MergeEnv", {}, "freeway"),
     "roundabout": TownSpec("RoundaboutEnv", {}, "urban"),
-    "intersection": TownSpec("IntersectionEnv", {"initial_vehicle_count": 12}, "urban"),
+    "intersection": TownSpec("IntersectionEnv", {"initial_vehicle_count": 12}, "urban", IDM_INTERSECTION),
     "racetrack": TownSpec("RacetrackEnv", {"other_vehicles": 8}, "circuit"),
     "exit": TownSpec("ExitEnv", {"vehicles_count": 30}, "freeway"),
 }
@@ -108,19 +125,12 @@ class TrafficWorld:
         self.traffic = check_traffic_mode(traffic)
         self.town = town
         self.spec = TOWN_SPECS[town]
-        self._idm_profile = _IDM_INTERSECTION if town == "intersection" else _IDM_DEFAULT
-        config = copy.deepcopy(self.spec.config)
-        config.update(
-            {
-                "simulation_frequency": simulation_frequency,
-                "policy_frequency": keyframe_frequency,
-                "duration": 1e9,  # fog-gym truncates by its own episode length
-                "offscreen_rendering": True,
-            }
-        )
-        config.update(copy.deepcopy(dict(highway_config or {})))
+        self.simulation_frequency = int(simulation_frequency)
+        self.keyframe_frequency = int(keyframe_frequency)
+        config = scenario_config(town, simulation_frequency, keyframe_frequency, highway_config)
         self.episode_seconds = float(episode_seconds)
-        self._apply_idm_profile()
+        self.seed: int | None = None
+        self.apply_idm_profile()
         self.hw = getattr(hw_envs, self.spec.env_class)(config=config)
         if traffic == "fast":
             accelerate(self.hw)
@@ -129,11 +139,14 @@ class TrafficWorld:
         self._next_id = EGO_ID + 1
 
     # -- highway-env plumbing -------------------------------------------------------------------------
-    def _apply_idm_profile(self) -> None:
-        from highway_env.vehicle.behavior import IDMVehicle
+    @property
+    def idm_profile(self) -> Mapping[str, float]:
+        """The town's IDM profile (:attr:`TownSpec.idm`)."""
+        return self.spec.idm
 
-        for k, v in self._idm_profile.items():
-            setattr(IDMVehicle, k, v)
+    def apply_idm_profile(self) -> None:
+        """Set highway-env's process-wide IDM class constants to this town's profile (done before every step)."""
+        apply_idm_profile(self.spec.idm)
 
     def _skip_observation(self) -> None:
         # FogDrive-v0 never uses highway-env's observation: make it free on the hot path.
@@ -141,9 +154,10 @@ class TrafficWorld:
 
     def reset(self, seed: int | None = None) -> None:
         """Reset the scenario; ``seed`` determines traffic, classes, sizes and colours."""
-        self._apply_idm_profile()
+        self.apply_idm_profile()
         self.hw.observation_type.observe = lambda: None  # reset also observes once; define_spaces replaces it
         self.hw.reset(seed=seed)
+        self.seed = seed
         self._skip_observation()
         self.action_space = self.hw.action_space
         self._rng = stream(seed, "world")
@@ -155,7 +169,7 @@ class TrafficWorld:
 
     def step(self, action: Any) -> tuple[float, bool, dict]:
         """Advance one keyframe (``simulation_frequency / keyframe_frequency`` sub-steps)."""
-        self._apply_idm_profile()
+        self.apply_idm_profile()
         _, reward, terminated, _, info = self.hw.step(action)
         self._register_new()
         terminated = bool(terminated) or bool(self.hw.vehicle.crashed)
@@ -216,7 +230,33 @@ class TrafficWorld:
 
     @property
     def time(self) -> float:
+        """Simulated seconds since the reset."""
         return float(self.hw.time)
+
+    @property
+    def tick(self) -> int:
+        """Simulation sub-steps taken since the reset (``simulation_frequency`` per second)."""
+        return int(self.hw.steps)
+
+    @property
+    def ego_speed(self) -> float:
+        """The ego's speed [m/s]."""
+        return float(self.hw.vehicle.speed)
+
+    @property
+    def ego_crashed(self) -> bool:
+        """Whether the ego has collided."""
+        return bool(self.hw.vehicle.crashed)
+
+    @property
+    def vehicle_count(self) -> int:
+        """Vehicles on the road, ego included."""
+        return len(self.hw.road.vehicles)
+
+    @property
+    def scenario_config(self) -> dict[str, Any]:
+        """A copy of the highway-env scenario config this world runs (:func:`scenario_config` plus defaults)."""
+        return copy.deepcopy(dict(self.hw.config))
 
     # -- road geometry --------------------------------------------------------------------------------
     def lane_geometry(self, center: np.ndarray, radius: float, step: float = 1.0) -> list[LaneGeometry]:
@@ -248,3 +288,48 @@ class TrafficWorld:
 
     def close(self) -> None:
         self.hw.close()
+
+
+def scenario_config(
+    town: str, simulation_frequency: int = 20, keyframe_frequency: int = 10, highway_config: dict[str, Any] | None = None
+) -> dict[str, Any]:
+    """The highway-env config a :class:`TrafficWorld` of ``town`` passes to its scenario class: the town's
+    config, the frequencies, an unbounded duration (fog-gym truncates by its own episode length), offscreen
+    rendering, then ``highway_config`` on top.
+
+    >>> scenario_config("merge", 20, 10)["policy_frequency"]
+    10
+    """
+    if town not in TOWN_SPECS:
+        raise ValueError(f"town must be one of {TOWNS}, got {town!r}")
+    config = copy.deepcopy(TOWN_SPECS[town].config)
+    config.update(
+        {
+            "simulation_frequency": simulation_frequency,
+            "policy_frequency": keyframe_frequency,
+            "duration": 1e9,
+            "offscreen_rendering": True,
+        }
+    )
+    config.update(copy.deepcopy(dict(highway_config or {})))
+    return config
+
+
+def apply_idm_profile(profile: Mapping[str, float]) -> None:
+    """Set highway-env's ``IDMVehicle`` class constants to ``profile`` (a :attr:`TownSpec.idm`)."""
+    from highway_env.vehicle.behavior import IDMVehicle
+
+    for k, v in profile.items():
+        setattr(IDMVehicle, k, v)
+
+
+def bare_scenario(town: str, simulation_frequency: int = 20, keyframe_frequency: int = 10, **overrides: Any) -> Any:
+    """The town's highway-env scenario alone (its own observation included, no fog-gym traffic core): the
+    baseline a :class:`TrafficWorld` is benchmarked against. Its IDM profile is applied before it is built;
+    call :func:`apply_idm_profile` with ``TOWN_SPECS[town].idm`` before stepping it beside other towns.
+    """
+    import highway_env.envs as hw_envs
+
+    config = scenario_config(town, simulation_frequency, keyframe_frequency, overrides)
+    apply_idm_profile(TOWN_SPECS[town].idm)
+    return getattr(hw_envs, TOWN_SPECS[town].env_class)(config=config)

@@ -63,7 +63,7 @@ def bench_scaling(counts: list[int], repeats: int) -> dict[int, dict[str, float]
                     w.reset(seed=k + 1)
         ref, fast = (float(np.median(times[m])) for m in ("reference", "fast"))
         out[n] = {"reference_ms": ref, "fast_ms": fast, "speedup": ref / fast,
-                  "vehicles": len(worlds["fast"].hw.road.vehicles)}  # fmt: skip
+                  "vehicles": worlds["fast"].vehicle_count}  # fmt: skip
     return out
 
 

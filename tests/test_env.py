@@ -110,8 +110,7 @@ def test_truncation_at_episode_length():
 def test_termination_on_collision():
     env = FogDriveEnv(town="highway", resolution=(16, 12), cameras=["CAM_FRONT"])
     env.reset(seed=0)
-    ego = env.world.hw.vehicle
-    other = env.world.vehicles()[1]
+    ego, other = env.world.vehicles()[:2]  # ego first
     other.position = ego.position.copy()  # put an NPC on top of the ego
     _, _, terminated, truncated, info = env.step(first_idle(env.action_space))
     assert terminated and info["crashed"] and not truncated

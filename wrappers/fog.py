@@ -69,13 +69,13 @@ class FogWrapper(gym.Wrapper):
             raise ValueError(f"lidar_noise must be >= 0 metres, got {lidar_noise!r}")
         super().__init__(env)
         base = env.unwrapped
-        if not hasattr(base, "cameras") or not hasattr(base, "episode_seed"):
+        if not hasattr(base, "camera_names") or not hasattr(base, "episode_seed"):
             raise ValueError("FogWrapper wraps a FogDrive-v0 environment")
         self.levels, self.paired = levels, paired
         self._fixed_airlight, self.lidar_noise = fixed, float(lidar_noise)
         self._pending: FogLevel | None = None
         self._last: dict | None = None
-        self.cameras = [n for n in base.cameras.names]
+        self.cameras = list(base.camera_names)
         self.has_lidar = LIDAR in env.observation_space.spaces
         self.airlight: dict[str, np.ndarray] = {}
         self._rngs: dict[str, np.random.Generator] = {}
@@ -99,6 +99,11 @@ class FogWrapper(gym.Wrapper):
         if self.paired:
             raise ValueError("set_fog works in in-place mode; a paired wrapper's channels are fixed at construction")
         self._pending = parse_fog(fog)
+
+    def fog_channels(self, obs: dict) -> dict[str, dict[str, np.ndarray]]:
+        """The fogged camera RGB and LiDAR channels of the env's clean ``obs`` at every level in force, by level
+        name (what ``step`` adds; the LiDAR noise draws advance as in a step)."""
+        return self._fogged(obs, self.levels)
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         if self._pending is not None:
@@ -155,11 +160,11 @@ class FogWrapper(gym.Wrapper):
         out: dict[str, dict[str, np.ndarray]] = {lv.name: {} for lv in levels}
         alphas = [lv.alpha for lv in levels]
         for cam in self.cameras:
-            images = fog_images(obs[cam], obs[f"{cam}_DEPTH"], base.cameras.intrinsics[cam], alphas, self.airlight[cam],
+            images = fog_images(obs[cam], obs[f"{cam}_DEPTH"], base.intrinsics[cam], alphas, self.airlight[cam],
                                 validate=False)  # the env's own frames
             night = base.scene is not None and base.scene.lighting.night
             for lv, img in zip(levels, images):
-                K = base.cameras.intrinsics[cam]
+                K = base.intrinsics[cam]
                 out[lv.name][cam] = add_glow(img, obs[cam], obs[f"{cam}_DEPTH"], K, lv.alpha) if night else img
         if self.has_lidar:
             clean = unpack_points(obs, LIDAR)

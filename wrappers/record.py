@@ -43,7 +43,7 @@ class RecordFogDrive(gym.Wrapper):
         rig = getattr(base, "config", None) and base.config.rig
         if rig is None:
             raise ValueError("RecordFogDrive wraps a FogDrive-v0 environment")
-        missing = [c for c in CAMERAS if c not in base.cameras.names]
+        missing = [c for c in CAMERAS if c not in base.camera_names]
         missing += [n for n in ("lidar", "semantic_lidar", "radar") if getattr(rig, n) is None]
         if missing or base.config.labels is None:
             raise ValueError(f"RecordFogDrive needs the full FogDrive rig with ground truth; missing: {missing or ['labels']}")
