@@ -56,7 +56,7 @@ def main(argv: list[str] | None = None) -> dict:
     except ValueError as e:
         p.error(str(e))
     if args.generate:
-        from fog_gym.dataset.generate import generate, plan_scenes
+        from fog_gym.generate import generate, plan_scenes
 
         t0 = time.perf_counter()
         generate(args.root, plan_scenes(args.generate, seed=args.seed, seconds=args.seconds, modality="lidar"),

@@ -27,7 +27,7 @@ __all__ = [
     "LidarConfig", "RadarConfig", "unpack_points", "accelerate",
 ]  # fmt: skip
 
-register(id="FogDrive-v0", entry_point="fog_gym.env:make_fogdrive", max_episode_steps=None, disable_env_checker=False)
+register(id="FogDrive-v0", entry_point="fog_gym.make:make_fogdrive", max_episode_steps=None, disable_env_checker=False)
 register(id="FogDriveRL-v0", entry_point="fog_gym.rl:make_fogdrive_rl", max_episode_steps=None)
 
 

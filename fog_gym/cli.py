@@ -308,7 +308,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _generate(args: argparse.Namespace) -> int:
-    from fog_gym.dataset.generate import generate, plan_scenes
+    from fog_gym.generate import generate, plan_scenes
 
     if args.workers < 1:
         raise _fail("generate", "--workers must be >= 1")

@@ -25,6 +25,23 @@ CAMERA_NAMES: tuple[str, ...] = ("CAM_FRONT", "CAM_BACK", "CAM_LEFT", "CAM_RIGHT
 #: Towns in FogDrive order; a town's FogDrive number ``T<n>`` is its 1-based position.
 TOWNS: tuple[str, ...] = ("highway", "merge", "roundabout", "intersection", "racetrack", "exit")
 TIMES_OF_DAY: tuple[str, ...] = ("day", "night")
+#: Allowed values of the ``traffic=`` argument of FogDrive environments.
+TRAFFIC_MODES: tuple[str, ...] = ("fast", "reference")
+
+
+def check_traffic_mode(traffic: str) -> str:
+    """Validate a ``traffic=`` value.
+
+    >>> check_traffic_mode("fast")
+    'fast'
+    >>> check_traffic_mode("numba")
+    Traceback (most recent call last):
+    ...
+    ValueError: traffic must be one of ('fast', 'reference'), got 'numba'
+    """
+    if not isinstance(traffic, str) or traffic not in TRAFFIC_MODES:
+        raise ValueError(f"traffic must be one of {TRAFFIC_MODES}, got {traffic!r}")
+    return traffic
 
 
 @dataclass(frozen=True)
@@ -182,8 +199,6 @@ class FogDriveConfig:
     def __post_init__(self) -> None:
         if self.town not in TOWNS:
             raise ValueError(f"town must be one of {TOWNS}, got {self.town!r}")
-        from fog_gym.traffic.core import check_traffic_mode
-
         check_traffic_mode(self.traffic)
         if self.time_of_day not in TIMES_OF_DAY:
             raise ValueError(f"time_of_day must be one of {TIMES_OF_DAY}, got {self.time_of_day!r}")

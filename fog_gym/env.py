@@ -52,23 +52,16 @@ class FogDriveEnv(gym.Env):
     "reference", highway-env's own Python path; same trajectories), or ``config`` (a complete
     :class:`FogDriveConfig`).
 
-    Attributes (the env's public surface, what wrappers and tools may read):
-        config: the validated :class:`FogDriveConfig` the env was built with (never reassigned).
-        world: the :class:`fog_gym.world.TrafficWorld` (ego state, tick, seeds, lane geometry).
-        episode_seed: the seed the current episode's world, scenery, sensors and fog noise derive from
-            (``None`` before the first reset).
-        camera_names: the rig's camera names, in rig order (a property).
-        intrinsics: each camera's 3×3 intrinsic matrix, by camera name (a property).
-        scene: the :class:`fog_gym.scene.Scene` of the latest frame (``None`` before the first reset).
-        frames: the latest :class:`fog_gym.sensors.CameraFrame` of each camera.
-        points: the latest sweep of each point sensor, (N, C) float32 arrays by channel name.
-        idle_action: the action that keeps lane and speed (a property).
+    Public attributes (what wrappers and tools may use): ``config`` (the validated :class:`FogDriveConfig`),
+    ``episode_seed`` (set by ``reset``; every random stream of the episode derives from it), ``scene`` (the
+    latest :class:`~fog_gym.scene.Scene`), ``frames`` (the latest :class:`~fog_gym.sensors.CameraFrame` per
+    camera), ``points`` (the latest ``(N, C)`` sweep per point sensor), :attr:`camera_names`, :attr:`intrinsics`,
+    :attr:`instance_buffers`, :attr:`idle_action`, :meth:`ground_truth`, ``cameras`` (the
+    :class:`~fog_gym.sensors.CameraRig`), ``point_sensors`` and ``world`` (the :class:`~fog_gym.world.TrafficWorld`).
 
     >>> env = FogDriveEnv(town="merge", resolution=(32, 24), cameras=["CAM_FRONT"])
     >>> sorted(env.observation_space.spaces)
     ['CAM_FRONT', 'CAM_FRONT_DEPTH', 'CAM_FRONT_SEM', 'LIDAR_TOP', 'RADAR_FRONT', 'SEM_LIDAR_TOP']
-    >>> env.camera_names, env.intrinsics["CAM_FRONT"].shape
-    (('CAM_FRONT',), (3, 3))
     """
 
     metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
@@ -154,10 +147,18 @@ class FogDriveEnv(gym.Env):
         self._steps = 0
         self.episode_seed: int | None = None
 
+    @staticmethod
+    def episode_seed_for(seed: int) -> int:
+        """The :attr:`episode_seed` that ``reset(seed=seed)`` draws (the world's highway-env seed; every random
+        stream of the episode derives from it)."""
+        from gymnasium.utils import seeding
+
+        return int(seeding.np_random(seed)[0].integers(0, 2**31 - 1))
+
     # -- Gymnasium API --------------------------------------------------------------------------------
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         super().reset(seed=seed)
-        world_seed = int(self.np_random.integers(0, 2**31 - 1))
+        world_seed = int(self.np_random.integers(0, 2**31 - 1))  # = episode_seed_for(seed) when a seed is given
         self.episode_seed = world_seed  # everything random in the episode derives from it (fog noise too)
         self.world.reset(seed=world_seed)
         self.action_space = self.world.action_space
@@ -244,14 +245,13 @@ class FogDriveEnv(gym.Env):
         return info
 
     def ground_truth(self, labels: LabelConfig | None = None) -> dict[str, Any]:
-        """``boxes_3d``, ``boxes_2d`` (per camera), ``intrinsics`` and ``extrinsics`` of the current frame.
-
-        ``labels`` overrides ``config.labels`` for this call only (``config`` is left as it is).
-        """
-        if labels is None:
-            labels = self.config.labels
-        if not isinstance(labels, LabelConfig):
-            raise TypeError(f"labels must be a LabelConfig (or None with config.labels set), got {type(labels).__name__}")
+        """``boxes_3d``, ``boxes_2d`` (per camera), ``intrinsics`` and ``extrinsics`` of the current frame, under the
+        env's label config or, for this call only, ``labels`` (a :class:`LabelConfig`; the env is not changed)."""
+        if labels is not None and not isinstance(labels, LabelConfig):
+            raise ValueError(f"labels must be a LabelConfig or None, got {type(labels).__name__}")
+        label_cfg = labels if labels is not None else self.config.labels
+        if label_cfg is None:
+            raise ValueError("this env was built with labels=None: pass labels=LabelConfig(...)")
         if self.scene is None:
             raise RuntimeError("call reset() before ground_truth()")
         scene, rig = self.scene, self.config.rig
@@ -267,7 +267,7 @@ class FogDriveEnv(gym.Env):
         sem = self.points.get(SEMANTIC_LIDAR)
         boxes_3d, boxes_2d = annotate(v.ids[others], v.classes[others], v.centers[others], v.sizes[others],
                                       v.yaws[others], v.velocities[others], world_to_lidar, views, sem,
-                                      labels)  # fmt: skip
+                                      label_cfg)  # fmt: skip
         return {
             "boxes_3d": boxes_3d,
             "boxes_2d": boxes_2d,
@@ -284,12 +284,12 @@ class FogDriveEnv(gym.Env):
     @property
     def camera_names(self) -> tuple[str, ...]:
         """The rig's camera names, in rig order."""
-        return tuple(c.name for c in self.config.rig.cameras)
+        return self.cameras.names
 
     @property
     def intrinsics(self) -> dict[str, np.ndarray]:
-        """Each camera's 3×3 intrinsic matrix (a copy), by camera name."""
-        return {c.name: np.array(self.cameras.intrinsics[c.name], copy=True) for c in self.config.rig.cameras}
+        """Each camera's 3×3 intrinsic matrix K (pixel centres at +0.5; CARLA's pinhole)."""
+        return self.cameras.intrinsics
 
     @property
     def instance_buffers(self) -> dict[str, np.ndarray]:
@@ -307,19 +307,3 @@ def _camera(rig: RigConfig, name: str):
     except KeyError:
         ref = rig.cameras[0] if rig.cameras else None
         return CameraConfig(name, FOGDRIVE_CAMERA_POSES[name], *((ref.width, ref.height, ref.fov) if ref else ()))
-
-
-def make_fogdrive(fog: Any = None, airlight: Any = "estimate", **kwargs: Any) -> gym.Env:
-    """Entry point of ``FogDrive-v0``: :class:`FogDriveEnv`, wrapped in :class:`fog_gym.wrappers.FogWrapper` when
-    ``fog`` is given ("clear", "light", "moderate", "dense", metres, or a list for paired mode).
-
-    >>> env = make_fogdrive(fog="light", town="merge", resolution=(16, 12), cameras=["CAM_FRONT"])
-    >>> type(env).__name__, env.unwrapped.config.town
-    ('FogWrapper', 'merge')
-    """
-    if fog is None:
-        return FogDriveEnv(**kwargs)
-    from fog_gym.wrappers.fog import FogWrapper, parse_fog_levels
-
-    parse_fog_levels(fog)  # bad fog fails before the world is built
-    return FogWrapper(FogDriveEnv(**kwargs), fog, airlight=airlight)

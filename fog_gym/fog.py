@@ -28,7 +28,7 @@ import cv2
 import numpy as np
 from numba import njit, prange
 
-import fog_gym.render.raster  # noqa: F401  (sets numba's fork-safe threading layer before any kernel runs)
+import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
 
 LN20 = math.log(20.0)
 #: FogDrive's fog levels: visibility in metres.

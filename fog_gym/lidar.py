@@ -21,7 +21,7 @@ Example:
     >>> from fog_gym.scenery import SurfaceMap
     >>> surface = SurfaceMap(np.ones((300, 300), np.uint8), (-150.0, -150.0), 1.0)
     >>> cfg = LidarConfig.fogdrive()
-    >>> pts = simulate_semantic_lidar(cfg, sensor_to_world(cfg.pose), empty_prims(), surface)
+    >>> pts = simulate_semantic_lidar(cfg, sensor_to_world(cfg.pose), Primitives.empty(), surface)
     >>> pts.shape[1], set(pts[:, 5].tolist())  # every return is road (tag 1) here
     (6, {1.0})
 """
@@ -40,6 +40,7 @@ from numba import njit
 from fog_gym.pose import Pose
 from fog_gym.pose import finite as _number  # one finite-number check for every config
 from fog_gym.geometry import transform_matrix, yaw_transform
+from fog_gym.primitives import Primitives
 from fog_gym.render.raycast import MISS, cast_rays
 from fog_gym.scenery import SURFACE_TAGS, SurfaceMap
 
@@ -236,16 +237,6 @@ def sensor_to_world(pose: Pose, ego_pose: tuple[float, float, float] = (0.0, 0.0
     return yaw_transform(*ego_pose) @ transform_matrix(pose.location, pose.rotation)
 
 
-def empty_prims() -> dict[str, np.ndarray]:
-    """A scene with no boxes (ground only).
-
-    >>> empty_prims()["centers"].shape
-    (0, 3)
-    """
-    return {"centers": np.zeros((0, 3)), "halves": np.zeros((0, 3)), "yaws": np.zeros(0),
-            "tags": np.zeros(0, np.uint8), "insts": np.zeros(0, np.uint16)}  # fmt: skip
-
-
 @functools.lru_cache(maxsize=16)
 def _lidar_directions(cfg: LidarConfig, simulation_frequency: float, start_angle: float) -> np.ndarray:
     el, az = cfg.ray_angles(simulation_frequency, start_angle)
@@ -351,7 +342,7 @@ _NONE = np.zeros(0)
 def simulate_lidar(
     cfg: LidarConfig,
     sensor_to_world: np.ndarray,
-    prims: dict[str, np.ndarray],
+    prims: Primitives | Mapping[str, Any],
     surface: SurfaceMap | None,
     rng: np.random.Generator,
     simulation_frequency: float = 20.0,
@@ -369,7 +360,7 @@ def simulate_lidar(
     uniform for the intensity drop-off, each only when switched on) all come from ``rng``: a seed fixes the result.
 
     >>> cfg = LidarConfig.fogdrive(dropoff_general_rate=0.0, dropoff_zero_intensity=0.0)
-    >>> pts = simulate_lidar(cfg, sensor_to_world(cfg.pose), empty_prims(), None, np.random.default_rng(0))
+    >>> pts = simulate_lidar(cfg, sensor_to_world(cfg.pose), Primitives.empty(), None, np.random.default_rng(0))
     >>> len(pts) // 1016, bool(np.allclose(pts[:, 2], -2.0, atol=1e-4))  # the 48 rings that meet the ground in 120 m
     (48, True)
     >>> bool(np.allclose(pts[:, 3], np.exp(-0.004 * np.linalg.norm(pts[:, :3], axis=1)), atol=1e-6))
@@ -392,7 +383,7 @@ def simulate_lidar(
 def simulate_semantic_lidar(
     cfg: LidarConfig,
     sensor_to_world: np.ndarray,
-    prims: dict[str, np.ndarray],
+    prims: Primitives | Mapping[str, Any],
     surface: SurfaceMap,
     rng: np.random.Generator | None = None,
     simulation_frequency: float = 20.0,
@@ -416,11 +407,12 @@ def simulate_semantic_lidar(
     """
     rot, origin = _transform(sensor_to_world)
     dirs = lidar_directions(cfg, simulation_frequency, start_angle)
+    prims = Primitives.coerce(prims)
     hits = cast_rays(origin, dirs, cfg.range, prims, rotation=rot)
     grid = np.ascontiguousarray(surface.grid, np.uint8)
     return _semantic_points(
         dirs, hits.distance, hits.index, hits.cos_incidence, rot, origin,
-        np.ascontiguousarray(prims["insts"]), np.ascontiguousarray(prims["tags"]), grid,
+        prims.insts, prims.tags, grid,
         float(surface.origin[0]), float(surface.origin[1]), float(surface.resolution), SURFACE_TAGS,
     )  # fmt: skip
 
@@ -453,7 +445,7 @@ def _velocity_table(velocities: Any, max_id: int) -> np.ndarray:
 def simulate_radar(
     cfg: RadarConfig,
     sensor_to_world: np.ndarray,
-    prims: dict[str, np.ndarray],
+    prims: Primitives | Mapping[str, Any],
     rng: np.random.Generator,
     velocities_by_id: Any = None,
     sensor_velocity: np.ndarray | tuple[float, float, float] = (0.0, 0.0, 0.0),
@@ -486,8 +478,9 @@ def simulate_radar(
     length = np.linalg.norm(ends, axis=1)
     dirs = ends / length[:, None]
     world_dirs = dirs @ rot.T
+    prims = Primitives.coerce(prims)
     hits = cast_rays(origin, world_dirs, float(length.max()) if n else cfg.range, prims)
-    insts = np.asarray(prims["insts"]).astype(np.int64)
+    insts = prims.insts.astype(np.int64)
     idx = hits.index
     actor = np.zeros(n, bool)
     on_box = idx >= 0

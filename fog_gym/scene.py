@@ -11,7 +11,7 @@ Example:
     ...     np.array([[0, 0, 0.75], [20, 0, 1.6]]), np.array([[4.8, 2.1, 1.5], [9, 2.5, 3.2]]),
     ...     np.zeros(2), np.zeros((2, 3)), np.full((2, 3), 0.5))
     >>> prims = vehicle_primitives(state, night=False)
-    >>> sorted(set(prims["insts"].tolist()))
+    >>> sorted(set(prims.insts.tolist()))
     [1, 2]
 """
 
@@ -22,6 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from fog_gym.primitives import Primitives
 from fog_gym.render.lights import Lights, headlight_lights
 from fog_gym.render.raster import TiledSurface, surface_lut, tile_surface
 from fog_gym.scenery import SURFACE_RGB, SURFACE_TAGS, Props, SurfaceMap
@@ -93,7 +94,7 @@ class Scene:
     vehicles: VehicleState
     static: StaticWorld
     lighting: Lighting
-    primitives: dict[str, np.ndarray]
+    primitives: Primitives
 
 
 def _parts(cls: int, L, W, H):
@@ -113,7 +114,7 @@ def _parts(cls: int, L, W, H):
     ], 0.66, 0.45 * H
 
 
-def vehicle_primitives(state: VehicleState, night: bool, exclude_id: int | None = None) -> dict[str, np.ndarray]:
+def vehicle_primitives(state: VehicleState, night: bool, exclude_id: int | None = None) -> Primitives:
     """Boxes for every vehicle (all inside its ground-truth box), as renderer primitive arrays."""
     rows = []  # per part: (vehicle indices, x0, x1, y0, y1, z0, z1, colors, emissive)
     keep = np.ones(len(state), bool) if exclude_id is None else state.ids != exclude_id
@@ -145,7 +146,7 @@ def vehicle_primitives(state: VehicleState, night: bool, exclude_id: int | None 
             rows.append((idx, -hl, -hl + 0.04, yc - 0.16, yc + 0.16, lamp_z - 0.06, lamp_z + 0.06,
                          np.broadcast_to(tail, base.shape), night))  # fmt: skip
     if not rows:
-        return empty_primitives()
+        return Primitives.empty()
     vi = np.concatenate([r[0] for r in rows])
     lx = np.concatenate([(r[1] + r[2]) / 2 * np.ones(len(r[0])) for r in rows])
     ly = np.concatenate([(r[3] + r[4]) / 2 * np.ones(len(r[0])) for r in rows])
@@ -159,15 +160,15 @@ def vehicle_primitives(state: VehicleState, night: bool, exclude_id: int | None 
     yaw = state.yaws[vi]
     c, s = np.cos(yaw), np.sin(yaw)
     centers = np.c_[state.centers[vi, 0] + lx * c - ly * s, state.centers[vi, 1] + lx * s + ly * c, (z0 + z1) / 2]
-    return {
-        "centers": np.ascontiguousarray(centers),
-        "halves": np.ascontiguousarray(halves),
-        "yaws": np.ascontiguousarray(yaw),
-        "colors": np.ascontiguousarray(np.concatenate([np.asarray(r[7], np.float64) for r in rows])),
-        "tags": np.array([CLASS_TAGS[int(k)] for k in state.classes], np.uint8)[vi],
-        "insts": state.ids[vi].astype(np.uint16),
-        "emissive": np.concatenate([np.full(len(r[0]), r[8]) for r in rows]),
-    }
+    return Primitives(
+        centers=np.ascontiguousarray(centers),
+        halves=np.ascontiguousarray(halves),
+        yaws=np.ascontiguousarray(yaw),
+        colors=np.ascontiguousarray(np.concatenate([np.asarray(r[7], np.float64) for r in rows])),
+        tags=np.array([CLASS_TAGS[int(k)] for k in state.classes], np.uint8)[vi],
+        insts=state.ids[vi].astype(np.uint16),
+        emissive=np.concatenate([np.full(len(r[0]), r[8]) for r in rows]),
+    )
 
 
 def headlights(state: VehicleState) -> Lights:
@@ -180,33 +181,15 @@ def headlights(state: VehicleState) -> Lights:
     return headlight_lights(state.centers, state.sizes, state.yaws, lamp_z)
 
 
-def empty_primitives() -> dict[str, np.ndarray]:
-    return {
-        "centers": np.zeros((0, 3)), "halves": np.zeros((0, 3)), "yaws": np.zeros(0), "colors": np.zeros((0, 3)),
-        "tags": np.zeros(0, np.uint8), "insts": np.zeros(0, np.uint16), "emissive": np.zeros(0, bool),
-    }  # fmt: skip
-
-
-def prop_primitives(props: Props) -> dict[str, np.ndarray]:
+def prop_primitives(props: Props) -> Primitives:
     """Static props as renderer primitives (instance id 0: static world)."""
     n = len(props)
-    return {
-        "centers": np.ascontiguousarray(props.centers, np.float64),
-        "halves": np.ascontiguousarray(props.sizes / 2, np.float64),
-        "yaws": np.ascontiguousarray(props.yaws, np.float64),
-        "colors": np.ascontiguousarray(props.colors, np.float64),
-        "tags": np.ascontiguousarray(props.tags, np.uint8),
-        "insts": np.zeros(n, np.uint16),
-        "emissive": np.zeros(n, bool),
-    }
-
-
-def concat_primitives(*groups: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-    return {k: np.ascontiguousarray(np.concatenate([g[k] for g in groups])) for k in groups[0]}
-
-
-def select_primitives(prims: dict[str, np.ndarray], center_xy: np.ndarray, radius: float) -> dict[str, np.ndarray]:
-    """Primitives whose centre lies within ``radius`` (plus their own size) of ``center_xy``."""
-    d = np.hypot(prims["centers"][:, 0] - center_xy[0], prims["centers"][:, 1] - center_xy[1])
-    keep = d - np.linalg.norm(prims["halves"], axis=1) <= radius
-    return {k: np.ascontiguousarray(v[keep]) for k, v in prims.items()}
+    return Primitives(
+        centers=np.ascontiguousarray(props.centers, np.float64),
+        halves=np.ascontiguousarray(props.sizes / 2, np.float64),
+        yaws=np.ascontiguousarray(props.yaws, np.float64),
+        colors=np.ascontiguousarray(props.colors, np.float64),
+        tags=np.ascontiguousarray(props.tags, np.uint8),
+        insts=np.zeros(n, np.uint16),
+        emissive=np.zeros(n, bool),
+    )

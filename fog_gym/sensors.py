@@ -22,7 +22,8 @@ from fog_gym.lidar import sensor_to_world, simulate_lidar, simulate_radar, simul
 from fog_gym.points import LIDAR, RADAR, SEMANTIC_LIDAR
 from fog_gym.render.lights import beam_window, concat_lights, cull_lights, lamp_light_map, render_night, street_lamp_lights
 from fog_gym.render.raster import render
-from fog_gym.scene import Scene, concat_primitives, headlights, prop_primitives, select_primitives
+from fog_gym.primitives import Primitives
+from fog_gym.scene import Scene, headlights, prop_primitives
 from fog_gym.scenery import SURFACE_TAGS, lamp_heads
 
 #: Lights farther than this from the ego (beyond their own radius) are left out of a night frame [m].
@@ -62,14 +63,14 @@ class CameraRig:
         ego = geometry.yaw_transform(*scene.ego_pose)
         return geometry.world_to_camera(ego, self.sensor_to_vehicle[name])
 
-    def primitives(self, scene: Scene) -> dict[str, np.ndarray]:
+    def primitives(self, scene: Scene) -> Primitives:
         """Render primitives near the ego: static props (cached per static world) + vehicles."""
         if self._props_cache is None or self._props_cache[0] is not scene.static:
             self._props_cache = (scene.static, prop_primitives(scene.static.props))
-        props = select_primitives(self._props_cache[1], np.asarray(scene.ego_pose[:2]), self.render_radius)
-        return concat_primitives(props, scene.primitives)
+        props = self._props_cache[1].near(np.asarray(scene.ego_pose[:2]), self.render_radius)
+        return Primitives.concat(props, scene.primitives)
 
-    def render(self, scene: Scene, prims: dict[str, np.ndarray] | None = None) -> dict[str, CameraFrame]:
+    def render(self, scene: Scene, prims: Primitives | None = None) -> dict[str, CameraFrame]:
         """Every camera's buffers; ``prims`` defaults to :meth:`primitives` of the scene."""
         prims = self.primitives(scene) if prims is None else prims
         light = scene.lighting
@@ -137,7 +138,7 @@ class PointSensors:
         # a head that turns less than a full sweep per tick resumes where the previous tick stopped
         return (tick * cfg.tick_angle(self.simulation_frequency)) % cfg.horizontal_fov
 
-    def measure(self, scene: Scene, prims: dict[str, np.ndarray], rng: np.random.Generator, tick: int) -> dict[str, np.ndarray]:
+    def measure(self, scene: Scene, prims: Primitives, rng: np.random.Generator, tick: int) -> dict[str, np.ndarray]:
         """Points per channel for simulation tick ``tick`` (0-based); ``prims`` exclude the ego's own body."""
         rig, f, out = self.rig, self.simulation_frequency, {}
         surface = scene.static.surface

@@ -314,7 +314,7 @@ def view_live(town: str = "highway", fog: Sequence[Any] = ("light", "moderate", 
     """
     from tqdm import tqdm
 
-    from fog_gym.env import make_fogdrive
+    from fog_gym.make import make_fogdrive
     from fog_gym.lidar import sensor_to_world
     from fog_gym.wrappers.fog import parse_fog_levels
 

@@ -17,23 +17,19 @@ from __future__ import annotations
 
 import copy
 import math
-from collections.abc import Mapping
-from dataclasses import dataclass, field
-from types import MappingProxyType
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from fog_gym.config import TOWNS
+from fog_gym.config import TOWNS, check_traffic_mode
 from fog_gym.scenery import LaneGeometry
-from fog_gym.traffic.core import accelerate, check_traffic_mode
+from fog_gym.traffic.core import accelerate, is_accelerated
 from fog_gym.seeds import stream
 
 EGO_ID = 1
 #: Tesla Model 3 (CARLA ``vehicle.tesla.model3`` bounding box): length, width, height [m].
 EGO_SIZE = (4.79, 2.16, 1.49)
-#: FogDrive taxonomy (supplementary D1) of the classes fog-gym spawns.
-CLASS_NAMES = {0: "car", 1: "truck", 4: "bigger car"}
 #: Spawn probability and (length, width, height) ranges of each class.
 CLASS_SPECS: dict[int, tuple[float, tuple[float, float], tuple[float, float], tuple[float, float]]] = {
     0: (0.72, (4.2, 4.9), (1.80, 2.00), (1.40, 1.60)),
@@ -45,45 +41,70 @@ _CAR_COLORS = np.array([
     [0.10, 0.22, 0.55], [0.05, 0.10, 0.25], [0.12, 0.32, 0.18], [0.85, 0.65, 0.10], [0.55, 0.32, 0.18],
 ])  # fmt: skip
 
-#: highway-env's IDM class constants (``IDMVehicle.DISTANCE_WANTED`` …), which IntersectionEnv overwrites
-#: process-wide: each world re-applies its town's profile before it steps, so towns in one process do not leak.
-IDM_DEFAULT: Mapping[str, float] = MappingProxyType(
-    {"DISTANCE_WANTED": 10.0, "COMFORT_ACC_MAX": 3.0, "COMFORT_ACC_MIN": -5.0}
-)
-#: The profile IntersectionEnv sets for its traffic.
-IDM_INTERSECTION: Mapping[str, float] = MappingProxyType(
-    {"DISTANCE_WANTED": 7.0, "COMFORT_ACC_MAX": 6.0, "COMFORT_ACC_MIN": -3.0}
-)
+#: highway-env's IDM class constants, which IntersectionEnv overwrites process-wide (research note): each town
+#: names its profile in its :class:`TownSpec`, and a world re-applies it before it steps, so towns in one process
+#: do not leak.
+IDM_PROFILES: dict[str, dict[str, float]] = {
+    "default": {"DISTANCE_WANTED": 10.0, "COMFORT_ACC_MAX": 3.0, "COMFORT_ACC_MIN": -5.0},
+    "intersection": {"DISTANCE_WANTED": 7.0, "COMFORT_ACC_MAX": 6.0, "COMFORT_ACC_MIN": -3.0},
+}
 
 
 @dataclass(frozen=True)
 class TownSpec:
-    """A town: the highway-env scenario class, fog-gym's config on top of its defaults, a scenery style, and
-    the IDM profile (highway-env ``IDMVehicle`` class constants) its traffic drives with.
-
-    >>> TOWN_SPECS["intersection"].idm["DISTANCE_WANTED"], TOWN_SPECS["highway"].idm["DISTANCE_WANTED"]
-    (7.0, 10.0)
-    """
+    """A town: the highway-env scenario class, fog-gym's config on top of its defaults, a scenery style and the
+    IDM profile (a key of :data:`IDM_PROFILES`)."""
 
     env_class: str
     config: dict[str, Any]
     scenery: str
-    idm: Mapping[str, float] = field(default_factory=lambda: IDM_DEFAULT)
+    idm: str = "default"
 
     def __post_init__(self) -> None:
-        if not isinstance(self.idm, Mapping) or set(self.idm) != set(IDM_DEFAULT):
-            raise ValueError(f"idm must be a mapping with the keys {sorted(IDM_DEFAULT)}, got {self.idm!r}")
+        if self.idm not in IDM_PROFILES:
+            raise ValueError(f"idm must be one of {tuple(IDM_PROFILES)}, got {self.idm!r}")
 
 
 TOWN_SPECS: dict[str, TownSpec] = {
     "highway": TownSpec("HighwayEnv", {"lanes_count": 4, "vehicles_count": 40, "vehicles_density": 1.2}, "freeway"),
     "merge": TownSpec("MergeEnv", {}, "freeway"),
     "roundabout": TownSpec("RoundaboutEnv", {}, "urban"),
-    "intersection": TownSpec("IntersectionEnv", {"initial_vehicle_count": 12}, "urban", IDM_INTERSECTION),
+    "intersection": TownSpec("IntersectionEnv", {"initial_vehicle_count": 12}, "urban", idm="intersection"),
     "racetrack": TownSpec("RacetrackEnv", {"other_vehicles": 8}, "circuit"),
     "exit": TownSpec("ExitEnv", {"vehicles_count": 30}, "freeway"),
 }
 assert tuple(TOWN_SPECS) == TOWNS
+
+
+def highway_env_config(town: str, simulation_frequency: int = 20, keyframe_frequency: int = 10,
+                       overrides: dict[str, Any] | None = None) -> dict[str, Any]:  # fmt: skip
+    """The highway-env config of a town's scenario as :class:`TrafficWorld` builds it (benchmarks use it to build the
+    bare scenario for comparison).
+
+    >>> highway_env_config("highway")["vehicles_count"], highway_env_config("merge", overrides={"lanes_count": 3})["lanes_count"]
+    (40, 3)
+    """
+    if town not in TOWN_SPECS:
+        raise ValueError(f"town must be one of {TOWNS}, got {town!r}")
+    config = copy.deepcopy(TOWN_SPECS[town].config)
+    config.update(
+        {
+            "simulation_frequency": simulation_frequency,
+            "policy_frequency": keyframe_frequency,
+            "duration": 1e9,  # fog-gym truncates by its own episode length
+            "offscreen_rendering": True,
+        }
+    )
+    config.update(copy.deepcopy(dict(overrides or {})))
+    return config
+
+
+def apply_idm_profile(town: str) -> None:
+    """Set highway-env's process-wide IDM constants to ``town``'s profile (its :class:`TownSpec` names it)."""
+    from highway_env.vehicle.behavior import IDMVehicle
+
+    for k, v in IDM_PROFILES[TOWN_SPECS[town].idm].items():
+        setattr(IDMVehicle, k, v)
 
 
 @dataclass(frozen=True)
@@ -107,6 +128,12 @@ class TrafficWorld:
 
     ``highway_config`` overrides highway-env config keys (``action``, ``vehicles_count``, …). ``traffic="fast"``
     steps it through :mod:`fog_gym.traffic` (identical trajectories); ``"reference"`` through highway-env alone.
+
+    The world's surface — what the env, wrappers, audit and benchmarks use — is :meth:`reset`, :meth:`step`,
+    :meth:`vehicle_state`, :meth:`lane_geometry`, :attr:`ego_pose`, :attr:`ego_speed`, :attr:`ego_crashed`,
+    :attr:`tick`, :attr:`time`, :attr:`vehicle_count`, :attr:`accelerated`, :attr:`idm_profile`, ``action_space``,
+    ``town``, ``spec``, ``traffic`` and ``start_position``. ``hw`` (the highway-env environment) is for this module
+    and :mod:`fog_gym.traffic` only (``tests/test_world.py`` checks that nothing else reads it).
     """
 
     def __init__(
@@ -125,12 +152,10 @@ class TrafficWorld:
         self.traffic = check_traffic_mode(traffic)
         self.town = town
         self.spec = TOWN_SPECS[town]
-        self.simulation_frequency = int(simulation_frequency)
-        self.keyframe_frequency = int(keyframe_frequency)
-        config = scenario_config(town, simulation_frequency, keyframe_frequency, highway_config)
+        self.idm_profile: dict[str, float] = dict(IDM_PROFILES[self.spec.idm])
+        config = highway_env_config(town, simulation_frequency, keyframe_frequency, highway_config)
         self.episode_seconds = float(episode_seconds)
-        self.seed: int | None = None
-        self.apply_idm_profile()
+        self._apply_idm_profile()
         self.hw = getattr(hw_envs, self.spec.env_class)(config=config)
         if traffic == "fast":
             accelerate(self.hw)
@@ -139,14 +164,8 @@ class TrafficWorld:
         self._next_id = EGO_ID + 1
 
     # -- highway-env plumbing -------------------------------------------------------------------------
-    @property
-    def idm_profile(self) -> Mapping[str, float]:
-        """The town's IDM profile (:attr:`TownSpec.idm`)."""
-        return self.spec.idm
-
-    def apply_idm_profile(self) -> None:
-        """Set highway-env's process-wide IDM class constants to this town's profile (done before every step)."""
-        apply_idm_profile(self.spec.idm)
+    def _apply_idm_profile(self) -> None:
+        apply_idm_profile(self.town)
 
     def _skip_observation(self) -> None:
         # FogDrive-v0 never uses highway-env's observation: make it free on the hot path.
@@ -154,10 +173,9 @@ class TrafficWorld:
 
     def reset(self, seed: int | None = None) -> None:
         """Reset the scenario; ``seed`` determines traffic, classes, sizes and colours."""
-        self.apply_idm_profile()
+        self._apply_idm_profile()
         self.hw.observation_type.observe = lambda: None  # reset also observes once; define_spaces replaces it
         self.hw.reset(seed=seed)
-        self.seed = seed
         self._skip_observation()
         self.action_space = self.hw.action_space
         self._rng = stream(seed, "world")
@@ -169,7 +187,7 @@ class TrafficWorld:
 
     def step(self, action: Any) -> tuple[float, bool, dict]:
         """Advance one keyframe (``simulation_frequency / keyframe_frequency`` sub-steps)."""
-        self.apply_idm_profile()
+        self._apply_idm_profile()
         _, reward, terminated, _, info = self.hw.step(action)
         self._register_new()
         terminated = bool(terminated) or bool(self.hw.vehicle.crashed)
@@ -235,7 +253,7 @@ class TrafficWorld:
 
     @property
     def tick(self) -> int:
-        """Simulation sub-steps taken since the reset (``simulation_frequency`` per second)."""
+        """Simulation sub-steps since the reset (``simulation_frequency`` per second)."""
         return int(self.hw.steps)
 
     @property
@@ -245,18 +263,18 @@ class TrafficWorld:
 
     @property
     def ego_crashed(self) -> bool:
-        """Whether the ego has collided."""
+        """Whether the ego has collided in this episode."""
         return bool(self.hw.vehicle.crashed)
 
     @property
     def vehicle_count(self) -> int:
-        """Vehicles on the road, ego included."""
+        """Vehicles on the road, the ego included."""
         return len(self.hw.road.vehicles)
 
     @property
-    def scenario_config(self) -> dict[str, Any]:
-        """A copy of the highway-env scenario config this world runs (:func:`scenario_config` plus defaults)."""
-        return copy.deepcopy(dict(self.hw.config))
+    def accelerated(self) -> bool:
+        """Whether the traffic steps through :mod:`fog_gym.traffic`'s core."""
+        return is_accelerated(self.hw)
 
     # -- road geometry --------------------------------------------------------------------------------
     def lane_geometry(self, center: np.ndarray, radius: float, step: float = 1.0) -> list[LaneGeometry]:
@@ -288,48 +306,3 @@ class TrafficWorld:
 
     def close(self) -> None:
         self.hw.close()
-
-
-def scenario_config(
-    town: str, simulation_frequency: int = 20, keyframe_frequency: int = 10, highway_config: dict[str, Any] | None = None
-) -> dict[str, Any]:
-    """The highway-env config a :class:`TrafficWorld` of ``town`` passes to its scenario class: the town's
-    config, the frequencies, an unbounded duration (fog-gym truncates by its own episode length), offscreen
-    rendering, then ``highway_config`` on top.
-
-    >>> scenario_config("merge", 20, 10)["policy_frequency"]
-    10
-    """
-    if town not in TOWN_SPECS:
-        raise ValueError(f"town must be one of {TOWNS}, got {town!r}")
-    config = copy.deepcopy(TOWN_SPECS[town].config)
-    config.update(
-        {
-            "simulation_frequency": simulation_frequency,
-            "policy_frequency": keyframe_frequency,
-            "duration": 1e9,
-            "offscreen_rendering": True,
-        }
-    )
-    config.update(copy.deepcopy(dict(highway_config or {})))
-    return config
-
-
-def apply_idm_profile(profile: Mapping[str, float]) -> None:
-    """Set highway-env's ``IDMVehicle`` class constants to ``profile`` (a :attr:`TownSpec.idm`)."""
-    from highway_env.vehicle.behavior import IDMVehicle
-
-    for k, v in profile.items():
-        setattr(IDMVehicle, k, v)
-
-
-def bare_scenario(town: str, simulation_frequency: int = 20, keyframe_frequency: int = 10, **overrides: Any) -> Any:
-    """The town's highway-env scenario alone (its own observation included, no fog-gym traffic core): the
-    baseline a :class:`TrafficWorld` is benchmarked against. Its IDM profile is applied before it is built;
-    call :func:`apply_idm_profile` with ``TOWN_SPECS[town].idm`` before stepping it beside other towns.
-    """
-    import highway_env.envs as hw_envs
-
-    config = scenario_config(town, simulation_frequency, keyframe_frequency, overrides)
-    apply_idm_profile(TOWN_SPECS[town].idm)
-    return getattr(hw_envs, TOWN_SPECS[town].env_class)(config=config)

@@ -72,7 +72,7 @@ def main(argv: list[str] | None = None, prog: str = "bench.py") -> int:
     labels = bench_sensors.bench_labels(repeats)
     recording = bench_dataset.bench_recording(repeats)
     rl = bench_env.bench_rl(repeats)
-    baseline = bench_env.bench_baselines(args.town, repeats, profile_steps, rigs["full"]["world_seed"])
+    baseline = bench_env.bench_baselines(args.town, repeats, profile_steps)
     finish_meta(meta, t0)
     results = {"meta": meta, "rigs": rigs, "point_sensors": point_sensors, "fog": fog, "labels": labels,
                "recording": recording, "rl": rl, "baseline": baseline, "night": night}  # fmt: skip

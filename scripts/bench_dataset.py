@@ -33,7 +33,7 @@ def bench_recording(repeats: int) -> dict[str, Any]:
     per-frame cost (every file encoded and written atomically), and ``fog-gym generate`` scaling with workers."""
     import tempfile
 
-    from fog_gym.dataset.generate import generate, plan_scenes
+    from fog_gym.generate import generate, plan_scenes
     from fog_gym.dataset.writer import SceneWriter, encode_png
     from fog_gym.encoding import encode_depth, semantic_to_carla_rgb
     from fog_gym.env import FogDriveEnv

@@ -23,11 +23,12 @@ asserts a timing. It prints Markdown tables to stdout; progress bars go to stder
 
    Below those come the steps per second, the reset time (median of 3) with the static-world build
    (``env.build_static_world``) inside it, and the construction time. Last is the ratio of the full step to a
-   bare highway-env step of the same scenario (``fog_gym.world.bare_scenario``). The bare step is timed in
+   bare highway-env step of the same scenario (``fog_gym.world.highway_env_config``). The bare step is timed in
    alternation with ``env.step``, so both see the same machine load.
-2. **Bare highway-env baseline**. The first scenario is the town's (``fog_gym.world.bare_scenario``: the same
-   scenario class, config and frequencies as ``TrafficWorld``), reset with the seed that
-   ``FogDriveEnv.reset(seed=0)`` gave its world (``env.episode_seed``), so it starts from the same traffic. The
+2. **Bare highway-env baseline**. The first scenario is the town's (``fog_gym.world.highway_env_config``: the
+   same scenario class, config and frequencies as ``TrafficWorld``), reset with the seed that
+   ``FogDriveEnv.reset(seed=0)`` gives its world (``FogDriveEnv.episode_seed_for(0)``), so it starts from the same
+   traffic. The
    second is the ``highway`` town with ``vehicles_count=50``. The times are ``env.step`` including highway-env's
    own Kinematics observation. The observation (``observation_type.observe()``) is also timed on its own.
 3. **cProfile shares** over about 10 bare highway-env steps: the time in ``Road.neighbour_vehicles`` and in
@@ -73,7 +74,6 @@ from bench_common import (  # noqa: E402
 )  # fmt: skip
 
 from fog_gym.config import TOWNS  # noqa: E402
-from fog_gym.world import bare_scenario  # noqa: E402
 
 RESET_REPEATS = 3
 PROFILE_STEPS = 10
@@ -165,8 +165,8 @@ def measure_stages(env: Any, solos: dict[str, Any], action: Any, repeats: int, d
         for ch, pts in points.items():
             counts[f"points:{ch}"].append(len(pts))
         counts["vehicles"].append(len(scene.vehicles))
-        counts["vehicle_primitives"].append(len(scene.primitives["centers"]))
-        counts["render_primitives"].append(len(prims["centers"]))
+        counts["vehicle_primitives"].append(len(scene.primitives))
+        counts["render_primitives"].append(len(prims))
         counts["props"].append(len(scene.static.props))
         keep.after_step(terminated)
     out: dict[str, Any] = {k: summarize(v) for k, v in t.items()}
@@ -187,8 +187,10 @@ def measure_env_step(env: Any, action: Any, bare: Any, repeats: int, desc: str) 
     start from the same traffic, and each timed ``env.step`` is followed by one timed ``bare.step``. The two
     series therefore see the same machine load, and their ratio holds up when the load drifts.
     """
+    from fog_gym.env import FogDriveEnv
+
     env.reset(seed=0)
-    bare.reset(seed=env.episode_seed)  # the seed FogDriveEnv.reset(seed=0) gave its world: the same traffic
+    bare.reset(seed=FogDriveEnv.episode_seed_for(0))
     bare_action = idle_action(bare.action_space)
     keep = EpisodeKeeper(env, {})
     fog_ms, bare_ms, bare_resets = [], [], 0
@@ -200,7 +202,7 @@ def measure_env_step(env: Any, action: Any, bare: Any, repeats: int, desc: str) 
         bare_ms.append(ms)
         if terminated or truncated:
             bare_resets += 1
-            bare.reset(seed=env.episode_seed + bare_resets)
+            bare.reset(seed=FogDriveEnv.episode_seed_for(bare_resets))
     return {**summarize(fog_ms), "resets": keep.resets}, {**summarize(bare_ms), "resets": bare_resets}
 
 
@@ -216,11 +218,9 @@ def bench_rig(town: str, rig_key: str, repeats: int) -> dict[str, Any]:
         "label": label, "cameras": list(env.camera_names), "point_sensors": list(env.point_sensors.channels),
         "construct": summarize([ms_init]),
     }  # fmt: skip
-    env.reset(seed=0)
-    result["world_seed"] = env.episode_seed  # what the bare baseline of the town is reset with
     result["reset"], result["static_build"] = measure_reset(env, RESET_REPEATS, f"{rig_key}: reset")
     result["stages"] = measure_stages(env, solos, action, repeats, f"{rig_key}: stages")
-    bare = bare_scenario(town)
+    bare = bare_highway_env(town)
     result["env_step"], result["bare_step"] = measure_env_step(env, action, bare, repeats, f"{rig_key}: env.step")
     bare.close()
     env.close()
@@ -228,6 +228,19 @@ def bench_rig(town: str, rig_key: str, repeats: int) -> dict[str, Any]:
 
 
 # -- bare highway-env ----------------------------------------------------------------------------------
+
+
+def bare_highway_env(town: str, **overrides: Any) -> Any:
+    """The town's highway-env scenario with fog-gym's config and frequencies (``fog_gym.world.highway_env_config``),
+    with the observation kept."""
+    import highway_env.envs as hw_envs
+
+    from fog_gym.config import FogDriveConfig
+    from fog_gym.world import TOWN_SPECS, highway_env_config
+
+    defaults = FogDriveConfig()
+    config = highway_env_config(town, defaults.simulation_frequency, defaults.keyframe_frequency, overrides)
+    return getattr(hw_envs, TOWN_SPECS[town].env_class)(config=config)
 
 
 def measure_bare(bare_env: Any, repeats: int, desc: str, seed: int = 0) -> dict[str, Any]:
@@ -286,23 +299,21 @@ def profile_bare(bare_env: Any, steps: int) -> dict[str, Any]:
     }  # fmt: skip
 
 
-def bench_baselines(town: str, repeats: int, profile_steps: int, world_seed: int) -> dict[str, Any]:
-    """Bare highway-env for the town's config and for a dense highway (50 vehicles). Both are timed and profiled.
-
-    ``world_seed`` is the seed ``FogDriveEnv.reset(seed=0)`` gave its world (``env.episode_seed``): the town's
-    scenario starts from the same traffic as FogDrive-v0.
-    """
-    from fog_gym.world import TOWN_SPECS
+def bench_baselines(town: str, repeats: int, profile_steps: int) -> dict[str, Any]:
+    """Bare highway-env for the town's config and for a dense highway (50 vehicles). Both are timed and profiled."""
+    from fog_gym.env import FogDriveEnv
+    from fog_gym.world import TOWN_SPECS, apply_idm_profile
 
     out: dict[str, Any] = {}
     configs = {
         # the town as FogDrive-v0 runs it, from the same initial traffic as FogDriveEnv.reset(seed=0)
-        "town": (f"{town} ({TOWN_SPECS[town].env_class}, fog-gym config)", town, {}, world_seed),
+        "town": (f"{town} ({TOWN_SPECS[town].env_class}, fog-gym config)", town, {}, FogDriveEnv.episode_seed_for(0)),
         # the highway town with more vehicles: 1 ego + 50 others
         "dense": (f"highway, vehicles_count={DENSE_VEHICLES}", "highway", {"vehicles_count": DENSE_VEHICLES}, 0),
     }
     for key, (label, t, overrides, seed) in configs.items():
-        bare_env = bare_scenario(t, **overrides)  # applies the town's IDM profile (the last world stepped may have left another's)
+        apply_idm_profile(t)  # the last world stepped may have left another town's IDM constants
+        bare_env = bare_highway_env(t, **overrides)
         res = measure_bare(bare_env, repeats, f"bare {key}: step", seed)
         res["profile"] = profile_bare(bare_env, profile_steps)
         res["label"] = label
@@ -346,9 +357,9 @@ def bench_rl(repeats: int) -> dict[str, Any]:
     vec = gym.make_vec("fog_gym:FogDriveRL-v0", num_envs=2, vectorization_mode="async", fog="dense")
     vec_rate = rate(vec, 2)
     vec.close()
-    bare_env = bare_scenario("highway", keyframe_frequency=5, **RL_TRAFFIC)
+    bare_env = bare_highway_env("highway", **RL_TRAFFIC, policy_frequency=5)
     bare_rate = rate(bare_env)
-    bare_vec = gym.vector.AsyncVectorEnv([lambda: bare_scenario("highway", keyframe_frequency=5, **RL_TRAFFIC)] * 2)
+    bare_vec = gym.vector.AsyncVectorEnv([lambda: bare_highway_env("highway", **RL_TRAFFIC, policy_frequency=5)] * 2)
     bare_vec_rate = rate(bare_vec, 2)
     bare_vec.close()
     step_ms = 1000.0 / fog_rate
@@ -496,10 +507,10 @@ def render_baselines(results: dict[str, Any]) -> str:
 
 
 def bench_all(town: str, repeats: int, profile_steps: int) -> dict[str, Any]:
-    """Both rigs, the RL preset and the bare baselines (from the full rig's world seed)."""
+    """Both rigs, the RL preset and the bare baselines."""
     rigs = {key: bench_rig(town, key, repeats) for key in RIGS}
     rl = bench_rl(repeats)
-    baseline = bench_baselines(town, repeats, profile_steps, rigs["full"]["world_seed"])
+    baseline = bench_baselines(town, repeats, profile_steps)
     return {"rigs": rigs, "rl": rl, "baseline": baseline}
 
 

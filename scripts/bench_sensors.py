@@ -37,8 +37,6 @@ from bench_common import (  # noqa: E402
     finish_meta, fmt_ms, markdown_table, meta_line, repeats_of, run_meta, sensor_tick, summarize, timed, write_json,
 )  # fmt: skip
 
-from fog_gym.config import TOWNS  # noqa: E402
-
 FAR_BOXES = 500  # extra boxes out of every sensor's reach, for the out-of-range check
 FAR_RADIUS = (310.0, 600.0)  # their centres' distance from the ego [m]; a box's nearest point stays beyond 300 m
 POINT_SENSORS_TARGET_MS = 10.0  # LiDAR + semantic LiDAR + radar, per tick
@@ -47,25 +45,23 @@ POINT_SENSORS_TARGET_MS = 10.0  # LiDAR + semantic LiDAR + radar, per tick
 # -- point sensors on a dense highway ------------------------------------------------------------------
 
 
-def far_boxes(template: dict[str, np.ndarray], ego_xy: np.ndarray, rng: np.random.Generator, n: int) -> dict:
-    """``n`` car-sized boxes on the ground with their centres ``FAR_RADIUS`` from ``ego_xy``, in ``template``'s format.
+def far_boxes(template: Any, ego_xy: np.ndarray, rng: np.random.Generator, n: int) -> Any:
+    """``n`` car-sized boxes (``Primitives``) on the ground with their centres ``FAR_RADIUS`` from ``ego_xy``.
 
     Their nearest points lie beyond 300 m from the ego (a car box reaches under 3 m from its centre), out of the
     LiDARs' 120 m and of the radar's rays (under 303 m from the bumper). Static world (``insts`` 0), car tag.
     """
+    from fog_gym.primitives import Primitives
+
     r = rng.uniform(*FAR_RADIUS, n)
     a = rng.uniform(0.0, 2.0 * np.pi, n)
     halves = np.tile([2.4, 1.0, 0.8], (n, 1))
     centers = np.c_[ego_xy[0] + r * np.cos(a), ego_xy[1] + r * np.sin(a), halves[:, 2]]
-    tag = template["tags"][template["insts"] > 0][:1]  # a vehicle's tag where there is one
-    values = {
+    tag = template.tags[template.insts > 0][:1]  # a vehicle's tag where there is one
+    return Primitives.coerce({
         "centers": centers, "halves": halves, "yaws": rng.uniform(-np.pi, np.pi, n), "colors": np.full((n, 3), 0.5),
         "tags": np.full(n, tag[0] if tag.size else 14), "insts": np.zeros(n), "emissive": np.zeros(n, bool),
-    }  # fmt: skip
-    missing = set(template) - set(values)
-    if missing:
-        raise KeyError(f"far_boxes: no values for primitive keys {sorted(missing)}")
-    return {k: np.asarray(values[k], dtype=template[k].dtype).reshape((n, *template[k].shape[1:])) for k in template}
+    })  # fmt: skip
 
 
 def solo_point_sensors(env: Any) -> dict[str, Any]:
@@ -110,7 +106,7 @@ def rays_per_tick(env: Any) -> dict[str, int]:
 
 
 def bench_point_sensors(repeats: int) -> dict[str, Any]:
-    """Point sensors on the ``highway`` town with packed traffic, without and with far boxes.
+    """Point sensors on the ``highway`` town with ``DENSE_VEHICLES`` vehicles, without and with far boxes.
 
     The env has no cameras (the sensors only need ``cameras.primitives``, which does not depend on the cameras).
     After the warm-up, each repeat steps the env (untimed), then times every call on the plain primitives and on
@@ -159,8 +155,8 @@ def bench_point_sensors(repeats: int) -> dict[str, Any]:
         dist = np.hypot(*(scene.vehicles.centers[others, :2] - ego_xy).T)
         counts["vehicles"].append(len(scene.vehicles.ids))
         counts["within_lidar_range"].append(int(np.count_nonzero(dist <= lidar_range)))
-        counts["prims"].append(len(prims["centers"]))
-        counts["prims_far"].append(len(with_far["centers"]))
+        counts["prims"].append(len(prims))
+        counts["prims_far"].append(len(with_far))
         keep.after_step(terminated, truncated)
     result = {
         "label": f"highway, {POINT_SENSOR_TRAFFIC}, no cameras",
@@ -175,9 +171,9 @@ def bench_point_sensors(repeats: int) -> dict[str, Any]:
 
 
 def concat_prims(*groups: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-    from fog_gym.scene import concat_primitives
+    from fog_gym.primitives import Primitives
 
-    return concat_primitives(*groups)
+    return Primitives.concat(*groups)
 
 
 def render_point_sensors(ps: dict[str, Any], repeats: int) -> list[str]:
@@ -334,7 +330,7 @@ def build_parser(prog: str = "bench_sensors.py") -> argparse.ArgumentParser:
         "full rig's cameras by night against by day. It prints Markdown tables and asserts nothing.",
     )
     add_common_arguments(parser)
-    parser.add_argument("--town", choices=TOWNS, default="highway", help="town of the night vs day comparison (default highway)")
+    parser.add_argument("--town", default="highway", help="town of the night vs day comparison (default highway)")
     parser.add_argument("--night-only", action="store_true",
                         help="only time the full rig's cameras by night against by day (same scenes)")
     parser.add_argument("--night-figure", type=Path, default=None, metavar="PNG",

@@ -158,7 +158,7 @@ def bench_recorder(repeats: int) -> dict[str, Any]:
 
 def run_identity(steps: int) -> list[str]:
     from fog_gym.config import TOWNS
-    from fog_gym.traffic.identity import PLAIN_SCENARIOS, compare_plain, compare_town
+    from fog_gym.traffic_identity import PLAIN_SCENARIOS, compare_plain, compare_town
 
     done = []
     jobs = [("plain", e, c) for e, c in PLAIN_SCENARIOS] + [("town", t, None) for t in TOWNS]

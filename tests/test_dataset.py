@@ -153,7 +153,8 @@ def test_generate_resume_validate(tmp_path):
     import subprocess
     import sys
 
-    from fog_gym.dataset.generate import PROGRESS_DIR, check_root, generate, plan_scenes, validate
+    from fog_gym.dataset.validate import validate
+    from fog_gym.generate import PROGRESS_DIR, check_root, generate, plan_scenes
 
     root = tmp_path / "gen"
     plan = plan_scenes(4, towns=("merge", "roundabout"), seed=7, resolution=(32, 24), seconds=0.2)
@@ -185,7 +186,7 @@ def test_generate_resume_validate(tmp_path):
 
 
 def test_generate_rejects_bad_input_before_rendering(tmp_path):
-    from fog_gym.dataset.generate import check_root, plan_scenes
+    from fog_gym.generate import check_root, plan_scenes
 
     with pytest.raises(ValueError, match="even number"):
         plan_scenes(3)
@@ -238,7 +239,8 @@ def test_killed_generation_resumes_to_a_valid_set(tmp_path):
     import sys
     import time
 
-    from fog_gym.dataset.generate import PROGRESS_DIR, validate
+    from fog_gym.dataset.validate import validate
+    from fog_gym.generate import PROGRESS_DIR
 
     root = tmp_path / "killed"
     cmd = [sys.executable, "-m", "fog_gym.cli", "generate", "--root", str(root), "--scenes", "4", "--resolution",
@@ -261,7 +263,7 @@ def test_killed_generation_resumes_to_a_valid_set(tmp_path):
 
 
 def test_generated_set_of_20_scenes_meets_the_split_rules(tmp_path):
-    from fog_gym.dataset.generate import generate, plan_scenes
+    from fog_gym.generate import generate, plan_scenes
     from fog_gym.dataset.splits import check_splits
 
     plan = plan_scenes(20, towns=("roundabout",), seed=2, resolution=(16, 12), seconds=0.1)

@@ -9,7 +9,7 @@ import pytest
 torch = pytest.importorskip("torch")  # the torch extra is part of the dev extra: never skipped in CI
 
 from fog_gym.dataset import FogDrive  # noqa: E402
-from fog_gym.dataset.generate import generate, plan_scenes  # noqa: E402
+from fog_gym.generate import generate, plan_scenes  # noqa: E402
 from fog_gym.dataset.layout import MODALITIES  # noqa: E402
 from fog_gym.dataset.validate import validate  # noqa: E402
 from fog_gym.detect3d.bev import BEVGrid, class_from_height, decode_cells, make_targets, point_features  # noqa: E402
@@ -158,6 +158,11 @@ def test_a_second_run_keeps_finished_rows_and_refuses_other_settings(lidar_set, 
     assert any(m.startswith("Dense: kept from") for m in messages)
     assert again["rows"]["Dense"] == json.loads(json.dumps(first["rows"]["Dense"]))
     assert set(again["rows"]) == {"Dense", "Clear"}
+    # a row's weights do not depend on the rows trained before it in the same process
+    run_experiment1(lidar_set, tmp_path / "fresh", Exp1Config(**{**cfg.__dict__, "rows": ("Dense", "Clear")}),
+                    progress=False, log=lambda *_: None)  # fmt: skip
+    kept, fresh = (torch.load(tmp_path / d / "model_Clear.pt") for d in ("out", "fresh"))
+    assert all(torch.equal(kept[k], fresh[k]) for k in kept)
     with pytest.raises(ValueError, match="other settings"):
         run_experiment1(lidar_set, tmp_path / "out", Exp1Config(**{**cfg.__dict__, "lr": 5e-4}), progress=False,
                         log=lambda *_: None)  # fmt: skip

@@ -38,7 +38,7 @@ def test_observation_space_and_dtypes(small_env):
 def test_semantic_tags_are_those_of_the_scene(small_env):
     scene = small_env.scene
     present = set(SURFACE_TAGS[np.unique(scene.static.surface.grid)].tolist())
-    present |= set(scene.static.props.tags.tolist()) | set(scene.primitives["tags"].tolist()) | {11}
+    present |= set(scene.static.props.tags.tolist()) | set(scene.primitives.tags.tolist()) | {11}
     for name in small_env.cameras.names:
         assert set(np.unique(small_env.frames[name].semantic).tolist()) <= present
 
@@ -110,7 +110,7 @@ def test_truncation_at_episode_length():
 def test_termination_on_collision():
     env = FogDriveEnv(town="highway", resolution=(16, 12), cameras=["CAM_FRONT"])
     env.reset(seed=0)
-    ego, other = env.world.vehicles()[:2]  # ego first
+    ego, other = env.world.vehicles()[:2]
     other.position = ego.position.copy()  # put an NPC on top of the ego
     _, _, terminated, truncated, info = env.step(first_idle(env.action_space))
     assert terminated and info["crashed"] and not truncated

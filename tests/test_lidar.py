@@ -3,6 +3,8 @@
 import math
 
 import numpy as np
+
+from fog_gym.primitives import Primitives
 import pytest
 
 from fog_gym.config import Pose
@@ -10,7 +12,6 @@ from fog_gym.geometry import transform_points, yaw_transform
 from fog_gym.lidar import (
     LidarConfig,
     RadarConfig,
-    empty_prims,
     lidar_directions,
     sensor_to_world,
     simulate_lidar,
@@ -26,20 +27,20 @@ NO_DROP = dict(dropoff_general_rate=0.0, dropoff_zero_intensity=0.0)
 
 
 def boxes(*rows):
-    """rows = (center (3,), halves (3,), yaw, tag, inst) → primitive dict."""
+    """rows = (center (3,), halves (3,), yaw, tag, inst) → Primitives."""
     if not rows:
-        return empty_prims()
-    return {
+        return Primitives.empty()
+    return Primitives.coerce({
         "centers": np.array([r[0] for r in rows], float),
         "halves": np.array([r[1] for r in rows], float),
         "yaws": np.array([r[2] for r in rows], float),
         "tags": np.array([r[3] for r in rows], np.uint8),
         "insts": np.array([r[4] for r in rows], np.uint16),
-    }
+    })
 
 
 def concat(a, b):
-    return {k: np.concatenate([a[k], b[k]]) for k in a}
+    return Primitives.concat(a, b)
 
 
 def enclosure():
@@ -51,8 +52,8 @@ def enclosure():
 def far_boxes(n=500, seed=3):
     rng = np.random.default_rng(seed)
     c = np.c_[rng.uniform(600, 2000, n) * rng.choice([-1, 1], n), rng.uniform(-2000, 2000, n), rng.uniform(0, 10, n)]
-    return {"centers": c, "halves": rng.uniform(0.5, 20, (n, 3)), "yaws": rng.uniform(-3, 3, n),
-            "tags": np.full(n, 3, np.uint8), "insts": rng.integers(0, 60, n).astype(np.uint16)}  # fmt: skip
+    return Primitives.coerce({"centers": c, "halves": rng.uniform(0.5, 20, (n, 3)), "yaws": rng.uniform(-3, 3, n),
+                              "tags": np.full(n, 3, np.uint8), "insts": rng.integers(0, 60, n).astype(np.uint16)})  # fmt: skip
 
 
 # --------------------------------------------------------------------------------------------- ray casting
@@ -66,12 +67,12 @@ def _brute_force(origin, dirs, max_range, prims):
         tg = np.where(dirs[:, 2] < 0, -origin[2] / dirs[:, 2], np.inf)
     m = tg < best
     best[m], idx[m] = tg[m], GROUND
-    for p in range(len(prims["yaws"])):
-        c, s = np.cos(prims["yaws"][p]), np.sin(prims["yaws"][p])
-        r = origin - prims["centers"][p]
+    for p in range(len(prims.yaws)):
+        c, s = np.cos(prims.yaws[p]), np.sin(prims.yaws[p])
+        r = origin - prims.centers[p]
         o = np.array([c * r[0] + s * r[1], -s * r[0] + c * r[1], r[2]])
         d = np.c_[c * dirs[:, 0] + s * dirs[:, 1], -s * dirs[:, 0] + c * dirs[:, 1], dirs[:, 2]]
-        h = prims["halves"][p]
+        h = prims.halves[p]
         with np.errstate(divide="ignore", invalid="ignore"):
             ta, tb = (-h - o) / d, (h - o) / d
         t0 = np.nan_to_num(np.minimum(ta, tb), nan=-np.inf).max(1)
@@ -87,8 +88,8 @@ def test_cast_rays_matches_brute_force(where):
     n = 80
     prims = boxes(*[(rng.uniform([-40, -40, 0], [40, 40, 4]), rng.uniform(0.1, 5, 3), rng.uniform(-4, 4), 1, 0)
                     for _ in range(n)])  # fmt: skip
-    origin = {"outside": np.array([0.3, -0.2, 1.7]), "inside_a_box": prims["centers"][0],
-              "above_a_box": prims["centers"][0] + [0, 0, prims["halves"][0, 2] + 1.0]}[where]  # fmt: skip
+    origin = {"outside": np.array([0.3, -0.2, 1.7]), "inside_a_box": prims.centers[0],
+              "above_a_box": prims.centers[0] + [0, 0, prims.halves[0, 2] + 1.0]}[where]  # fmt: skip
     dirs = rng.normal(size=(4000, 3))
     dirs[:4] = [[1, 0, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]]  # axis-aligned and vertical rays
     rot = np.linalg.qr(rng.normal(size=(3, 3)))[0]
@@ -119,8 +120,8 @@ def test_ray_pattern_follows_carla():
 @pytest.mark.parametrize("semantic", [False, True])
 def test_flat_ground_rings_at_analytic_range(semantic):
     cfg = (LidarConfig.fogdrive_semantic() if semantic else LidarConfig.fogdrive(**NO_DROP))
-    pts = (simulate_semantic_lidar(cfg, sensor_to_world(cfg.pose), empty_prims(), ROAD) if semantic
-           else simulate_lidar(cfg, sensor_to_world(cfg.pose), empty_prims(), ROAD, np.random.default_rng(0)))
+    pts = (simulate_semantic_lidar(cfg, sensor_to_world(cfg.pose), Primitives.empty(), ROAD) if semantic
+           else simulate_lidar(cfg, sensor_to_world(cfg.pose), Primitives.empty(), ROAD, np.random.default_rng(0)))
     el, az = cfg.ray_angles(20)
     rng_ = np.linalg.norm(pts[:, :3].astype(np.float64), axis=1)
     elev = np.degrees(np.arcsin(pts[:, 2] / rng_))
@@ -169,7 +170,7 @@ def test_ground_tags_follow_surface_map():
     surface = SurfaceMap(grid, (-200.0, -200.0), 1.0)
     cfg = LidarConfig.fogdrive_semantic()
     T = sensor_to_world(cfg.pose, (3.0, 2.0, 0.4))
-    pts = simulate_semantic_lidar(cfg, T, empty_prims(), surface)
+    pts = simulate_semantic_lidar(cfg, T, Primitives.empty(), surface)
     world = transform_points(T, pts[:, :3])
     np.testing.assert_array_equal(pts[:, 5], SURFACE_TAGS[surface.class_at(world[:, 0], world[:, 1])])
     assert set(pts[:, 5].tolist()) == {10.0, 1.0, 2.0, 24.0}
@@ -341,8 +342,8 @@ def test_bad_radar_config_raises(name, value):
 def test_bad_call_arguments_raise():
     cfg = LidarConfig.fogdrive()
     with pytest.raises(ValueError, match="simulation_frequency"):
-        simulate_lidar(cfg, np.eye(4), empty_prims(), ROAD, np.random.default_rng(0), simulation_frequency=0)
+        simulate_lidar(cfg, np.eye(4), Primitives.empty(), ROAD, np.random.default_rng(0), simulation_frequency=0)
     with pytest.raises(ValueError, match="sensor_to_world"):
-        simulate_semantic_lidar(cfg, np.eye(3), empty_prims(), ROAD)
+        simulate_semantic_lidar(cfg, np.eye(3), Primitives.empty(), ROAD)
     with pytest.raises(ValueError, match="max_range"):
-        cast_rays(np.zeros(3), np.ones((1, 3)), -1.0, empty_prims())
+        cast_rays(np.zeros(3), np.ones((1, 3)), -1.0, Primitives.empty())

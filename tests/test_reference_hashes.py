@@ -76,7 +76,7 @@ def env_hashes(town: str, time_of_day: str, traffic: str, fog: tuple[str, ...], 
 
 def dataset_hashes() -> dict[str, str]:
     """Digest of every file of a two-scene generated set (index tables included)."""
-    from fog_gym.dataset.generate import generate, plan_scenes
+    from fog_gym.generate import generate, plan_scenes
 
     with tempfile.TemporaryDirectory() as tmp:
         root = Path(tmp) / "set"

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from fog_gym.traffic import accelerate, is_accelerated
-from fog_gym.traffic.core import check_traffic_mode
-from fog_gym.traffic.identity import PLAIN_SCENARIOS, compare_plain, compare_town
+from fog_gym.config import check_traffic_mode
+from fog_gym.traffic_identity import PLAIN_SCENARIOS, compare_plain, compare_town
 
 SCENARIOS = list(PLAIN_SCENARIOS)
 run_pair = compare_plain

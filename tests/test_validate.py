@@ -12,7 +12,7 @@ import pytest
 from fog_gym.dataset import FogDrive
 from fog_gym.dataset.access import DatasetError
 from fog_gym.dataset.decode import load_channel
-from fog_gym.dataset.generate import generate, plan_scenes
+from fog_gym.generate import generate, plan_scenes
 from fog_gym.dataset.manifest import MANIFEST_FILE, read_manifest
 from fog_gym.dataset.validate import stats, validate
 

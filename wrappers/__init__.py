@@ -1,15 +1,41 @@
 """Gymnasium wrappers for FogDrive-v0, importable as ``fog_gym.wrappers`` (one wrapper per module).
 
+As in ``gymnasium.wrappers``, a wrapper's module is imported when the wrapper is first asked for, so
+``import fog_gym.wrappers`` costs nothing and loads neither the env nor the dataset writer.
+
 Example:
     >>> from fog_gym.wrappers import FogWrapper
     >>> FogWrapper.__name__
     'FogWrapper'
 """
 
-from fog_gym.wrappers.curriculum import FogCurriculum
-from fog_gym.wrappers.fog import FogWrapper, parse_fog_levels
-from fog_gym.wrappers.observation import LidarBEV, ResizeCameras, SelectKeys, StackFrames
-from fog_gym.wrappers.record import RecordFogDrive
+from __future__ import annotations
 
-__all__ = ["FogCurriculum", "FogWrapper", "LidarBEV", "RecordFogDrive", "ResizeCameras", "SelectKeys", "StackFrames",
-           "parse_fog_levels"]
+import importlib
+from typing import Any
+
+#: Public name → the module of this package that defines it.
+_LAZY = {
+    "FogCurriculum": "curriculum",
+    "FogWrapper": "fog",
+    "parse_fog_levels": "fog",
+    "LidarBEV": "observation",
+    "ResizeCameras": "observation",
+    "SelectKeys": "observation",
+    "StackFrames": "observation",
+    "RecordFogDrive": "record",
+}
+
+__all__ = sorted(_LAZY)
+
+
+def __getattr__(name: str) -> Any:
+    if name not in _LAZY:
+        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+    value = getattr(importlib.import_module(f"{__name__}.{_LAZY[name]}"), name)
+    globals()[name] = value  # later look-ups skip this function
+    return value
+
+
+def __dir__() -> list[str]:
+    return sorted(set(globals()) | set(_LAZY))

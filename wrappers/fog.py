@@ -69,7 +69,7 @@ class FogWrapper(gym.Wrapper):
             raise ValueError(f"lidar_noise must be >= 0 metres, got {lidar_noise!r}")
         super().__init__(env)
         base = env.unwrapped
-        if not hasattr(base, "camera_names") or not hasattr(base, "episode_seed"):
+        if not hasattr(base, "intrinsics") or not hasattr(base, "episode_seed"):
             raise ValueError("FogWrapper wraps a FogDrive-v0 environment")
         self.levels, self.paired = levels, paired
         self._fixed_airlight, self.lidar_noise = fixed, float(lidar_noise)

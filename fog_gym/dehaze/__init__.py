@@ -33,13 +33,6 @@ def check_image(image: np.ndarray, name: str = "image") -> np.ndarray:
     return img
 
 
-def dark_channel(image: np.ndarray, patch: int = 15) -> np.ndarray:
-    """Per-pixel minimum over colour channels and a ``patch`` × ``patch`` window (float32 in the image's scale)."""
-    kernel = cv2.getStructuringElement(cv2.MORPH_RECT, (patch, patch))
-    r, g, b = cv2.split(np.ascontiguousarray(image))
-    return cv2.erode(cv2.min(cv2.min(r, g), b), kernel, borderType=cv2.BORDER_REPLICATE).astype(np.float32)
-
-
 def guided_filter(guide: np.ndarray, src: np.ndarray, radius: int, eps: float, subsample: int = 1) -> np.ndarray:
     """He et al.'s guided filter of ``src`` with a single-channel ``guide`` (both float32 in [0, 1]); with
     ``subsample`` s > 1 the linear coefficients are fitted on an s× smaller grid and upsampled (He & Sun's fast
@@ -66,12 +59,26 @@ def guided_filter(guide: np.ndarray, src: np.ndarray, radius: int, eps: float, s
 
 
 def estimate_airlight(image: np.ndarray, dark: np.ndarray, top: float = 0.001) -> np.ndarray:
-    """``(3,)`` airlight: the brightest input pixel among the top ``top`` fraction of the dark channel."""
-    flat = dark.reshape(-1)
-    n = max(1, int(round(flat.size * top)))
-    idx = np.argpartition(flat, flat.size - n)[flat.size - n:]
-    pix = image.reshape(-1, 3)[idx].astype(np.float64)
-    return pix[np.argmax(pix.sum(axis=1))]
+    """``(3,)`` airlight: the brightest input pixel (highest R + G + B, first in raster order on a tie) among the
+    top ``top`` fraction of the uint8 dark channel ``dark``, every pixel tied with the last one included (so the
+    choice never depends on a sort's tie order). A histogram finds the threshold: O(pixels), no sort.
+
+    >>> img = np.zeros((10, 10, 3), np.uint8); img[2, 3] = (200, 210, 220); img[5, 5] = (250, 250, 250)
+    >>> dark = np.zeros((10, 10), np.uint8); dark[2, 3] = 9; dark[5, 5] = 1
+    >>> estimate_airlight(img, dark, top=0.01).tolist()
+    [200.0, 210.0, 220.0]
+    """
+    d = np.ascontiguousarray(dark)
+    if d.dtype != np.uint8 or d.shape != image.shape[:2]:
+        raise ValueError(f"dark must be the image's uint8 (H, W) dark channel, got {d.dtype} {d.shape}")
+    n = max(1, int(round(d.size * top)))
+    hist = cv2.calcHist([d], [0], None, [256], [0, 256]).reshape(-1)
+    at_least = np.cumsum(hist[::-1])[::-1]  # pixels with dark >= v, for each v
+    threshold = int(np.flatnonzero(at_least >= n)[-1])
+    r, g, b = cv2.split(np.ascontiguousarray(image))
+    brightness = cv2.add(cv2.add(r, g, dtype=cv2.CV_16U), b, dtype=cv2.CV_16U)
+    _, _, _, (x, y) = cv2.minMaxLoc(brightness, mask=(d >= threshold).view(np.uint8))
+    return image[y, x].astype(np.float64)
 
 
 def dcp(image: np.ndarray, patch: int = 15, omega: float = 0.95, t0: float = 0.1, top: float = 0.001,
@@ -84,23 +91,30 @@ def dcp(image: np.ndarray, patch: int = 15, omega: float = 0.95, t0: float = 0.1
         raise ValueError(f"patch must be a positive odd integer, got {patch}")
     if not (0 < omega <= 1 and 0 < t0 < 1):
         raise ValueError(f"need 0 < omega <= 1 and 0 < t0 < 1, got {omega} and {t0}")
-    dark = dark_channel(img, patch)
+    # every full-resolution step is an OpenCV call on single channels (SIMD, threaded): ≈ 2.5× the numpy version
+    kernel = cv2.getStructuringElement(cv2.MORPH_RECT, (patch, patch))
+    chans = cv2.split(np.ascontiguousarray(img))
+    dark = cv2.erode(cv2.min(cv2.min(chans[0], chans[1]), chans[2]), kernel, borderType=cv2.BORDER_REPLICATE)
     A = np.asarray(airlight, np.float64) if airlight is not None else estimate_airlight(img, dark, top)
     A = np.maximum(A, 1.0)
-    norm = img.astype(np.float32) * (1.0 / A.astype(np.float32))
-    t = 1.0 - omega * dark_channel(norm, patch)
-    grey = cv2.cvtColor(img, cv2.COLOR_RGB2GRAY).astype(np.float32) / 255.0
-    t = guided_filter(grey, t.astype(np.float32), radius, eps, subsample if min(img.shape[:2]) >= 8 * subsample else 1)
-    inv_t = cv2.merge([1.0 / np.maximum(t, t0)] * 3)
-    a32 = A.astype(np.float32)
-    out = (img.astype(np.float32) - a32) * inv_t + a32
-    return np.clip(out, 0, 255).round().astype(np.uint8)
+    norm = [cv2.multiply(c, float(1.0 / a), dtype=cv2.CV_32F) for c, a in zip(chans, A, strict=True)]
+    t = 1.0 - omega * cv2.erode(cv2.min(cv2.min(norm[0], norm[1]), norm[2]), kernel, borderType=cv2.BORDER_REPLICATE)
+    grey = cv2.multiply(cv2.cvtColor(img, cv2.COLOR_RGB2GRAY), 1.0 / 255.0, dtype=cv2.CV_32F)
+    t = guided_filter(grey, t, radius, eps, subsample if min(img.shape[:2]) >= 8 * subsample else 1)
+    inv_t = 1.0 / cv2.max(t, t0)
+    # J = (I − A) / max(t, t0) + A, rounded and saturated to 0–255 by OpenCV's conversion
+    out = [cv2.add(cv2.multiply(cv2.subtract(c, float(a), dtype=cv2.CV_32F), inv_t), float(a), dtype=cv2.CV_8U)
+           for c, a in zip(chans, A, strict=True)]  # fmt: skip
+    return cv2.merge(out)
 
 
-def oracle(fogged: np.ndarray, depth: np.ndarray, K: np.ndarray, alpha: float, airlight: Sequence[float]) -> np.ndarray:
+def oracle(fogged: np.ndarray, depth: np.ndarray, K: np.ndarray, alpha: float, airlight: Sequence[float],
+           t_min: float = 0.05) -> np.ndarray:  # fmt: skip
     """Invert fog-gym's Koschmieder fog exactly: ``J = (I − A·(1 − t)) / t``, ``t = exp(−α·ℓ)`` with the Euclidean
     ray length ℓ from planar ``depth`` and ``K`` — the same transmission the fog was made with. Only the 8-bit
-    rounding of I is lost (amplified by 1/t, so far pixels in dense fog come back noisier)."""
+    rounding of I is lost (amplified by 1/t, so far pixels in dense fog come back noisier). Where ``t < t_min``
+    (the sky, far road in dense fog) the fog has left almost nothing of J — at ``t = 0.05`` the rounding alone is
+    ±10 grey levels, and the sky's ``t`` is ~0 — so those pixels keep their fogged value."""
     from fog_gym.fog import ray_length_factor
 
     img = check_image(fogged, "fogged")
@@ -112,5 +126,8 @@ def oracle(fogged: np.ndarray, depth: np.ndarray, K: np.ndarray, alpha: float, a
     h, w = d.shape
     t = np.exp(-np.float32(alpha) * d * ray_length_factor(w, h, np.asarray(K, np.float64)))[..., None]
     A = np.asarray(airlight, np.float32).reshape(1, 1, 3)
-    out = (img.astype(np.float32) - A * (1.0 - t)) / np.maximum(t, 1e-6)
+    if not 0 < t_min < 1:
+        raise ValueError(f"t_min must lie in (0, 1), got {t_min!r}")
+    out = (img.astype(np.float32) - A * (1.0 - t)) / np.maximum(t, t_min)
+    out = np.where(t >= t_min, out, img.astype(np.float32))
     return np.clip(np.rint(out), 0, 255).astype(np.uint8)

@@ -97,7 +97,6 @@ def run_experiment1(root: str | Path, out: str | Path, config: Exp1Config = Exp1
         raise ValueError(f"{root}: Experiment 1 needs a dataset with train and test scenes in index/splits.json")
     grid = BEVGrid()
     device = _device(config.device)
-    torch.manual_seed(config.seed)
     trains = training_subsets(ds.splits["train"], config.seed, config.fraction, config.mixed_fraction)
     tests = evaluation_subsets(ds.splits["test"], config.seed, config.test_fraction)
     loaders = {
@@ -119,6 +118,7 @@ def run_experiment1(root: str | Path, out: str | Path, config: Exp1Config = Exp1
             results["rows"][row] = kept["row"]
             log(f"{row}: kept from {done}")
             continue
+        torch.manual_seed(config.seed)  # each row from the same seed: a row never depends on which rows ran before
         data = SweepDataset(ds, trains[row], grid, config.every, augment=True, seed=config.seed)
         loader = torch.utils.data.DataLoader(data, config.batch_size, shuffle=True, collate_fn=collate,
                                              num_workers=config.workers,

@@ -40,12 +40,15 @@ Example (one lamp 7 m above a grey floor point, straight down):
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+from collections.abc import Mapping
+from typing import Any, NamedTuple
 
 import numpy as np
 from numba import njit, prange
 
-from fog_gym.render import raster  # noqa: F401  (fork-safe threading layer before any kernel runs)
+import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
+from fog_gym.primitives import Primitives
+from fog_gym.render import raster
 
 LAMP, HEADLIGHT = 0, 1
 #: Street lamp: luminous intensity in albedo·m² units, radius of influence [m], colour (warm white LED).
@@ -390,41 +393,11 @@ def _shade_pass(
                     else:  # a face: bilinear in its irradiance grid
                         p = face_prim[c, f]
                         fs = face_side[c, f]
-                        o = g_off[p, fs]
-                        if o >= 0:
-                            wz = R[0, 2] * xc + R[1, 2] * yc + R[2, 2] * zc
-                            dx = wx - centers[p, 0]
-                            dy = wy - centers[p, 1]
-                            cyw = yaws[p, 0]
-                            syw = yaws[p, 1]
-                            lx = dx * cyw + dy * syw
-                            ly = -dx * syw + dy * cyw
-                            lz = wz - centers[p, 2]
-                            ax1 = _FACE_AXES[fs, 1]
-                            ax2 = _FACE_AXES[fs, 2]
-                            q1 = lx if ax1 == 0 else ly
-                            q2 = ly if ax2 == 1 else lz
-                            n1 = g_dims[p, fs, 0]
-                            n2 = g_dims[p, fs, 1]
-                            s1 = min(max((q1 / halves[p, ax1] + 1.0) * 0.5 * n1 - 0.5, 0.0), n1 - 1.0)
-                            s2 = min(max((q2 / halves[p, ax2] + 1.0) * 0.5 * n2 - 0.5, 0.0), n2 - 1.0)
-                            u0 = min(int(s1), n1 - 1)
-                            v0 = min(int(s2), n2 - 1)
-                            u1 = min(u0 + 1, n1 - 1)
-                            v1 = min(v0 + 1, n2 - 1)
-                            fu = s1 - u0
-                            fv = s2 - v0
-                            w00 = (1.0 - fu) * (1.0 - fv)
-                            w01 = (1.0 - fu) * fv
-                            w10 = fu * (1.0 - fv)
-                            w11 = fu * fv
-                            k00 = o + u0 * n2 + v0
-                            k01 = o + u0 * n2 + v1
-                            k10 = o + u1 * n2 + v0
-                            k11 = o + u1 * n2 + v1
-                            e0 += w00 * g_data[k00, 0] + w01 * g_data[k01, 0] + w10 * g_data[k10, 0] + w11 * g_data[k11, 0]
-                            e1 += w00 * g_data[k00, 1] + w01 * g_data[k01, 1] + w10 * g_data[k10, 1] + w11 * g_data[k11, 1]
-                            e2 += w00 * g_data[k00, 2] + w01 * g_data[k01, 2] + w10 * g_data[k10, 2] + w11 * g_data[k11, 2]
+                        wz = R[0, 2] * xc + R[1, 2] * yc + R[2, 2] * zc
+                        f0, f1, f2 = raster.face_irradiance(p, fs, wx, wy, wz, centers, halves, yaws, g_off, g_dims, g_data)
+                        e0 += f0
+                        e1 += f1
+                        e2 += f2
                     l0, l1, l2 = a0 * e0, a1 * e1, a2 * e2
             if encode:
                 rgb[c, i, j, 0] = np.uint8(_tone(l0 * g, knee) * 255.0 + 0.5)
@@ -583,7 +556,7 @@ EXPOSURE_STEP = 4
 
 def shade_night(
     cam_rot: np.ndarray, cam_trans: np.ndarray, cam_k: np.ndarray, far: float, buffers: dict[str, np.ndarray],
-    prims: dict[str, np.ndarray], lights: Lights, ground: tuple[GroundLightMap, GroundLightMap], heads: np.ndarray,
+    prims: Primitives | Mapping[str, Any], lights: Lights, ground: tuple[GroundLightMap, GroundLightMap], heads: np.ndarray,
     ambient: float = NIGHT_AMBIENT, gains: np.ndarray | None = None,
 ) -> np.ndarray:
     """Light, expose and encode in place the RGB of an albedo-mode render; returns the exposure gain per camera.
@@ -604,16 +577,17 @@ def shade_night(
     rot = np.ascontiguousarray(cam_rot, np.float64)
     trans = np.ascontiguousarray(cam_trans, np.float64)
     ks = np.ascontiguousarray(cam_k, np.float64)
-    prim_l, prim_n = _prim_lights(prims["centers"], prims["halves"], lights.pos, lights.radius, MAX_PRIM_LIGHTS)
-    g_off, g_dims, g_data = _face_grids(prims["centers"], prims["halves"], prims["yaws"], prims["emissive"], prim_l,
+    prims = Primitives.coerce(prims)
+    prim_l, prim_n = _prim_lights(prims.centers, prims.halves, lights.pos, lights.radius, MAX_PRIM_LIGHTS)
+    g_off, g_dims, g_data = _face_grids(prims.centers, prims.halves, prims.yaws, prims.emissive, prim_l,
                                         prim_n, *_light_args(lights), FACE_CELL, FACE_MAX_CELLS)  # fmt: skip
     smap, wmap = ground
 
     def run(step, gains, encode, hist):
         _shade_pass(
             rot, trans, ks, float(far), rgb, buffers["depth"], buffers["face"], buffers["face_emissive"],
-            buffers["face_prim"], buffers["face_side"], prims["centers"], prims["halves"],
-            np.ascontiguousarray(np.c_[np.cos(prims["yaws"]), np.sin(prims["yaws"])]), g_off, g_dims, g_data,
+            buffers["face_prim"], buffers["face_side"], prims.centers, prims.halves,
+            np.ascontiguousarray(np.c_[np.cos(prims.yaws), np.sin(prims.yaws)]), g_off, g_dims, g_data,
             smap.irradiance, smap.origin[0], smap.origin[1], 1.0 / smap.resolution,
             wmap.irradiance, wmap.origin[0], wmap.origin[1], 1.0 / wmap.resolution,
             float(ambient), float(EMISSIVE_GAIN), float(SKY_GAIN), step, gains, float(KNEE), encode, hist,
@@ -639,7 +613,7 @@ EXPOSURE_DOWNSCALE = 4
 
 def render_night(
     cam_rot: np.ndarray, cam_trans: np.ndarray, cam_k: np.ndarray, width: int, height: int, far: float,
-    prims: dict[str, np.ndarray], surface, albedo_lut: np.ndarray, surface_tag: np.ndarray,
+    prims: Primitives | Mapping[str, Any], surface, albedo_lut: np.ndarray, surface_tag: np.ndarray,
     sky_horizon: np.ndarray, sky_zenith: np.ndarray, lights: Lights, ground: tuple[GroundLightMap, GroundLightMap],
     heads: np.ndarray, ambient: float = NIGHT_AMBIENT,
 ) -> tuple[dict[str, np.ndarray], np.ndarray]:
@@ -654,10 +628,11 @@ def render_night(
     from fog_gym.render.raster import render
 
     n_cam = len(cam_rot)
-    prim_l, prim_n = _prim_lights(prims["centers"], prims["halves"], lights.pos, lights.radius, MAX_PRIM_LIGHTS)
-    g_off, g_dims, g_data = _face_grids(prims["centers"], prims["halves"], prims["yaws"], prims["emissive"], prim_l,
+    prims = Primitives.coerce(prims)
+    prim_l, prim_n = _prim_lights(prims.centers, prims.halves, lights.pos, lights.radius, MAX_PRIM_LIGHTS)
+    g_off, g_dims, g_data = _face_grids(prims.centers, prims.halves, prims.yaws, prims.emissive, prim_l,
                                         prim_n, *_light_args(lights), FACE_CELL, FACE_MAX_CELLS)  # fmt: skip
-    cossin = np.ascontiguousarray(np.c_[np.cos(prims["yaws"]), np.sin(prims["yaws"])])
+    cossin = np.ascontiguousarray(np.c_[np.cos(prims.yaws), np.sin(prims.yaws)])
     smap, wmap = ground
     # 1. exposure on a small render
     lw, lh = max(8, width // EXPOSURE_DOWNSCALE), max(8, height // EXPOSURE_DOWNSCALE)
@@ -670,7 +645,7 @@ def render_night(
     _shade_pass(
         np.ascontiguousarray(cam_rot, np.float64), np.ascontiguousarray(cam_trans, np.float64), k_low, float(far),
         low["rgb"], low["depth"], low["face"], low["face_emissive"], low["face_prim"], low["face_side"],
-        prims["centers"], prims["halves"], cossin, g_off, g_dims, g_data,
+        prims.centers, prims.halves, cossin, g_off, g_dims, g_data,
         smap.irradiance, smap.origin[0], smap.origin[1], 1.0 / smap.resolution,
         wmap.irradiance, wmap.origin[0], wmap.origin[1], 1.0 / wmap.resolution,
         float(ambient), float(EMISSIVE_GAIN), float(SKY_GAIN), 1, np.ones(n_cam), float(KNEE), False, hist,
@@ -679,7 +654,7 @@ def render_night(
     gains = gains_from_histograms(hist.sum(axis=1))
     # 2. the lit full-size render
     night = {"gains": gains, "knee": KNEE, "ambient": ambient, "emissive_gain": EMISSIVE_GAIN, "sky_gain": SKY_GAIN,
-             "window": wmap, "static": smap, "centers": prims["centers"], "halves": prims["halves"],
+             "window": wmap, "static": smap, "centers": prims.centers, "halves": prims.halves,
              "cossin": cossin, "g_off": g_off, "g_dims": g_dims, "g_data": g_data}  # fmt: skip
     out = render(cam_rot, cam_trans, cam_k, width, height, far, prims, surface, albedo_lut, surface_tag,
                  sky_horizon, sky_zenith, sun, 1.0, 0.0, night=night)  # fmt: skip

@@ -14,19 +14,14 @@ Pixel ``(i, j)`` is sampled at its centre ``(j + 0.5, i + 0.5)``.
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from collections.abc import Mapping
+from typing import Any, NamedTuple
 
-import os
-
-import numba
 import numpy as np
 from numba import njit, prange
 
-# GNU OpenMP, numba's usual pick, aborts a process that forks after a parallel kernel ran; Gymnasium's
-# AsyncVectorEnv and SB3's SubprocVecEnv fork. The workqueue layer is fork-safe (but not for concurrent
-# kernel launches from several Python threads). NUMBA_THREADING_LAYER still overrides.
-if "NUMBA_THREADING_LAYER" not in os.environ:
-    numba.config.THREADING_LAYER = "workqueue"
+import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
+from fog_gym.primitives import Primitives
 
 # Box faces: corner indices (geometry.BOX_CORNER_SIGNS order) and local outward normals.
 _FACE_CORNERS = np.array(
@@ -280,7 +275,7 @@ def _light_ground(out_rgb, c, i, j, wx, wy, g, knee, ambient, wmap, w_ox, w_oy, 
 
 
 @njit(cache=True, inline="always")
-def _face_irradiance(p, fs, wx, wy, wz, centers, halves, cossin, g_off, g_dims, g_data):
+def face_irradiance(p, fs, wx, wy, wz, centers, halves, cossin, g_off, g_dims, g_data):
     """Bilinear irradiance (RGB) of face ``fs`` of primitive ``p`` at world point w from its grid (0 if unlit)."""
     o = g_off[p, fs]
     if o < 0:
@@ -474,7 +469,7 @@ def _raster_bands(
                             xc = (j + 0.5 - cx) / fx * zz - T[0]
                             yc = (v - cy) / fy * zz - T[1]
                             zc = zz - T[2]
-                            e0, e1, e2 = _face_irradiance(
+                            e0, e1, e2 = face_irradiance(
                                 p_f, s_f, R[0, 0] * xc + R[1, 0] * yc + R[2, 0] * zc,
                                 R[0, 1] * xc + R[1, 1] * yc + R[2, 1] * zc, R[0, 2] * xc + R[1, 2] * yc + R[2, 2] * zc,
                                 centers, halves, cossin, g_off, g_dims, g_data)  # fmt: skip
@@ -547,7 +542,7 @@ def render(
     width: int,
     height: int,
     far: float,
-    prims: dict[str, np.ndarray],
+    prims: Primitives | Mapping[str, Any],
     surface: TiledSurface,
     surface_lut_rgb: np.ndarray,
     surface_tag: np.ndarray,
@@ -563,7 +558,8 @@ def render(
     """Render ``C`` cameras of one resolution.
 
     ``cam_rot`` (C, 3, 3) and ``cam_trans`` (C, 3) map world to camera frame (``p_c = R p_w + t``);
-    ``cam_k`` (C, 4) holds fx, fy, cx, cy. ``prims`` has ``centers`` (P, 3), ``halves`` (P, 3), ``yaws`` (P,),
+    ``cam_k`` (C, 4) holds fx, fy, cx, cy. ``prims`` is a :class:`~fog_gym.primitives.Primitives` (or a mapping
+    :meth:`~fog_gym.primitives.Primitives.coerce` accepts): ``centers`` (P, 3), ``halves`` (P, 3), ``yaws`` (P,),
     ``colors`` (P, 3) albedo in [0, 1], ``tags`` (P,) uint8, ``insts`` (P,) uint16, ``emissive`` (P,) bool.
     ``surface_lut_rgb`` comes from :func:`surface_lut`, ``surface_tag`` maps surface class → semantic tag.
     Returns ``rgb`` (C, H, W, 3) uint8, ``depth`` (C, H, W) float32, ``sem`` (C, H, W) uint8,
@@ -576,6 +572,7 @@ def render(
     ``night`` (from :func:`fog_gym.render.lights.night_inputs`) lights, exposes and encodes the RGB in the same
     pass (the surface map and face colours then hold albedo); depth, semantics and instances are unaffected.
     """
+    prims = Primitives.coerce(prims)
     n_cam = cam_rot.shape[0]
     if out is None:
         out = {
@@ -589,8 +586,8 @@ def render(
     cam_k = np.ascontiguousarray(cam_k, np.float64)
     faces = _setup_faces(
         cam_rot, cam_trans, cam_k, int(width), int(height), float(far),
-        prims["centers"], prims["halves"], prims["yaws"], prims["colors"], prims["tags"], prims["insts"],
-        prims["emissive"], np.asarray(sun_dir, np.float64), float(ambient), float(sun_intensity),
+        prims.centers, prims.halves, prims.yaws, prims.colors, prims.tags, prims.insts,
+        prims.emissive, np.asarray(sun_dir, np.float64), float(ambient), float(sun_intensity),
     )  # fmt: skip
     face = np.empty((n_cam, height, width), np.int32) if face_ids else np.empty((1, 1, 1), np.int32)
     _raster_bands(

@@ -19,17 +19,15 @@ its own vehicle's boxes sees through them.
 
 from __future__ import annotations
 
-from typing import NamedTuple
+from collections.abc import Mapping
+from typing import Any, NamedTuple
 
-import os
-
-import numba
 import numpy as np
 from numba import njit, prange
 
-# Same fork-safety choice as raster.py: the workqueue layer survives fork (AsyncVectorEnv, SubprocVecEnv).
-if "NUMBA_THREADING_LAYER" not in os.environ:
-    numba.config.THREADING_LAYER = "workqueue"
+import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
+from fog_gym.primitives import Primitives
+
 
 #: ``index`` of a ray that hit the ground plane.
 GROUND = -1
@@ -283,7 +281,7 @@ def cast_rays(
     origin: np.ndarray,
     directions: np.ndarray,
     max_range: float,
-    prims: dict[str, np.ndarray],
+    prims: Primitives | Mapping[str, Any],
     rotation: np.ndarray | None = None,
     n_azimuth_bins: int = 512,
     n_elevation_bins: int = 16,
@@ -293,8 +291,8 @@ def cast_rays(
     ``directions`` (N, 3) need not be unit length (but non-zero); with ``rotation`` (3×3) they are in a local
     frame and the world direction is ``rotation @ direction`` (pass a sensor's rotation and its own ray pattern).
     Distances are metres along the ray.
-    ``prims`` holds ``centers`` (P, 3), ``halves`` (P, 3) and ``yaws`` (P,) as for the rasteriser (other keys
-    are ignored). A hit counts when it lies strictly nearer than ``max_range``; hits from inside a box do not
+    ``prims`` is a :class:`~fog_gym.primitives.Primitives` (or a mapping with at least ``centers`` (P, 3),
+    ``halves`` (P, 3) and ``yaws`` (P,)); only the geometry is used. A hit counts when it lies strictly nearer than ``max_range``; hits from inside a box do not
     count. The bin counts only trade set-up time against per-ray work; results do not depend on them.
 
     >>> prims = {"centers": np.array([[10.0, 0.0, 1.0]]), "halves": np.array([[1.0, 1.0, 1.0]]),
@@ -307,6 +305,7 @@ def cast_rays(
         raise ValueError(f"max_range must be a positive finite number, got {max_range!r}")
     if int(n_azimuth_bins) < 1 or int(n_elevation_bins) < 1:
         raise ValueError(f"bin counts must be >= 1, got {n_azimuth_bins!r}, {n_elevation_bins!r}")
+    prims = Primitives.coerce(prims)
     directions = np.ascontiguousarray(directions, np.float64).reshape(-1, 3)
     n = directions.shape[0]
     if n == 0:
@@ -317,9 +316,9 @@ def cast_rays(
         rotation,
         directions,
         float(max_range),
-        np.ascontiguousarray(prims["centers"], np.float64).reshape(-1, 3),
-        np.ascontiguousarray(prims["halves"], np.float64).reshape(-1, 3),
-        np.ascontiguousarray(prims["yaws"], np.float64).reshape(-1),
+        prims.centers,
+        prims.halves,
+        prims.yaws,
         int(n_azimuth_bins),
         int(n_elevation_bins),
     )

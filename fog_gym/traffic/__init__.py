@@ -4,6 +4,7 @@
 random draws identical to highway-env's own Python path (see ``fog_gym.traffic.core``).
 """
 
-from fog_gym.traffic.core import SUPPORTED_ENVS, TRAFFIC_MODES, accelerate, is_accelerated
+from fog_gym.config import TRAFFIC_MODES
+from fog_gym.traffic.core import SUPPORTED_ENVS, accelerate, is_accelerated
 
 __all__ = ["SUPPORTED_ENVS", "TRAFFIC_MODES", "accelerate", "is_accelerated"]

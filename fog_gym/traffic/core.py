@@ -35,9 +35,6 @@ from typing import Any
 
 import numpy as np
 
-#: Allowed values of the ``traffic=`` argument of FogDrive environments.
-TRAFFIC_MODES: tuple[str, ...] = ("fast", "reference")
-
 #: highway-env classes ``accelerate`` accepts (by class name; subclasses are accepted too).
 SUPPORTED_ENVS: tuple[str, ...] = (
     "HighwayEnv",
@@ -52,21 +49,6 @@ SUPPORTED_ENVS: tuple[str, ...] = (
 #: Extra metres added to the vectorised collision pre-check so rounding never rejects a pair that
 #: highway-env's scalar pre-check would keep (the exact test still runs on every kept pair).
 _PRECHECK_MARGIN = 1e-6
-
-
-def check_traffic_mode(traffic: str) -> str:
-    """Validate a ``traffic=`` value.
-
-    >>> check_traffic_mode("fast")
-    'fast'
-    >>> check_traffic_mode("numba")
-    Traceback (most recent call last):
-    ...
-    ValueError: traffic must be one of ('fast', 'reference'), got 'numba'
-    """
-    if not isinstance(traffic, str) or traffic not in TRAFFIC_MODES:
-        raise ValueError(f"traffic must be one of {TRAFFIC_MODES}, got {traffic!r}")
-    return traffic
 
 
 def _supported(unwrapped: Any) -> bool:

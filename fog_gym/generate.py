@@ -1,5 +1,8 @@
 """Dataset generation: a plan of scenes (per-town budgets, exact day/night balance), one function per scene
-(run by worker processes or as Ray tasks), resume after a crash, and validation.
+(run by worker processes or as Ray tasks), and resume after a crash.
+
+Generation sits on top of the env, the fog wrapper and the dataset format layer (:mod:`fog_gym.dataset`, which
+imports neither); checking a set is :func:`fog_gym.dataset.validate.validate`.
 
 A scene is fully determined by (base seed, scene index): its town, time of day, run number, env seed and folder
 name all derive from them, so any scene can be regenerated bit for bit and a resumed run redoes exactly the
@@ -24,7 +27,6 @@ import numpy as np
 from fog_gym.config import TOWNS
 from fog_gym.dataset.layout import DATA_ROOT, MODALITIES, SAMPLE_PERIOD_US, scene_folder_name, scene_id
 from fog_gym.dataset.manifest import MANIFEST_FILE, differences, make_manifest, read_manifest, write_manifest
-from fog_gym.dataset.validate import stats, validate  # noqa: F401  (kept importable from here)
 from fog_gym.dataset.writer import SceneWriter, build_index
 
 PROGRESS_DIR = ".generate"  # completion markers, outside data_root so the layout stays exactly D2

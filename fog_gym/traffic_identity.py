@@ -1,4 +1,7 @@
-"""Step a reference and an accelerated traffic path side by side and assert they agree (tests, benchmark)."""
+"""Step a reference and an accelerated traffic path side by side and assert they agree (tests, benchmark).
+
+It sits above both the traffic core and :class:`~fog_gym.world.TrafficWorld`, which it compares.
+"""
 
 from __future__ import annotations
 
@@ -69,7 +72,7 @@ def compare_town(town: str, seed: int, steps: int, atol: float = 1e-9) -> int:
     from fog_gym.world import TrafficWorld
 
     ref, fast = TrafficWorld(town, traffic="reference"), TrafficWorld(town, traffic="fast")
-    assert is_accelerated(fast.hw) and not is_accelerated(ref.hw)
+    assert fast.accelerated and not ref.accelerated
     ref.reset(seed=seed)
     fast.reset(seed=seed)
     ref.action_space.seed(seed)
@@ -85,7 +88,7 @@ def compare_town(town: str, seed: int, steps: int, atol: float = 1e-9) -> int:
         np.testing.assert_allclose(b.yaws, a.yaws, rtol=0, atol=atol, err_msg=where)
         np.testing.assert_allclose(b.velocities, a.velocities, rtol=0, atol=atol, err_msg=where)
         assert (r_fast, t_fast) == (r_ref, t_ref), where
-        assert ref.hw.vehicle.crashed == fast.hw.vehicle.crashed, where
+        assert ref.ego_crashed == fast.ego_crashed, where
         if t_ref:
             ended += 1
             ref.reset(seed=seed + k + 1)
