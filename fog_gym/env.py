@@ -163,7 +163,7 @@ class FogDriveEnv(gym.Env):
         self.world.reset(seed=world_seed)
         self.action_space = self.world.action_space
         rng = stream(world_seed, "scenery")
-        self._static = self._build_static(rng)
+        self._static = self.build_static_world(rng)
         self._lighting = Lighting.for_time_of_day(self.config.time_of_day, rng)
         self._sensor_rng = stream(world_seed, "sensors")
         self._steps = 0
@@ -191,7 +191,9 @@ class FogDriveEnv(gym.Env):
         self.world.close()
 
     # -- internals ------------------------------------------------------------------------------------
-    def _build_static(self, rng: np.random.Generator) -> StaticWorld:
+    def build_static_world(self, rng: np.random.Generator) -> StaticWorld:
+        """The episode's static world (road surface map and props) around the world's start, drawn from ``rng``
+        (what ``reset`` builds from the episode's scenery stream)."""
         radius = MAX_SPEED * self.config.episode_seconds + 250.0
         lanes = self.world.lane_geometry(self.world.start_position, radius)
         surface = build_surface(lanes, resolution=self.config.surface_resolution)

@@ -112,3 +112,20 @@ def test_ground_truth_with_labels_equals_an_env_built_with_them_and_leaves_the_c
     assert c.ground_truth(labels=camera_rule)["boxes_3d"]["corners"].shape[1:] == (8, 3)
     for env in (a, b, c):
         env.close()
+
+
+#: Names that hold a FogDriveEnv, its unwrapped base, its world or its sensors in wrappers and scripts.
+_ENV_HOLDERS = {"env", "base", "world", "unwrapped", "point_sensors", "cameras"}
+
+
+@pytest.mark.parametrize("folder", ["wrappers", "scripts"])
+def test_wrappers_and_scripts_read_no_private_attribute_of_the_env_world_or_sensors(folder):
+    offenders = []
+    for path in sorted((ROOT / folder).rglob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text(), str(path))):
+            if not (isinstance(node, ast.Attribute) and node.attr.startswith("_") and not node.attr.startswith("__")):
+                continue
+            holder = node.value.id if isinstance(node.value, ast.Name) else getattr(node.value, "attr", None)
+            if holder in _ENV_HOLDERS:
+                offenders.append(f"{path.relative_to(ROOT)}:{node.lineno} {holder}.{node.attr}")
+    assert offenders == []

@@ -100,6 +100,11 @@ class FogWrapper(gym.Wrapper):
             raise ValueError("set_fog works in in-place mode; a paired wrapper's channels are fixed at construction")
         self._pending = parse_fog(fog)
 
+    def fog_channels(self, obs: dict) -> dict[str, dict[str, np.ndarray]]:
+        """The fogged camera RGB and LiDAR channels of the env's clean ``obs`` at every level in force, by level
+        name (what ``step`` adds; the LiDAR noise draws advance as in a step)."""
+        return self._fogged(obs, self.levels)
+
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         if self._pending is not None:
             self.levels, self._pending = (self._pending,), None
