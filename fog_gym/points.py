@@ -53,7 +53,10 @@ def pack_points(points: np.ndarray, capacity: int) -> np.ndarray:
 def unpack_points(obs: Mapping[str, np.ndarray] | np.ndarray, channel: str | None = None) -> np.ndarray:
     """The exact ``(N, 4)`` / ``(N, 6)`` / ``(N, 4)`` float32 points of ``LIDAR_TOP*``, ``SEM_LIDAR_TOP`` or
     ``RADAR_FRONT`` from an observation dict (or from the channel's array itself)."""
-    kind = None if channel is None else channel_kind(channel)
+    try:
+        kind = None if channel is None else channel_kind(channel)
+    except ValueError:  # a sensor added to the rig: any non-zero row is a point
+        kind = None
     if isinstance(obs, Mapping):
         if channel is None:
             raise ValueError("unpack_points needs the channel name when given an observation dict")
