@@ -17,7 +17,8 @@ import numpy as np
 
 from fog_gym.primitives import Primitives
 from fog_gym.scene import Scene
-from fog_gym.dataset.layout import register_channel
+from fog_gym.dataset.layout import FOGDRIVE_CHANNELS, register_channel
+from fog_gym.points import ADDED
 from fog_gym.sensors.base import REGISTRY, PointSensor, Sensor, register, sensor_class
 from fog_gym.sensors.camera import LIGHT_RANGE, MAX_TAG, CameraFrame, CameraRig, CameraSensor
 from fog_gym.sensors.lidar import LidarSensor
@@ -45,6 +46,8 @@ def rig_sensors(rig, simulation_frequency: float = 20.0) -> tuple:
     for s in out:
         for name, spec in s.layout().items():
             register_channel(name, spec)
+            if spec.encoding == "points" and name not in FOGDRIVE_CHANNELS:
+                ADDED.add(name)
     return tuple(out)
 
 
