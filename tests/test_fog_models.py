@@ -32,9 +32,9 @@ def test_koschmieder_model_equals_fog_images():
 def test_hahner_model_equals_fog_lidar_with_the_levels_generators():
     rng = np.random.default_rng(1)
     pts = np.column_stack([rng.uniform(-50, 50, (200, 3)), rng.uniform(0, 1, 200)]).astype(np.float32)
-    obs = {"L": pack_points(pts, 300)}
+    obs = {"LIDAR_TOP": pack_points(pts, 300)}
     ctx = FogContext(rngs={lv.name: np.random.default_rng(i) for i, lv in enumerate(LEVELS)})
-    out = Hahner().apply(obs, "L", LEVELS, ctx)
+    out = Hahner().apply(obs, "LIDAR_TOP", LEVELS, ctx)
     for i, lv in enumerate(LEVELS):
         ref = fog_lidar(pts, lv, np.random.default_rng(i), 10.0)
         np.testing.assert_array_equal(unpack_points(out[lv.name]), ref)
