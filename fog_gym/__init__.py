@@ -20,7 +20,7 @@ from fog_gym.config import CAMERA_NAMES, TIMES_OF_DAY, TOWNS, CameraConfig, FogD
 from fog_gym.lidar import LidarConfig, RadarConfig
 from fog_gym.points import unpack_points
 
-__version__ = "0.1.0"
+from fog_gym._version import __version__
 
 __all__ = [
     "CAMERA_NAMES", "TIMES_OF_DAY", "TOWNS", "CameraConfig", "FogDriveConfig", "Pose", "RigConfig", "FogDriveEnv",

@@ -115,6 +115,9 @@ class RigConfig:
     lidar: LidarConfig | None = None  # LIDAR_TOP
     semantic_lidar: LidarConfig | None = None  # SEM_LIDAR_TOP
     radar: RadarConfig | None = None  # RADAR_FRONT
+    #: Further sensors as ``(channel name, config)`` pairs; the config's type picks the sensor class
+    #: (:func:`fog_gym.sensors.register`), e.g. ``(("RADAR_BACK", RadarConfig(...)),)``.
+    extra: tuple[tuple[str, Any], ...] = ()
 
     def __post_init__(self) -> None:
 
@@ -126,6 +129,11 @@ class RigConfig:
         if len(set(names)) != len(names):
             raise ValueError(f"camera names must be unique, got {names}")
         object.__setattr__(self, "cameras", cams)
+        extra = tuple(tuple(e) if isinstance(e, (tuple, list)) else e for e in self.extra)
+        for e in extra:
+            if not (isinstance(e, tuple) and len(e) == 2 and isinstance(e[0], str) and e[0]):
+                raise ValueError(f"extra must hold (channel name, sensor config) pairs, got {e!r}")
+        object.__setattr__(self, "extra", extra)
         for name, kind in (("lidar", LidarConfig), ("semantic_lidar", LidarConfig), ("radar", RadarConfig)):
             value = getattr(self, name)
             if value is not None and not isinstance(value, kind):

@@ -21,18 +21,16 @@ from gymnasium import spaces
 from fog_gym._kernels import announce_compilation
 from fog_gym.config import FogDriveConfig, RigConfig
 from fog_gym import geometry
-from fog_gym.encoding import SEMANTIC_TAGS
 from fog_gym.labels import EXTRINSIC_KEYS, CameraView, LabelConfig, annotate
 from fog_gym.lidar import sensor_to_world
 from fog_gym.scene import Lighting, Scene, StaticWorld, vehicle_primitives
 from fog_gym.scenery import STYLES, build_surface, place_props
-from fog_gym.points import LIDAR, RADAR, SEMANTIC_LIDAR, lidar_space, pack_points, radar_space
-from fog_gym.sensors import CameraFrame, CameraRig, PointSensors
+from fog_gym.points import SEMANTIC_LIDAR, pack_points
+from fog_gym.sensors import MAX_TAG, CameraFrame, CameraRig, CameraSensor, PointSensors
 from fog_gym.world import EGO_ID, TOWN_SPECS, TrafficWorld
 from fog_gym.seeds import stream
 
 MAX_SPEED = 40.0  # highway-env's Vehicle.MAX_SPEED [m/s]: bounds where the ego can get in one episode
-MAX_TAG = max(SEMANTIC_TAGS.values())
 
 
 class FogDriveEnv(gym.Env):
@@ -119,10 +117,7 @@ class FogDriveEnv(gym.Env):
         self.action_space = self.world.action_space
         obs_spaces: dict[str, spaces.Space] = {}
         for cam in c.rig.cameras:
-            shape = (cam.height, cam.width)
-            obs_spaces[cam.name] = spaces.Box(0, 255, shape + (3,), np.uint8)
-            obs_spaces[f"{cam.name}_DEPTH"] = spaces.Box(0.0, c.far_distance, shape, np.float32)
-            obs_spaces[f"{cam.name}_SEM"] = spaces.Box(0, MAX_TAG, shape, np.uint8)
+            obs_spaces.update(CameraSensor(cam, far=c.far_distance).observation_spaces())
         self.point_sensors = PointSensors(c.rig, c.simulation_frequency)
         # ground truth lives in the LiDAR frame (FogDrive's 3D boxes); the FogDrive roof pose if the rig has no LiDAR
         label_lidar = c.rig.lidar or c.rig.semantic_lidar
@@ -131,13 +126,7 @@ class FogDriveEnv(gym.Env):
             cam.name: geometry.lidar_to_camera(self._label_lidar_to_vehicle, self.cameras.sensor_to_vehicle[cam.name])
             for cam in c.rig.cameras
         }
-        f = c.simulation_frequency
-        if c.rig.lidar is not None:
-            obs_spaces[LIDAR] = lidar_space(c.rig.lidar, f, semantic=False)
-        if c.rig.semantic_lidar is not None:
-            obs_spaces[SEMANTIC_LIDAR] = lidar_space(c.rig.semantic_lidar, f, semantic=True)
-        if c.rig.radar is not None:
-            obs_spaces[RADAR] = radar_space(c.rig.radar, f)
+        obs_spaces.update(self.point_sensors.observation_spaces())
         self.observation_space = spaces.Dict(obs_spaces)
         self.scene: Scene | None = None
         self.frames: dict[str, CameraFrame] = {}

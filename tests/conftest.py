@@ -21,3 +21,16 @@ def small_env():
 
 def first_idle(action_space):
     return 1 if action_space.shape == () else np.zeros(action_space.shape, np.float32)
+
+
+@pytest.fixture(autouse=True)
+def _restore_sensor_and_fog_registries():
+    """A test (or README example) that adds a sensor or a fog model leaves the registries as it found them."""
+    from fog_gym import fog_models, points, sensors
+    from fog_gym.dataset import layout
+
+    saved = (dict(layout.CHANNELS), set(points.ADDED), dict(sensors.REGISTRY), dict(fog_models.MODELS))
+    yield
+    for live, old in zip((layout.CHANNELS, points.ADDED, sensors.REGISTRY, fog_models.MODELS), saved):
+        live.clear()
+        live.update(old)

@@ -9,8 +9,8 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from fog_gym.fog import FogLevel, add_glow, atmospheric_light, fog_images, fog_lidar, night_airlight, parse_fog
-from fog_gym.points import LIDAR, pack_points, unpack_points
+from fog_gym.fog import FogLevel, atmospheric_light, night_airlight, parse_fog
+from fog_gym.fog_models import FogContext, model_for
 from fog_gym.seeds import stream
 
 FogSpec = str | float | int | FogLevel
@@ -76,16 +76,21 @@ class FogWrapper(gym.Wrapper):
         self._pending: FogLevel | None = None
         self._last: dict | None = None
         self.cameras = list(base.camera_names)
-        self.has_lidar = LIDAR in env.observation_space.spaces
+        # the fogged channels and their models, from the rig: cameras first, then the point sensors in rig order
+        self.models = {cam: model_for("camera") for cam in self.cameras}
+        for sensor in base.point_sensors.sensors:
+            model = model_for(sensor.kind)
+            if model is not None:
+                self.models.update({ch: model for ch in sensor.channels if ch in env.observation_space.spaces})
+        self.models = {ch: m for ch, m in self.models.items() if m is not None}
+        self.has_lidar = any(model_for("lidar") is m for m in self.models.values())
         self.airlight: dict[str, np.ndarray] = {}
         self._rngs: dict[str, np.random.Generator] = {}
         if paired:
             spaces = dict(env.observation_space.spaces)
             for lv in levels:
-                for cam in self.cameras:
-                    spaces[f"{cam}_{lv.channel_suffix}"] = env.observation_space[cam]
-                if self.has_lidar:
-                    spaces[f"{LIDAR}_{lv.channel_suffix}"] = env.observation_space[LIDAR]
+                for ch in self.models:
+                    spaces[f"{ch}_{lv.channel_suffix}"] = env.observation_space[ch]
             self.observation_space = gym.spaces.Dict(spaces)
 
     # -- API ------------------------------------------------------------------------------------------------
@@ -155,22 +160,14 @@ class FogWrapper(gym.Wrapper):
         return info
 
     def _fogged(self, obs: dict, levels: tuple[FogLevel, ...]) -> dict[str, dict[str, np.ndarray]]:
-        """Fogged camera RGB and LiDAR per level name (all levels of a camera in one pass)."""
+        """Fogged channels per level name (all levels of a channel in one pass)."""
         base = self.env.unwrapped
         out: dict[str, dict[str, np.ndarray]] = {lv.name: {} for lv in levels}
-        alphas = [lv.alpha for lv in levels]
-        for cam in self.cameras:
-            images = fog_images(obs[cam], obs[f"{cam}_DEPTH"], base.intrinsics[cam], alphas, self.airlight[cam],
-                                validate=False)  # the env's own frames
-            night = base.scene is not None and base.scene.lighting.night
-            for lv, img in zip(levels, images):
-                K = base.intrinsics[cam]
-                out[lv.name][cam] = add_glow(img, obs[cam], obs[f"{cam}_DEPTH"], K, lv.alpha) if night else img
-        if self.has_lidar:
-            clean = unpack_points(obs, LIDAR)
-            for lv in levels:
-                fogged = fog_lidar(clean, lv, self._rngs[lv.name], self.lidar_noise)
-                out[lv.name][LIDAR] = pack_points(fogged, obs[LIDAR].shape[0])
+        context = FogContext(base.intrinsics, self.airlight, self._rngs,
+                             base.scene is not None and base.scene.lighting.night, self.lidar_noise)  # fmt: skip
+        for channel, model in self.models.items():  # the model of each sensor kind (fog_gym.fog_models)
+            for name, fogged in model.apply(obs, channel, levels, context).items():
+                out[name][channel] = fogged
         return out
 
     def _apply(self, obs: dict) -> dict:

@@ -10,7 +10,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from fog_gym.dataset.layout import CAMERAS, DATA_ROOT, parse_scene_folder, scene_folder_name, scene_id
+from fog_gym.dataset.layout import CAMERAS, DATA_ROOT, FOGDRIVE_CHANNELS, parse_scene_folder, scene_folder_name, scene_id
 from fog_gym.dataset.writer import SceneWriter, build_index
 from fog_gym.wrappers.fog import FogWrapper
 
@@ -24,7 +24,8 @@ class RecordFogDrive(gym.Wrapper):
 
     Wrap a clean FogDrive-v0 env (the paired fog wrapper is added) or one already in paired fog with the three
     FogDrive levels. The rig must be the full FogDrive rig (4 cameras, LiDAR, semantic LiDAR, radar) with
-    ground truth on. Runs are numbered after those already under ``root`` for the same town and time of day.
+    ground truth on; sensors added with ``RigConfig.extra`` are recorded too, each channel in the folder its
+    sensor declares. Runs are numbered after those already under ``root`` for the same town and time of day.
 
     Writing overlaps simulation: sample k is encoded and written (its files in parallel by ``workers``
     threads, default one per core, ``BBOX_3D`` last) while the env simulates sample k + 1; ``step`` waits for
@@ -61,6 +62,9 @@ class RecordFogDrive(gym.Wrapper):
             raise ValueError(f"workers must be a positive integer or None, got {workers!r}")
         super().__init__(env)
         self.workers = workers
+        #: The channels written: FogDrive's 35, then those of the rig's added sensors (``RigConfig.extra``).
+        added = [ch for s in base.point_sensors.sensors for ch in s.layout() if ch not in FOGDRIVE_CHANNELS]
+        self.channels = (*FOGDRIVE_CHANNELS, *(ch for ch in added if ch in self.env.observation_space.spaces))
         self._writer: SceneWriter | None = None
         self._index = 0
         self._background: ThreadPoolExecutor | None = None
@@ -95,7 +99,7 @@ class RecordFogDrive(gym.Wrapper):
         town, tod = base.config.town_number, base.config.time_of_day
         run = self._next_run(town, tod)
         folder = scene_folder_name(town, tod, run, scene_id(town, tod, run, base.episode_seed))
-        self._writer = SceneWriter(self.root, folder, workers=self.workers)
+        self._writer = SceneWriter(self.root, folder, self.channels, workers=self.workers)
         self._writer.write_extrinsics(info["extrinsics"])
         self._submit(0, obs, info)
         self._index = 1

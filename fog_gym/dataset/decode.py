@@ -50,7 +50,7 @@ def decode_bbox_json(data: bytes) -> dict[str, np.ndarray]:
 
 def load_channel(channel: str, path: str | Path) -> Any:
     """Decode one file of ``channel``; a missing or corrupt file raises :class:`DatasetError` naming its path."""
-    _, fmt = CHANNELS[channel]
+    fmt, encoding = CHANNELS[channel].fileformat, CHANNELS[channel].encoding
     try:
         if fmt == "npy":
             return np.load(path, allow_pickle=False).astype(np.float32, copy=False)
@@ -65,8 +65,8 @@ def load_channel(channel: str, path: str | Path) -> Any:
     if img is None:
         raise DatasetError(f"{path}: corrupt {channel} file (not a decodable PNG)")
     rgb = img[..., ::-1]
-    if channel.endswith("_DEPTH"):
+    if encoding == "depth":
         return decode_depth(rgb)
-    if channel.endswith("_SEM"):
+    if encoding == "semantic":
         return np.ascontiguousarray(rgb[..., 0])
     return np.ascontiguousarray(rgb)

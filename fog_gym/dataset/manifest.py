@@ -18,7 +18,7 @@ from pathlib import Path
 from typing import Any
 
 from fog_gym.dataset.access import DatasetError, read_json
-from fog_gym.dataset.layout import CHANNELS, FOG_LEVELS
+from fog_gym.dataset.layout import FOG_LEVELS, FOGDRIVE_CHANNELS
 
 MANIFEST_FILE = "index/manifest.json"
 FORMAT = 1
@@ -29,7 +29,7 @@ SETTINGS = ("scenes", "resolution", "seconds", "seed", "towns", "fog_levels", "c
 def make_manifest(scenes: int, resolution: Sequence[int], seconds: float, seed: int, towns: Sequence[str],
                   channels: Sequence[str] | None = None) -> dict[str, Any]:  # fmt: skip
     """The manifest of a generation run (JSON-ready)."""
-    from fog_gym import __version__
+    from fog_gym._version import __version__
     from fog_gym.fog import FOG_PRESETS
 
     return {
@@ -41,7 +41,7 @@ def make_manifest(scenes: int, resolution: Sequence[int], seconds: float, seed: 
         "seed": int(seed),
         "towns": list(towns),
         "fog_levels": {lv.lower(): float(FOG_PRESETS[lv.lower()]) for lv in FOG_LEVELS},
-        "channels": list(channels if channels is not None else CHANNELS),
+        "channels": list(channels if channels is not None else FOGDRIVE_CHANNELS),
     }
 
 

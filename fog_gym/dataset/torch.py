@@ -19,7 +19,7 @@ import numpy as np
 
 from fog_gym.dataset.access import SPLITS, FogDrive
 from fog_gym.dataset.decode import decode_bbox_json, load_channel
-from fog_gym.dataset.layout import CHANNELS
+from fog_gym.dataset.layout import CHANNELS, FOGDRIVE_CHANNELS
 
 try:  # the torch extra; everything but FogDriveDataset works without it
     import torch
@@ -50,7 +50,7 @@ class FogDriveDataset(_TorchDataset):
         if split is not None and split not in SPLITS:
             raise ValueError(f"split must be one of {SPLITS} or None, got {split!r}")
         self.fogdrive = FogDrive(dataroot)
-        self.channels = list(channels) if channels else sorted(CHANNELS)
+        self.channels = list(channels) if channels else sorted(FOGDRIVE_CHANNELS)
         self.tokens = (self.fogdrive.get_sample_tokens_for_split(split) if split
                        else [s["token"] for s in self.fogdrive.sample])  # fmt: skip
 
@@ -74,6 +74,6 @@ def collate(batch: list[dict[str, Any]]) -> dict[str, Any]:
     out: dict[str, Any] = {}
     for key in batch[0]:
         values = [b[key] for b in batch]
-        fmt = CHANNELS.get(key, ("", ""))[1]
+        fmt = CHANNELS[key].fileformat if key in CHANNELS else ""
         out[key] = torch.stack(values) if fmt == "png" else values
     return out

@@ -25,7 +25,7 @@ import numpy as np
 
 from fog_gym.dataset.access import TABLES, DatasetError, FogDrive, load_table, read_json, safe_relative_path
 from fog_gym.dataset.decode import decode_png
-from fog_gym.dataset.layout import CHANNELS, DATA_ROOT
+from fog_gym.dataset.layout import CHANNELS, DATA_ROOT, FOGDRIVE_CHANNELS
 from fog_gym.dataset.manifest import MANIFEST_FILE, read_manifest
 
 EXTRINSIC_KEYS = ("extrinsic_front", "extrinsic_right", "extrinsic_left", "extrinsic_back")
@@ -47,9 +47,7 @@ def dataset_root_problem(root: str | Path) -> str | None:
 
 
 def _point_columns(channel: str) -> int:
-    from fog_gym.points import COLUMNS, channel_kind
-
-    return COLUMNS[channel_kind(channel)]
+    return CHANNELS[channel].columns  # the channel's own rule (fog_gym.sensors registers it)
 
 
 def check_png(path: Path, width: int | None = None, height: int | None = None) -> str | None:
@@ -184,7 +182,9 @@ def validate(root: str | Path, progress: bool = False) -> list[str]:
         ds = FogDrive(root)
     except (DatasetError, FileNotFoundError) as e:
         return [str(e)]
-    channels = set(manifest["channels"]) if manifest else set(CHANNELS)
+    # without a manifest: the 35 FogDrive channels, plus any registered sensor channel the set holds
+    channels = set(manifest["channels"]) if manifest else (
+        set(FOGDRIVE_CHANNELS) | {r["channel"] for r in ds.sample_data if r["channel"] in CHANNELS})
     size = tuple(manifest["resolution"]) if manifest else None
     if manifest and manifest["scenes"] != len(ds.scene):
         problems.append(f"{index / 'scene.json'}: {len(ds.scene)} scenes, the manifest ({MANIFEST_FILE}) says "

@@ -26,7 +26,7 @@ import cv2
 import numpy as np
 
 from fog_gym.dataset.layout import (
-    CAMERAS, CHANNELS, DATA_ROOT, EXTRINSIC_FILE, SAMPLE_PERIOD_US, channel_path, parse_scene_folder,
+    CAMERAS, CHANNELS, DATA_ROOT, FOGDRIVE_CHANNELS, EXTRINSIC_FILE, SAMPLE_PERIOD_US, channel_path, parse_scene_folder,
     scene_name,
 )  # fmt: skip
 from fog_gym.encoding import encode_depth, semantic_to_carla_rgb
@@ -90,7 +90,7 @@ class SceneWriter:
                  workers: int | None = None) -> None:  # fmt: skip
         if parse_scene_folder(folder) is None:
             raise ValueError(f"not a FogDrive scene folder name: {folder!r}")
-        channels = tuple(CHANNELS) if channels is None else tuple(channels)
+        channels = tuple(FOGDRIVE_CHANNELS) if channels is None else tuple(channels)
         unknown = [c for c in channels if c not in CHANNELS]
         if unknown or "BBOX_3D" not in channels:
             raise ValueError(f"channels must be FogDrive channels including BBOX_3D, got {list(channels)}")
@@ -135,17 +135,17 @@ class SceneWriter:
 
         jobs: dict[str, Callable[[], bytes]] = {}
         for channel in self.channels:
-            if channel == "BBOX_3D":
+            encoding = CHANNELS[channel].encoding
+            if encoding == "box3d":
                 continue
-            cam = next((c for c in CAMERAS if channel == c or channel.startswith(c + "_")), None)
-            if cam is None:  # a point channel
+            if encoding == "points":
                 jobs[channel] = npy(channel)
-            elif channel.endswith("_DEPTH"):
+            elif encoding == "depth":
                 jobs[channel] = png(channel, encode_depth)
-            elif channel.endswith("_SEM"):
+            elif encoding == "semantic":
                 jobs[channel] = png(channel, semantic_to_carla_rgb)
-            elif channel.endswith("_BBOX"):
-                jobs[channel] = box2d(cam)
+            elif encoding == "box2d":
+                jobs[channel] = box2d(channel.removesuffix("_BBOX"))
             else:  # clean or fogged RGB
                 jobs[channel] = png(channel)
         b3 = info["boxes_3d"]

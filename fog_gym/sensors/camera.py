@@ -1,13 +1,17 @@
-"""Sensors of the rig: cameras (RGB, planar depth, semantic tags, instance ids), LiDAR, semantic LiDAR, radar.
+"""Cameras: RGB ``C``, planar depth ``C_DEPTH``, semantic tags ``C_SEM`` (and instance ids, not a channel).
 
 A pure function of (:class:`~fog_gym.scene.Scene`, :class:`~fog_gym.config.RigConfig`): nothing here
-steps the world. Cameras that share a resolution are rendered in one batched kernel call.
+steps the world. :class:`CameraRig` renders every camera of a rig, cameras that share a resolution in one
+batched kernel call; :class:`CameraSensor` is one camera behind the :class:`~fog_gym.sensors.base.Sensor`
+protocol (channels, spaces, dataset layout).
 
 Example:
     >>> from fog_gym.config import RigConfig
     >>> cams = CameraRig(RigConfig.fogdrive(resolution=(64, 48)))
     >>> cams.names
     ('CAM_FRONT', 'CAM_BACK', 'CAM_LEFT', 'CAM_RIGHT')
+    >>> CameraSensor(RigConfig.fogdrive(resolution=(64, 48)).cameras[0]).channels
+    ('CAM_FRONT', 'CAM_FRONT_DEPTH', 'CAM_FRONT_SEM')
 """
 
 from __future__ import annotations
@@ -17,17 +21,21 @@ from dataclasses import dataclass
 import numpy as np
 
 from fog_gym import geometry
-from fog_gym.config import RigConfig
-from fog_gym.lidar import sensor_to_world, simulate_lidar, simulate_radar, simulate_semantic_lidar
-from fog_gym.points import LIDAR, RADAR, SEMANTIC_LIDAR
+from gymnasium import spaces
+
+from fog_gym.config import CameraConfig, RigConfig
+from fog_gym.dataset.layout import FOG_LEVELS, ChannelSpec
 from fog_gym.render.lights import beam_window, concat_lights, cull_lights, lamp_light_map, render_night, street_lamp_lights
 from fog_gym.render.raster import render
 from fog_gym.primitives import Primitives
 from fog_gym.scene import Scene, headlights, prop_primitives
+from fog_gym.encoding import SEMANTIC_TAGS
 from fog_gym.scenery import SURFACE_TAGS, lamp_heads
 
 #: Lights farther than this from the ego (beyond their own radius) are left out of a night frame [m].
 LIGHT_RANGE = 250.0
+#: The largest semantic tag id (the bound of a ``C_SEM`` space).
+MAX_TAG = max(SEMANTIC_TAGS.values())
 
 
 @dataclass(frozen=True)
@@ -116,41 +124,45 @@ class CameraRig:
         return heads, lights, (lamp_map, beam_window(lamp_map, beams, ego))
 
 
-class PointSensors:
-    """LiDAR (``LIDAR_TOP``), semantic LiDAR (``SEM_LIDAR_TOP``) and radar (``RADAR_FRONT``) of a rig.
+class CameraSensor:
+    """One camera: channels ``C``, ``C_DEPTH`` (metres, sky = ``far``), ``C_SEM``; in the dataset also
+    ``C_FOG_<LEVEL>`` and ``C_BBOX`` under ``c/out_rgb``, ``c/out_fog_<level>``, ``c/out_depth``, ``c/out_seg``,
+    ``c/out_bbox`` (``c`` the name in lower case)."""
 
-    :meth:`measure` returns each configured sensor's points for the tick that ends at the scene's instant,
-    in the sensor frame, with CARLA's semantics (see :mod:`fog_gym.lidar`).
+    kind = "camera"
 
-    >>> from fog_gym.config import RigConfig
-    >>> sorted(PointSensors(RigConfig.fogdrive(cameras=[])).channels)
-    ['LIDAR_TOP', 'RADAR_FRONT', 'SEM_LIDAR_TOP']
-    """
+    def __init__(self, config: CameraConfig, far: float = 1000.0) -> None:
+        if not isinstance(config, CameraConfig):
+            raise TypeError(f"config must be a CameraConfig, got {type(config).__name__}")
+        self.config, self.far = config, float(far)
+        self._rig: CameraRig | None = None
 
-    def __init__(self, rig: RigConfig, simulation_frequency: float = 20.0) -> None:
-        self.rig = rig
-        self.simulation_frequency = float(simulation_frequency)
-        self.channels = tuple(
-            name for name, cfg in ((LIDAR, rig.lidar), (SEMANTIC_LIDAR, rig.semantic_lidar), (RADAR, rig.radar)) if cfg
-        )
+    @property
+    def channels(self) -> tuple[str, ...]:
+        n = self.config.name
+        return (n, f"{n}_DEPTH", f"{n}_SEM")
 
-    def _start_angle(self, cfg, tick: int) -> float:
-        # a head that turns less than a full sweep per tick resumes where the previous tick stopped
-        return (tick * cfg.tick_angle(self.simulation_frequency)) % cfg.horizontal_fov
+    def observation_spaces(self) -> dict[str, spaces.Space]:
+        shape = (self.config.height, self.config.width)
+        rgb, depth, sem = self.channels
+        return {rgb: spaces.Box(0, 255, shape + (3,), np.uint8), depth: spaces.Box(0.0, self.far, shape, np.float32),
+                sem: spaces.Box(0, MAX_TAG, shape, np.uint8)}  # fmt: skip
+
+    def layout(self) -> dict[str, ChannelSpec]:
+        n, folder = self.config.name, self.config.name.lower()
+        out = {n: ChannelSpec(f"{folder}/out_rgb", "png", "rgb")}
+        for lv in FOG_LEVELS:
+            out[f"{n}_FOG_{lv}"] = ChannelSpec(f"{folder}/out_fog_{lv.lower()}", "png", "rgb")
+        out[f"{n}_DEPTH"] = ChannelSpec(f"{folder}/out_depth", "png", "depth")
+        out[f"{n}_SEM"] = ChannelSpec(f"{folder}/out_seg", "png", "semantic")
+        out[f"{n}_BBOX"] = ChannelSpec(f"{folder}/out_bbox", "json", "box2d")
+        return out
 
     def measure(self, scene: Scene, prims: Primitives, rng: np.random.Generator, tick: int) -> dict[str, np.ndarray]:
-        """Points per channel for simulation tick ``tick`` (0-based); ``prims`` exclude the ego's own body."""
-        rig, f, out = self.rig, self.simulation_frequency, {}
-        surface = scene.static.surface
-        if rig.lidar is not None:
-            out[LIDAR] = simulate_lidar(rig.lidar, sensor_to_world(rig.lidar.pose, scene.ego_pose), prims, surface,
-                                        rng, f, self._start_angle(rig.lidar, tick))  # fmt: skip
-        if rig.semantic_lidar is not None:
-            cfg = rig.semantic_lidar
-            out[SEMANTIC_LIDAR] = simulate_semantic_lidar(cfg, sensor_to_world(cfg.pose, scene.ego_pose), prims,
-                                                          surface, rng, f, self._start_angle(cfg, tick))  # fmt: skip
-        if rig.radar is not None:
-            ego_velocity = scene.vehicles.velocities[scene.vehicles.ids == scene.ego_id][0]
-            out[RADAR] = simulate_radar(rig.radar, sensor_to_world(rig.radar.pose, scene.ego_pose), prims, rng,
-                                        scene.vehicles, ego_velocity, f)  # fmt: skip
-        return out
+        """The camera's RGB, depth and tags (``rng`` and ``tick`` unused: rendering is deterministic)."""
+        if self._rig is None:
+            self._rig = CameraRig(RigConfig((self.config,)), far=self.far)
+        f = self._rig.render(scene, prims)[self.config.name]
+        return dict(zip(self.channels, (f.rgb, f.depth, f.semantic)))
+
+
