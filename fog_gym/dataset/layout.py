@@ -14,7 +14,7 @@ import hashlib
 import re
 from typing import NamedTuple
 
-CAMERAS = ("CAM_FRONT", "CAM_BACK", "CAM_LEFT", "CAM_RIGHT")
+from fog_gym.config import CAMERA_NAMES as CAMERAS  # the FogDrive cameras, one definition (Table 2)
 FOG_LEVELS = ("LIGHT", "MODERATE", "DENSE")
 DATA_ROOT = "data_root"
 SPLITS = ("train", "val", "test")
