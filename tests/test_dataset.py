@@ -127,13 +127,6 @@ def test_incomplete_sample_is_left_out(recorded, tmp_path):
     assert len(ds.sample) == len(FogDrive(root).sample) - 1
 
 
-def test_record_refuses_partial_rigs_and_in_place_fog(tmp_path):
-    with pytest.raises(ValueError, match="full FogDrive rig"):
-        RecordFogDrive(fog_gym.FogDriveEnv(resolution=RES, cameras=["CAM_FRONT"]), tmp_path)
-    with pytest.raises(ValueError, match="paired levels"):
-        RecordFogDrive(fog_gym.wrappers.FogWrapper(fog_gym.FogDriveEnv(resolution=RES), "dense"), tmp_path)
-
-
 def test_splits_rules_on_a_generated_set():
     from fog_gym.dataset.splits import check_splits, make_splits
 

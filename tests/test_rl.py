@@ -1,14 +1,12 @@
-"""RL preset, observation wrappers, fog curricula (wrapper and vector envs), and the SB3 path (marked slow)."""
-
-import math
+"""RL preset, fog schedules and the SB3 vector-env curriculum, and the SB3 path (marked slow); the observation and
+curriculum wrappers have their own test files."""
 
 import gymnasium as gym
 import numpy as np
 import pytest
 
 import fog_gym
-from fog_gym.curriculum import ContinuousSchedule, MixedSampler, StepSchedule, SuccessSchedule
-from fog_gym.wrappers import FogCurriculum, LidarBEV, ResizeCameras, SelectKeys, StackFrames
+from fog_gym.curriculum import MixedSampler, StepSchedule
 
 
 def test_preset_spaces_match_observations():
@@ -22,75 +20,11 @@ def test_preset_spaces_match_observations():
     assert obs["LIDAR_BEV"][0].any()  # the road's edge, guard rails and cars are seen
 
 
-def test_observation_wrappers_compose():
-    base = gym.make("FogDrive-v0", fog="light", resolution=(80, 60), cameras=["CAM_FRONT", "CAM_BACK"])
-    env = StackFrames(SelectKeys(LidarBEV(ResizeCameras(base, (40, 30), grayscale=True), size=16), ["CAM_FRONT", "LIDAR_BEV"]), 3)
-    obs, _ = env.reset(seed=0)
-    assert obs["CAM_FRONT"].shape == (3, 30, 40) and obs["LIDAR_BEV"].shape == (6, 16, 16)
-    assert env.observation_space.contains(obs)
-    obs2, *_ = env.step(1)
-    assert env.observation_space.contains(obs2)
-    np.testing.assert_array_equal(obs2["CAM_FRONT"][:2], obs["CAM_FRONT"][1:])  # oldest frame dropped
-    single = SelectKeys(ResizeCameras(base, (20, 20)), ["CAM_FRONT"], single=True)
-    assert single.observation_space.shape == (3, 20, 20)
-    with pytest.raises(ValueError, match="keys must name observation keys"):
-        SelectKeys(base, ["CAM_TOP"])
-    with pytest.raises(ValueError, match="k must be an integer"):
-        StackFrames(base, 0)
-
-
-def test_curriculum_switches_exactly_at_episode_boundaries():
-    env = FogCurriculum(gym.make("FogDriveRL-v0", fog="clear"), StepSchedule(episodes_per_level=2))
-    seen = []
-    for e in range(8):
-        _, info = env.reset(seed=e)
-        seen.append(info["fog"]["visibility_m"])
-        for _ in range(2):  # the level never changes inside an episode
-            _, _, _, _, info = env.step(1)
-            assert info["fog"]["visibility_m"] == seen[-1]
-    assert seen == [math.inf, math.inf, 160.0, 160.0, 100.0, 100.0, 50.0, 50.0]
-
-
-def test_curriculum_in_an_async_vector_env():
-    def make():
-        return FogCurriculum(gym.make("FogDriveRL-v0", fog="clear", episode_seconds=0.4), StepSchedule(episodes_per_level=1))
-
-    envs = gym.vector.AsyncVectorEnv([make, make])
-    try:
-        _, info = envs.reset(seed=[0, 1])
-        levels = [info["fog"]["visibility_m"].tolist()]
-        for _ in range(3):  # episodes are 2 steps long; autoreset starts the next one on the following step
-            for _ in range(3):
-                _, _, term, trunc, info = envs.step(np.array([1, 1]))
-            levels.append(info["fog"]["visibility_m"].tolist())
-        assert levels == [[math.inf] * 2, [160.0] * 2, [100.0] * 2, [50.0] * 2]
-    finally:
-        envs.close()
-
-
 def test_mixed_sampler_is_seeded_and_covers_every_level():
     a = [MixedSampler(seed=4).level(e) for e in range(200)]
     assert a == [MixedSampler(seed=4).level(e) for e in range(200)]
     assert a != [MixedSampler(seed=5).level(e) for e in range(200)]
     assert set(a) == {"clear", 160.0, 100.0, 50.0}
-
-
-def test_success_and_continuous_schedules():
-    s = SuccessSchedule(threshold=0.5, window=2)
-    s.record(False)
-    s.record(False)
-    assert s.level(2) == "clear"
-    s.record(True)
-    s.record(False)
-    assert s.level(4) == 160.0
-    c = ContinuousSchedule(start=math.inf, end=50.0, episodes=4)
-    v = [c.level(e) for e in range(6)]
-    assert v[0] == math.inf and v[4] == pytest.approx(50.0) and v[5] == pytest.approx(50.0)
-    assert v[2] == pytest.approx(100.0)  # linear in α: half of α(50 m) is α(100 m)
-    with pytest.raises(ValueError):
-        StepSchedule(levels=("fog",))
-    with pytest.raises(ValueError, match="in-place fog wrapper"):
-        FogCurriculum(gym.make("FogDrive-v0", resolution=(8, 6)), StepSchedule())
 
 
 @pytest.mark.slow
