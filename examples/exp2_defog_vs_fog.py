@@ -40,6 +40,9 @@ def main(argv: list[str] | None = None) -> dict:
     p.add_argument("--aod-epochs", type=int, default=10, help="AOD-Net training epochs (default 10)")
     p.add_argument("--aod-pairs", type=int, default=600, help="AOD-Net (clean, fog) training crops (default 600)")
     p.add_argument("--cameras", nargs="+", default=["CAM_FRONT", "CAM_LEFT"], help="cameras (default front and left)")
+    p.add_argument("--min-height", type=float, default=0.0,
+                   help="evaluate only boxes at least this many pixels high at the detector input; lower ones are "
+                        "ignore regions (default 0: every box, as the paper)")
     p.add_argument("--device", default="auto", help="torch device: auto (GPU when present), cpu, cuda")
     p.add_argument("--seed", type=int, default=0, help="seed of scene choice, weights and augmentation (default 0)")
     p.add_argument("--smoke", action="store_true",
@@ -66,7 +69,7 @@ def main(argv: list[str] | None = None) -> dict:
                             input_size=size(args.input_size, "--input-size"), train_fraction=args.train_fraction,
                             val_fraction=args.val_fraction, test_fraction=args.test_fraction,
                             aod_epochs=args.aod_epochs, aod_pairs=args.aod_pairs, cameras=tuple(args.cameras),
-                            seed=args.seed, device=args.device)  # fmt: skip
+                            seed=args.seed, device=args.device, min_height=args.min_height)  # fmt: skip
     except ValueError as e:
         p.error(str(e))
     if args.generate:

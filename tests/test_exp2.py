@@ -96,7 +96,8 @@ def test_experiment2_runs_every_pipeline_and_a_second_run_reuses_the_models(came
 @pytest.mark.parametrize(
     "bad, message",
     [({"input_size": (50, 40)}, "multiples of 16"), ({"epochs": 0}, "epochs"), ({"test_fraction": 0.0}, "test_fraction"),
-     ({"cameras": ("CAM_TOP",)}, "cameras"), ({"lr": -1.0}, "lr")],
+     ({"cameras": ("CAM_TOP",)}, "cameras"), ({"lr": -1.0}, "lr"), ({"min_height": -1.0}, "min_height"),
+     ({"min_height": 1e9}, "min_height")],
 )  # fmt: skip
 def test_bad_settings_fail_before_any_work(bad, message):
     with pytest.raises(ValueError, match=message):

@@ -61,3 +61,26 @@ def test_bad_boxes_are_refused():
         evaluate_coco([_f([[10, 10, 5, 20]], [0])], [_f([CAR], [0], [1.0])])
     with pytest.raises(ValueError, match="one entry per image"):
         evaluate_coco([_f([CAR], [0])], [])
+
+
+def test_ignored_boxes_are_neither_hits_nor_misses():
+    tiny = [300.0, 300.0, 304.0, 303.0]
+    gt = _f([CAR, tiny], [0, 0]) | {"ignore": np.array([False, True])}
+    # missing the ignored box costs nothing
+    r = evaluate_coco([gt], [_f([CAR], [0], [0.9])])
+    assert (r["mAP50"], r["recall"], r["precision"], r["n_gt"], r["n_ignored"]) == (pytest.approx(1.0), 1.0, 1.0, 1, 1)
+    # a detection on the ignored box is not a false positive, a detection elsewhere is
+    r = evaluate_coco([gt], [_f([CAR, tiny], [0, 0], [0.9, 0.95])])
+    assert r["mAP50"] == pytest.approx(1.0) and r["precision"] == 1.0
+    r = evaluate_coco([gt], [_f([CAR, [0, 0, 30, 30]], [0, 0], [0.9, 0.95])])
+    assert r["precision"] == 0.5 and r["mAP50"] < 1.0
+    # without the flag the tiny box is a miss
+    r = evaluate_coco([_f([CAR, tiny], [0, 0])], [_f([CAR], [0], [0.9])])
+    assert r["recall"] == 0.5 and r["n_ignored"] == 0
+
+
+def test_only_ignored_ground_truth_gives_nan_and_a_wrong_length_flag_is_refused():
+    r = evaluate_coco([_f([CAR], [0]) | {"ignore": [True]}], [_f([CAR], [0], [0.9])])
+    assert math.isnan(r["mAP50"]) and r["n_gt"] == 0
+    with pytest.raises(ValueError, match="one entry per box"):
+        evaluate_coco([_f([CAR], [0]) | {"ignore": [True, False]}], [_f([], [], [])])

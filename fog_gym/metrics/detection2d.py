@@ -1,7 +1,9 @@
 """2D detection metrics of FogDrive's Experiment 2 through the COCO reference implementation (pycocotools).
 
 Frames are dicts with ``"boxes"`` ``(N, 4)`` ``[x0, y0, x1, y1]`` in pixels and ``"classes"`` ``(N,)`` FogDrive class
-ids; predictions also ``"scores"``. :func:`evaluate_coco` builds the COCO ground truth and results in memory, runs
+ids; predictions also ``"scores"``; ground truth may carry ``"ignore"`` ``(N,)`` booleans: such boxes are COCO "crowd"
+regions — a detection on one is neither a true nor a false positive and they do not count towards recall (KITTI's
+and COCO's way of leaving out objects too small to judge). :func:`evaluate_coco` builds the COCO ground truth and results in memory, runs
 ``COCOeval`` (bbox, all areas, 100 detections per image) and reports ``mAP50_95`` (COCO's AP @ [.5:.95]), ``mAP50``,
 per-class ``AP50``, and ``precision`` / ``recall`` at IoU 0.5 for the detections scoring at least ``conf``
 (0.25, as YOLO-style tables), counted from COCOeval's own matches.
@@ -37,7 +39,10 @@ def _frames(frames: Sequence[Mapping[str, Any]], name: str, scores: bool) -> lis
         s = np.asarray(f["scores"], np.float64).reshape(-1) if scores else np.ones(len(b))
         if len(c) != len(b) or len(s) != len(b):
             raise ValueError(f"{name}[{k}]: boxes, classes and scores must have one row per box")
-        out.append((b, c, s))
+        ign = np.asarray(f.get("ignore", np.zeros(len(b), bool)), bool).reshape(-1) if not scores else np.zeros(len(b), bool)
+        if len(ign) != len(b):
+            raise ValueError(f"{name}[{k}]['ignore'] must have one entry per box, got {len(ign)} for {len(b)} boxes")
+        out.append((b, c, s, ign))
     return out
 
 
@@ -54,17 +59,18 @@ def evaluate_coco(gt: Sequence[Mapping[str, Any]], pred: Sequence[Mapping[str, A
     images = [{"id": i + 1} for i in range(len(g))]
     cats = [{"id": int(c) + 1, "name": str(c)} for c in classes]  # COCO ids start at 1
     anns = []
-    for i, (b, c, _) in enumerate(g):
+    for i, (b, c, _, ign) in enumerate(g):
         for k in range(len(b)):
             w, h = b[k, 2] - b[k, 0], b[k, 3] - b[k, 1]
-            anns.append({"id": len(anns) + 1, "image_id": i + 1, "category_id": int(c[k]) + 1, "iscrowd": 0,
+            anns.append({"id": len(anns) + 1, "image_id": i + 1, "category_id": int(c[k]) + 1, "iscrowd": int(ign[k]),
                          "bbox": [float(b[k, 0]), float(b[k, 1]), float(w), float(h)], "area": float(w * h)})  # fmt: skip
     dets = [{"image_id": i + 1, "category_id": int(c[k]) + 1, "score": float(s[k]),
              "bbox": [float(b[k, 0]), float(b[k, 1]), float(b[k, 2] - b[k, 0]), float(b[k, 3] - b[k, 1])]}
-            for i, (b, c, s) in enumerate(p) for k in range(len(b))]  # fmt: skip
-    present = sorted({int(a["category_id"]) for a in anns})
-    result: dict[str, Any] = {"n_gt": len(anns), "n_pred": len(dets)}
-    if not anns:
+            for i, (b, c, s, _) in enumerate(p) for k in range(len(b))]  # fmt: skip
+    present = sorted({int(a["category_id"]) for a in anns if not a["iscrowd"]})
+    n_gt = sum(1 for a in anns if not a["iscrowd"])
+    result: dict[str, Any] = {"n_gt": n_gt, "n_ignored": len(anns) - n_gt, "n_pred": len(dets)}
+    if not n_gt:
         return result | {"mAP50_95": float("nan"), "mAP50": float("nan"), "AP50": {}, "precision": float("nan"),
                          "recall": float("nan")}  # fmt: skip
     with contextlib.redirect_stdout(io.StringIO()):  # pycocotools prints progress
@@ -96,5 +102,5 @@ def evaluate_coco(gt: Sequence[Mapping[str, Any]], pred: Sequence[Mapping[str, A
         fp += int((~matched & keep).sum())
     return result | {
         "mAP50_95": float(np.mean(per_class)), "mAP50": float(np.mean(list(per_class_50.values()))),
-        "AP50": per_class_50, "precision": tp / (tp + fp) if tp + fp else 0.0, "recall": tp / len(anns),
+        "AP50": per_class_50, "precision": tp / (tp + fp) if tp + fp else 0.0, "recall": tp / n_gt,
     }  # fmt: skip
