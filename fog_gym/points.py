@@ -31,14 +31,17 @@ COLUMNS = {LIDAR: 4, SEMANTIC_LIDAR: 6, RADAR: 4}
 
 def channel_kind(channel: str) -> str | None:
     """``LIDAR_TOP``, ``SEM_LIDAR_TOP`` or ``RADAR_FRONT`` for a FogDrive point channel (fog variants
-    ``LIDAR_TOP_FOG_*`` included); None for any other channel, such as an added sensor's, whose points are its
-    non-zero rows."""
+    ``LIDAR_TOP_FOG_*`` included); None for an added point sensor's channel, whose points are its non-zero rows.
+    A camera or box channel (``CAM_*``, ``*_DEPTH``, ``*_SEM``, ``*_BBOX``) raises ``ValueError``."""
     if channel == SEMANTIC_LIDAR or channel.startswith(SEMANTIC_LIDAR + "_"):
         return SEMANTIC_LIDAR
     if channel == LIDAR or channel.startswith(LIDAR + "_"):
         return LIDAR
     if channel == RADAR or channel.startswith(RADAR + "_"):
         return RADAR
+    if channel.startswith("CAM_") or channel.endswith(("_DEPTH", "_SEM", "_BBOX")) or channel == "BBOX_3D":
+        raise ValueError(f"channel must be a point channel ({LIDAR}[_FOG_*], {SEMANTIC_LIDAR}, {RADAR} or an added "
+                         f"point sensor's), got the camera or box channel {channel!r}")  # fmt: skip
     return None
 
 

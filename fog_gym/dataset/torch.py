@@ -51,7 +51,8 @@ class FogDriveDataset(_TorchDataset):
         self.layout: dict[str, ChannelSpec] = self.fogdrive.channels
         for c in channels or []:
             if c not in self.layout:
-                raise ValueError(f"channels must be channels of the dataset {sorted(self.layout)}, got {c!r}")
+                raise ValueError(f"channels must be FogDrive channel names or the dataset's own (its layout, "
+                                 f"index/channels.json), got {c!r}; the dataset has {sorted(self.layout)}")  # fmt: skip
         self.channels = list(channels) if channels else sorted(self.layout)
         self.tokens = (self.fogdrive.get_sample_tokens_for_split(split) if split
                        else [s["token"] for s in self.fogdrive.sample])  # fmt: skip
