@@ -159,6 +159,8 @@ def test_an_added_camera_is_observed_labelled_and_fogged_like_the_fogdrive_ones(
     base = env.unwrapped
     np.testing.assert_allclose(base.intrinsics[NARROW][0, 0], 16.0 / np.tan(np.radians(20.0)))  # f = (W/2)/tan(fov/2)
     assert set(info["boxes_2d"]) == {*fog_gym.CAMERA_NAMES, NARROW}
+    narrow_ids = set(info["boxes_2d"][NARROW]["vehicle_ids"].tolist())
+    assert narrow_ids and narrow_ids <= set(info["boxes_2d"]["CAM_FRONT"]["vehicle_ids"].tolist())  # 40° inside 100°
     assert "extrinsic_front_narrow" in info["extrinsics"]
     env.close()
 
@@ -185,6 +187,7 @@ def test_a_recorded_set_with_an_added_camera_validates_and_loads_with_its_shape_
         boxes.append(info["boxes_2d"][NARROW]["bboxes"].copy())
         images.append(env.unwrapped.frames[NARROW].rgb.copy())
     env.close()
+    assert sum(len(b) for b in boxes) > 0
     assert [p for p in validate(tmp_path) if not p.startswith("splits:")] == []
     assert (tmp_path / LAYOUT_FILE).is_file()
     ds = FogDrive(tmp_path)
