@@ -230,3 +230,28 @@ def test_the_torch_loader_stacks_an_added_cameras_images(tmp_path):
     batch = ds.collate([ds[0], ds[1]])
     assert isinstance(batch[NARROW], torch.Tensor) and tuple(batch[NARROW].shape) == (2, 3, 24, 32)
     assert len(batch[f"{NARROW}_BBOX"]) == 2
+
+
+# -- the layout a set carries ----------------------------------------------------------------------------------
+def test_a_set_of_fogdrive_channels_only_carries_no_layout_file(tmp_path):
+    env = RecordFogDrive(fog_gym.FogDriveEnv(resolution=(32, 24), episode_seconds=0.1), tmp_path)
+    env.reset(seed=0)
+    env.close()
+    assert not (tmp_path / LAYOUT_FILE).exists() and not list((tmp_path / "data_root").glob("*/channels.json"))
+    assert FogDrive(tmp_path).channels == FOGDRIVE_CHANNELS
+
+
+def test_the_index_refuses_two_scenes_that_store_one_channel_differently(rear_radar, tmp_path):
+    from fog_gym.dataset.writer import build_index
+
+    env = RecordFogDrive(fog_gym.FogDriveEnv(rig=_rig(rear_radar), episode_seconds=0.1), tmp_path)
+    env.reset(seed=0)
+    env.reset(seed=1)
+    env.close()
+    scenes = sorted((tmp_path / "data_root").iterdir())
+    assert len(scenes) == 2
+    layout = json.loads((scenes[1] / "channels.json").read_text())
+    layout["channels"]["RADAR_BACK"]["columns"] = 5
+    (scenes[1] / "channels.json").write_text(json.dumps(layout))
+    with pytest.raises(ValueError, match="channel 'RADAR_BACK' is stored as .* here and as .* in an earlier scene"):
+        build_index(tmp_path)

@@ -32,7 +32,8 @@ class Sensor(Protocol):
 
     @property
     def channels(self) -> tuple[str, ...]:
-        """The observation keys the sensor fills."""
+        """The observation keys the sensor fills; the first is the one a fog model of the sensor's kind fogs
+        (a camera's RGB, a LiDAR's points)."""
 
     def observation_spaces(self) -> dict[str, spaces.Space]:
         """One space per channel."""
