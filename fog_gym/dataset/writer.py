@@ -17,7 +17,7 @@ import json
 import os
 import struct
 import uuid
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
@@ -94,8 +94,8 @@ class SceneWriter:
     def __init__(self, root: str | Path, folder: str, channels: Any = None, workers: int | None = None) -> None:
         if parse_scene_folder(folder) is None:
             raise ValueError(f"not a FogDrive scene folder name: {folder!r}")
-        if isinstance(channels, dict):
-            layout = check_layout(channels)
+        if isinstance(channels, Mapping):
+            layout = check_layout(dict(channels))
         else:
             names = tuple(FOGDRIVE_CHANNELS) if channels is None else tuple(channels)
             unknown = [c for c in names if c not in FOGDRIVE_CHANNELS]
