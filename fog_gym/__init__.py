@@ -17,14 +17,14 @@ from fog_gym._memory import tune_malloc
 tune_malloc()
 
 from fog_gym.config import CAMERA_NAMES, TIMES_OF_DAY, TOWNS, CameraConfig, FogDriveConfig, Pose, RigConfig
-from fog_gym.lidar import LidarConfig, RadarConfig
+from fog_gym.lidar import LidarConfig, RadarConfig, SemanticLidarConfig
 from fog_gym.points import unpack_points
 
 from fog_gym._version import __version__
 
 __all__ = [
     "CAMERA_NAMES", "TIMES_OF_DAY", "TOWNS", "CameraConfig", "FogDriveConfig", "Pose", "RigConfig", "FogDriveEnv",
-    "LidarConfig", "RadarConfig", "unpack_points", "accelerate",
+    "LidarConfig", "RadarConfig", "SemanticLidarConfig", "unpack_points", "accelerate",
 ]  # fmt: skip
 
 register(id="FogDrive-v0", entry_point="fog_gym.make:make_fogdrive", max_episode_steps=None, disable_env_checker=False)

@@ -15,13 +15,15 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 
+from fog_gym.camera_config import CAMERA_NAMES, FOGDRIVE_CAMERA_POSES, CameraConfig, check_sensor_name
 from fog_gym.labels import LabelConfig
-from fog_gym.lidar import LidarConfig, RadarConfig
+from fog_gym.lidar import LidarConfig, RadarConfig, SemanticLidarConfig
 from fog_gym.pose import Pose
 from fog_gym.pose import finite as _finite
 
-#: FogDrive camera channel names (Table 3), in the order the rig lists them.
-CAMERA_NAMES: tuple[str, ...] = ("CAM_FRONT", "CAM_BACK", "CAM_LEFT", "CAM_RIGHT")
+__all__ = ["CAMERA_NAMES", "FOGDRIVE_CAMERA_POSES", "TIMES_OF_DAY", "TOWNS", "TRAFFIC_MODES", "CameraConfig", "FogDriveConfig",
+           "RigConfig", "check_sensor_name", "check_traffic_mode", "parse_resolution"]  # fmt: skip
+
 #: Towns in FogDrive order; a town's FogDrive number ``T<n>`` is its 1-based position.
 TOWNS: tuple[str, ...] = ("highway", "merge", "roundabout", "intersection", "racetrack", "exit")
 TIMES_OF_DAY: tuple[str, ...] = ("day", "night")
@@ -44,53 +46,6 @@ def check_traffic_mode(traffic: str) -> str:
     return traffic
 
 
-@dataclass(frozen=True)
-class CameraConfig:
-    """One pinhole camera; RGB, depth, semantic and instance buffers share its pose and intrinsics.
-
-    >>> CameraConfig("CAM_FRONT", Pose(1.8, 0, 1.2), 640, 480).intrinsic()[0, 0].round(2)
-    np.float64(268.51)
-    """
-
-    name: str
-    pose: Pose
-    width: int = 1280
-    height: int = 960
-    fov: float = 100.0  # horizontal field of view, degrees
-
-    def __post_init__(self) -> None:
-        if self.name not in CAMERA_NAMES:
-            raise ValueError(f"camera name must be one of {CAMERA_NAMES}, got {self.name!r}")
-        object.__setattr__(self, "pose", Pose.coerce(self.pose))
-        for attr in ("width", "height"):
-            value = getattr(self, attr)
-            if isinstance(value, bool) or not isinstance(value, (int,)) and not (
-                isinstance(value, float) and value.is_integer()
-            ):
-                raise ValueError(f"resolution {attr} must be a positive integer, got {value!r}")
-            if int(value) <= 0:
-                raise ValueError(f"resolution {attr} must be a positive integer, got {value!r}")
-            object.__setattr__(self, attr, int(value))
-        fov = _finite("fov", self.fov)
-        if not 0.0 < fov < 180.0:
-            raise ValueError(f"fov must lie in the open interval (0, 180) degrees, got {self.fov!r}")
-        object.__setattr__(self, "fov", fov)
-
-    def intrinsic(self):
-        from fog_gym.geometry import intrinsic_matrix
-
-        return intrinsic_matrix(self.width, self.height, self.fov)
-
-
-#: Camera poses of FogDrive Table 2.
-FOGDRIVE_CAMERA_POSES: dict[str, Pose] = {
-    "CAM_FRONT": Pose(1.8, 0.0, 1.2, 0.0, 0.0, 0.0),
-    "CAM_BACK": Pose(-2.4, 0.0, 1.2, 0.0, 0.0, 180.0),
-    "CAM_LEFT": Pose(0.5, -0.7, 1.5, 0.0, 0.0, -100.0),
-    "CAM_RIGHT": Pose(0.5, 0.7, 1.5, 0.0, 0.0, 100.0),
-}
-
-
 def parse_resolution(resolution: Any) -> tuple[int, int]:
     """Validate a ``(width, height)`` pair of positive integers."""
     try:
@@ -103,41 +58,110 @@ def parse_resolution(resolution: Any) -> tuple[int, int]:
     return int(w), int(h)
 
 
-@dataclass(frozen=True)
+#: The sensor names of the FogDrive point sensors, which :class:`RigConfig`'s named accessors look up.
+LIDAR_NAME, SEMANTIC_LIDAR_NAME, RADAR_NAME = "LIDAR_TOP", "SEM_LIDAR_TOP", "RADAR_FRONT"
+_ROLES = (("lidar", LIDAR_NAME), ("semantic_lidar", SEMANTIC_LIDAR_NAME), ("radar", RADAR_NAME))
+_UNSET: Any = object()
+@dataclass(frozen=True, init=False)
 class RigConfig:
-    """The sensor rig. :meth:`fogdrive` is the FogDrive preset (Table 2, supplementary D5).
+    """The sensor rig: one ordered sequence of named sensor configs, ``sensors=((name, config), ...)``.
+
+    Each config's type picks its sensor class (:func:`fog_gym.sensors.sensor_class`: :class:`CameraConfig` →
+    camera, :class:`~fog_gym.lidar.LidarConfig` → LiDAR, :class:`~fog_gym.lidar.SemanticLidarConfig` → semantic
+    LiDAR, :class:`~fog_gym.lidar.RadarConfig` → radar, and any registered type). The env's observation, the fog
+    wrapper, labels, the dataset layout, the writer, ``validate`` and the loaders all follow the sequence. A
+    point sensor's name is its channel; a camera's name is its :attr:`CameraConfig.name` (channels ``N``,
+    ``N_DEPTH``, ``N_SEM``). A bare :class:`CameraConfig` stands for ``(config.name, config)``.
+
+    :meth:`fogdrive` is the FogDrive preset (Table 2, supplementary D5). The named views :attr:`cameras`,
+    :attr:`lidar` (``LIDAR_TOP``), :attr:`semantic_lidar` (``SEM_LIDAR_TOP``), :attr:`radar` (``RADAR_FRONT``)
+    and :attr:`extra` (every other sensor) are read-only; the keywords of the same names (the pre-sequence
+    constructor, and ``dataclasses.replace(rig, lidar=...)``) replace that part of the sequence: a sensor present
+    is replaced in place (``None`` removes it), an absent one is inserted in FogDrive order (cameras, LiDAR,
+    semantic LiDAR, radar), ``extra`` replaces the other sensors at the end.
 
     >>> [c.name for c in RigConfig.fogdrive().cameras]
     ['CAM_FRONT', 'CAM_BACK', 'CAM_LEFT', 'CAM_RIGHT']
+    >>> rig = RigConfig.fogdrive(resolution=(64, 48), cameras=["CAM_FRONT"])
+    >>> rig.names
+    ('CAM_FRONT', 'LIDAR_TOP', 'SEM_LIDAR_TOP', 'RADAR_FRONT')
+    >>> RigConfig(rig.sensors) == rig
+    True
+    >>> narrow = CameraConfig("CAM_FRONT_NARROW", Pose(1.8, 0, 1.2), 64, 48, fov=40.0)
+    >>> rig.with_sensor(narrow.name, narrow).names[-1]
+    'CAM_FRONT_NARROW'
     """
 
-    cameras: tuple[CameraConfig, ...] = field(default_factory=tuple)
-    lidar: LidarConfig | None = None  # LIDAR_TOP
-    semantic_lidar: LidarConfig | None = None  # SEM_LIDAR_TOP
-    radar: RadarConfig | None = None  # RADAR_FRONT
-    #: Further sensors as ``(channel name, config)`` pairs; the config's type picks the sensor class
-    #: (:func:`fog_gym.sensors.register`), e.g. ``(("RADAR_BACK", RadarConfig(...)),)``.
-    extra: tuple[tuple[str, Any], ...] = ()
+    sensors: tuple[tuple[str, Any], ...] = ()
 
-    def __post_init__(self) -> None:
-
-        cams = tuple(self.cameras)
-        for cam in cams:
-            if not isinstance(cam, CameraConfig):
-                raise ValueError(f"cameras must be CameraConfig instances, got {cam!r}")
-        names = [c.name for c in cams]
+    def __init__(self, sensors: Sequence[Any] = (), *, cameras: Sequence[CameraConfig] | None = None,
+                 lidar: Any = _UNSET, semantic_lidar: Any = _UNSET, radar: Any = _UNSET,
+                 extra: Sequence[tuple[str, Any]] | None = None) -> None:  # fmt: skip
+        if isinstance(sensors, (str, bytes)) or not isinstance(sensors, Sequence):
+            raise ValueError(f"sensors must be a sequence of (name, config) pairs, got {sensors!r}")
+        entries = [_entry(e) for e in sensors]
+        if cameras is not None or extra is not None or any(v is not _UNSET for v in (lidar, semantic_lidar, radar)):
+            entries = _merge_named(entries, cameras, {"lidar": lidar, "semantic_lidar": semantic_lidar, "radar": radar}, extra)
+        names = [n for n, _ in entries]
         if len(set(names)) != len(names):
-            raise ValueError(f"camera names must be unique, got {names}")
-        object.__setattr__(self, "cameras", cams)
-        extra = tuple(tuple(e) if isinstance(e, (tuple, list)) else e for e in self.extra)
-        for e in extra:
-            if not (isinstance(e, tuple) and len(e) == 2 and isinstance(e[0], str) and e[0]):
-                raise ValueError(f"extra must hold (channel name, sensor config) pairs, got {e!r}")
-        object.__setattr__(self, "extra", extra)
-        for name, kind in (("lidar", LidarConfig), ("semantic_lidar", LidarConfig), ("radar", RadarConfig)):
-            value = getattr(self, name)
-            if value is not None and not isinstance(value, kind):
-                raise ValueError(f"{name} must be a {kind.__name__} or None, got {type(value).__name__}")
+            dup = sorted({n for n in names if names.count(n) > 1})
+            raise ValueError(f"sensor names must be unique in a rig (camera names too), got {dup} more than once")
+        for name, cfg in entries:
+            _check_config_type(name, cfg)
+        object.__setattr__(self, "sensors", tuple(entries))
+
+    # -- read-only views --------------------------------------------------------------------------------
+    @property
+    def names(self) -> tuple[str, ...]:
+        """The sensor names in rig order."""
+        return tuple(n for n, _ in self.sensors)
+
+    @property
+    def cameras(self) -> tuple[CameraConfig, ...]:
+        """Every camera of the rig, in rig order."""
+        return tuple(c for _, c in self.sensors if isinstance(c, CameraConfig))
+
+    @property
+    def lidar(self) -> Any:
+        """The config of ``LIDAR_TOP``, or None."""
+        return self._named(LIDAR_NAME)
+
+    @property
+    def semantic_lidar(self) -> Any:
+        """The config of ``SEM_LIDAR_TOP``, or None."""
+        return self._named(SEMANTIC_LIDAR_NAME)
+
+    @property
+    def radar(self) -> Any:
+        """The config of ``RADAR_FRONT``, or None."""
+        return self._named(RADAR_NAME)
+
+    @property
+    def extra(self) -> tuple[tuple[str, Any], ...]:
+        """The sensors that are neither cameras nor ``LIDAR_TOP``, ``SEM_LIDAR_TOP``, ``RADAR_FRONT``."""
+        named = {n for _, n in _ROLES}
+        return tuple((n, c) for n, c in self.sensors if not isinstance(c, CameraConfig) and n not in named)
+
+    def _named(self, name: str) -> Any:
+        return next((c for n, c in self.sensors if n == name), None)
+
+    def sensor(self, name: str) -> Any:
+        """The config of the sensor ``name``."""
+        for n, c in self.sensors:
+            if n == name:
+                return c
+        raise KeyError(f"no sensor named {name!r} in the rig (sensors: {list(self.names)})")
+
+    def camera(self, name: str) -> CameraConfig:
+        for c in self.cameras:
+            if c.name == name:
+                return c
+        raise KeyError(name)
+
+    # -- new rigs ---------------------------------------------------------------------------------------
+    def with_sensor(self, name: str, config: Any) -> RigConfig:
+        """The same rig with one more sensor at the end (a camera's ``name`` is its config's)."""
+        return RigConfig((*self.sensors, (name, config)))
 
     @classmethod
     def fogdrive(
@@ -151,8 +175,9 @@ class RigConfig:
         radar: bool = True,
     ) -> RigConfig:
         """The FogDrive rig (Table 2, D5), optionally at another resolution, with a subset of cameras, other camera
-        poses, or without the LiDAR, semantic LiDAR or radar."""
-
+        poses, or without the LiDAR, semantic LiDAR or radar. Sensor order: cameras, ``LIDAR_TOP``,
+        ``SEM_LIDAR_TOP``, ``RADAR_FRONT``."""
+        
         w, h = parse_resolution(resolution)
         names = CAMERA_NAMES if cameras is None else tuple(cameras)
         for n in names:
@@ -162,23 +187,102 @@ class RigConfig:
         for n in poses:
             if n not in CAMERA_NAMES:
                 raise ValueError(f"poses: camera name must be one of {CAMERA_NAMES}, got {n!r}")
-        return cls(
-            tuple(CameraConfig(n, Pose.coerce(poses.get(n, FOGDRIVE_CAMERA_POSES[n])), w, h, fov) for n in names),
-            lidar=LidarConfig.fogdrive() if lidar else None,
-            semantic_lidar=LidarConfig.fogdrive_semantic() if semantic_lidar else None,
-            radar=RadarConfig.fogdrive() if radar else None,
-        )
+        sensors: list[tuple[str, Any]] = [
+            (n, CameraConfig(n, Pose.coerce(poses.get(n, FOGDRIVE_CAMERA_POSES[n])), w, h, fov)) for n in names
+        ]
+        if lidar:
+            sensors.append((LIDAR_NAME, LidarConfig.fogdrive()))
+        if semantic_lidar:
+            sensors.append((SEMANTIC_LIDAR_NAME, LidarConfig.fogdrive_semantic()))
+        if radar:
+            sensors.append((RADAR_NAME, RadarConfig.fogdrive()))
+        return cls(tuple(sensors))
 
     def with_resolution(self, resolution: Sequence[int]) -> RigConfig:
         """The same rig with every camera at ``(width, height)`` (intrinsics scale with it)."""
         w, h = parse_resolution(resolution)
-        return replace(self, cameras=tuple(replace(c, width=w, height=h) for c in self.cameras))
+        return RigConfig(tuple((n, replace(c, width=w, height=h) if isinstance(c, CameraConfig) else c)
+                               for n, c in self.sensors))  # fmt: skip
 
-    def camera(self, name: str) -> CameraConfig:
-        for c in self.cameras:
-            if c.name == name:
-                return c
-        raise KeyError(name)
+
+def _entry(e: Any) -> tuple[str, Any]:
+    """One ``(name, config)`` entry of a rig (a bare :class:`CameraConfig` is named by itself)."""
+    if isinstance(e, CameraConfig):
+        return (e.name, e)
+    if not (isinstance(e, (tuple, list)) and len(e) == 2):
+        raise ValueError(f"sensors must hold (name, config) pairs or CameraConfig instances, got {e!r}")
+    name, cfg = e
+    check_sensor_name(name)
+    if isinstance(cfg, CameraConfig) and cfg.name != name:
+        raise ValueError(f"a camera's sensor name is its config's name: got ({name!r}, CameraConfig({cfg.name!r}, ...))")
+    return (name, cfg)
+
+
+#: The config type each FogDrive point-sensor name needs (the type picks the sensor class, so a FogDrive name
+#: built by another class would store other data under a FogDrive channel).
+_FOGDRIVE_TYPES = {LIDAR_NAME: LidarConfig, SEMANTIC_LIDAR_NAME: SemanticLidarConfig, RADAR_NAME: RadarConfig}
+
+
+def _check_config_type(name: str, cfg: Any) -> None:
+    """A built-in config type or one registered with :func:`fog_gym.sensors.register`; FogDrive names keep their
+    FogDrive type (the channel and folder rules of the whole rig are checked by ``fog_gym.sensors.rig_layout``
+    when an env or recorder is built)."""
+    from fog_gym.registry import REGISTRY, registered_type
+
+    builtin = (CameraConfig, LidarConfig, RadarConfig)
+    if not isinstance(cfg, builtin) and registered_type(type(cfg)) is None:
+        known = ", ".join(sorted({t.__name__ for t in (*builtin, SemanticLidarConfig, *REGISTRY)}))
+        raise ValueError(f"sensor {name!r}: config type must be one of the registered sensor configs ({known}), "
+                         f"got {type(cfg).__name__}")  # fmt: skip
+    want = _FOGDRIVE_TYPES.get(name)
+    if want is not None and not (isinstance(cfg, want) and (want is not LidarConfig or not isinstance(cfg, SemanticLidarConfig))):
+        raise ValueError(f"sensor {name!r} is FogDrive's and needs a {want.__name__}, got {type(cfg).__name__}")
+    if name in CAMERA_NAMES and not isinstance(cfg, CameraConfig):
+        raise ValueError(f"sensor {name!r} is a FogDrive camera and needs a CameraConfig, got {type(cfg).__name__}")
+
+
+def _merge_named(entries: list[tuple[str, Any]], cameras: Any, named: dict[str, Any], extra: Any) -> list[tuple[str, Any]]:
+    """Apply the pre-sequence keywords (``cameras``, ``lidar``, ``semantic_lidar``, ``radar``, ``extra``)."""
+    out = list(entries)
+    if cameras is not None:
+        cams = tuple(cameras)
+        for cam in cams:
+            if not isinstance(cam, CameraConfig):
+                raise ValueError(f"cameras must be CameraConfig instances, got {cam!r}")
+        cam_names = [c.name for c in cams]
+        if len(set(cam_names)) != len(cam_names):
+            raise ValueError(f"camera names must be unique, got {cam_names}")
+        at = next((i for i, (_, c) in enumerate(out) if isinstance(c, CameraConfig)), 0)
+        out = [e for e in out if not isinstance(e[1], CameraConfig)]
+        out[at:at] = [(c.name, c) for c in cams]
+    kinds = {"lidar": LidarConfig, "semantic_lidar": LidarConfig, "radar": RadarConfig}
+    for i, (role, name) in enumerate(_ROLES):
+        value = named[role]
+        if value is _UNSET:
+            continue
+        if value is not None and not isinstance(value, kinds[role]):
+            raise ValueError(f"{role} must be a {kinds[role].__name__} or None, got {type(value).__name__}")
+        if role == "semantic_lidar" and value is not None and not isinstance(value, SemanticLidarConfig):
+            value = SemanticLidarConfig(**{f: getattr(value, f) for f in value.__dataclass_fields__})
+        where = next((j for j, (n, _) in enumerate(out) if n == name), None)
+        if where is not None:
+            if value is None:
+                del out[where]
+            else:
+                out[where] = (name, value)
+        elif value is not None:  # after the cameras and the FogDrive sensors before it
+            before = {n for _, n in _ROLES[:i]}
+            at = max((j + 1 for j, (n, c) in enumerate(out) if isinstance(c, CameraConfig) or n in before), default=0)
+            out.insert(at, (name, value))
+    if extra is not None:
+        pairs = []
+        for e in extra:
+            if not (isinstance(e, (tuple, list)) and len(e) == 2 and isinstance(e[0], str) and e[0]):
+                raise ValueError(f"extra must hold (channel name, sensor config) pairs, got {e!r}")
+            pairs.append(_entry(tuple(e)))
+        roles = {n for _, n in _ROLES}
+        out = [e for e in out if isinstance(e[1], CameraConfig) or e[0] in roles] + pairs
+    return out
 
 
 @dataclass(frozen=True)

@@ -21,12 +21,13 @@ from gymnasium import spaces
 from fog_gym._kernels import announce_compilation
 from fog_gym.config import FogDriveConfig, RigConfig
 from fog_gym import geometry
-from fog_gym.labels import EXTRINSIC_KEYS, CameraView, LabelConfig, annotate
+from fog_gym.dataset.layout import extrinsic_key
+from fog_gym.labels import CameraView, LabelConfig, annotate
 from fog_gym.lidar import sensor_to_world
 from fog_gym.scene import Lighting, Scene, StaticWorld, vehicle_primitives
 from fog_gym.scenery import STYLES, build_surface, place_props
 from fog_gym.points import SEMANTIC_LIDAR, pack_points
-from fog_gym.sensors import MAX_TAG, CameraFrame, CameraRig, CameraSensor, PointSensors
+from fog_gym.sensors import MAX_TAG, CameraFrame, CameraRig, PointSensors, rig_layout, rig_sensors
 from fog_gym.world import EGO_ID, TOWN_SPECS, TrafficWorld
 from fog_gym.seeds import stream
 
@@ -36,11 +37,12 @@ MAX_SPEED = 40.0  # highway-env's Vehicle.MAX_SPEED [m/s]: bounds where the ego 
 class FogDriveEnv(gym.Env):
     """The FogDrive rig in a highway-env world. Observation: a flat ``Dict`` keyed by FogDrive channel names.
 
-    For each camera ``C`` of the rig: ``C`` (H, W, 3) uint8 RGB, ``C_DEPTH`` (H, W) float32 planar depth in
+    The channels follow the rig (:class:`RigConfig`, a sequence of named sensors). For each camera ``C`` of the
+    rig (the FogDrive four, or any added one): ``C`` (H, W, 3) uint8 RGB, ``C_DEPTH`` (H, W) float32 planar depth in
     metres (sky = 1000), ``C_SEM`` (H, W) uint8 CARLA ≥ 0.9.14 tag ids. Point sensors, as fixed-capacity float32
     arrays (points first, zero rows after; :func:`fog_gym.unpack_points` gives the exact (N, C) array):
     ``LIDAR_TOP`` (x, y, z, intensity), ``SEM_LIDAR_TOP`` (x, y, z, cos incidence, object id, tag),
-    ``RADAR_FRONT`` (velocity, azimuth, altitude, depth). Instance ids per camera are in
+    ``RADAR_FRONT`` (velocity, azimuth, altitude, depth), and each added point sensor's channel. Instance ids per camera are in
     :attr:`instance_buffers` (not a FogDrive channel). Actions, reward and termination are highway-env's.
 
     Arguments (all optional): ``town`` (one of :data:`fog_gym.TOWNS`), ``time_of_day`` ("day"/"night"),
@@ -55,7 +57,7 @@ class FogDriveEnv(gym.Env):
     latest :class:`~fog_gym.scene.Scene`), ``frames`` (the latest :class:`~fog_gym.sensors.CameraFrame` per
     camera), ``points`` (the latest ``(N, C)`` sweep per point sensor), :attr:`camera_names`, :attr:`intrinsics`,
     :attr:`instance_buffers`, :attr:`idle_action`, :meth:`ground_truth`, ``cameras`` (the
-    :class:`~fog_gym.sensors.CameraRig`), ``point_sensors`` and ``world`` (the :class:`~fog_gym.world.TrafficWorld`).
+    :class:`~fog_gym.sensors.CameraRig`), ``sensors`` (every sensor, rig order), ``point_sensors`` and ``world`` (the :class:`~fog_gym.world.TrafficWorld`).
 
     >>> env = FogDriveEnv(town="merge", resolution=(32, 24), cameras=["CAM_FRONT"])
     >>> sorted(env.observation_space.spaces)
@@ -115,9 +117,12 @@ class FogDriveEnv(gym.Env):
                                   traffic=c.traffic)  # fmt: skip
         self.cameras = CameraRig(c.rig, far=c.far_distance)
         self.action_space = self.world.action_space
+        rig_layout(c.rig)  # channel or folder clashes between the rig's sensors fail here, before any work
+        #: Every sensor of the rig, in rig order (the observation's channels are theirs).
+        self.sensors = rig_sensors(c.rig, c.simulation_frequency, c.far_distance)
         obs_spaces: dict[str, spaces.Space] = {}
-        for cam in c.rig.cameras:
-            obs_spaces.update(CameraSensor(cam, far=c.far_distance).observation_spaces())
+        for sensor in self.sensors:
+            obs_spaces.update(sensor.observation_spaces())
         self.point_sensors = PointSensors(c.rig, c.simulation_frequency)
         # ground truth lives in the LiDAR frame (FogDrive's 3D boxes); the FogDrive roof pose if the rig has no LiDAR
         label_lidar = c.rig.lidar or c.rig.semantic_lidar
@@ -126,7 +131,6 @@ class FogDriveEnv(gym.Env):
             cam.name: geometry.lidar_to_camera(self._label_lidar_to_vehicle, self.cameras.sensor_to_vehicle[cam.name])
             for cam in c.rig.cameras
         }
-        obs_spaces.update(self.point_sensors.observation_spaces())
         self.observation_space = spaces.Dict(obs_spaces)
         self.scene: Scene | None = None
         self.frames: dict[str, CameraFrame] = {}
@@ -261,7 +265,7 @@ class FogDriveEnv(gym.Env):
             "boxes_3d": boxes_3d,
             "boxes_2d": boxes_2d,
             "intrinsics": {c.name: self.cameras.intrinsics[c.name].copy() for c in rig.cameras},
-            "extrinsics": {EXTRINSIC_KEYS[c.name]: self._extrinsics[c.name].copy() for c in rig.cameras},
+            "extrinsics": {extrinsic_key(c.name): self._extrinsics[c.name].copy() for c in rig.cameras},
         }
 
     @property
@@ -287,10 +291,12 @@ class FogDriveEnv(gym.Env):
 
 
 def _camera(rig: RigConfig, name: str):
+    """The camera ``name`` of the rig, or a FogDrive camera at the rig's camera size (``cameras=`` of the env)."""
     from fog_gym.config import CAMERA_NAMES, FOGDRIVE_CAMERA_POSES, CameraConfig
 
-    if name not in CAMERA_NAMES:
-        raise ValueError(f"camera name must be one of {CAMERA_NAMES}, got {name!r}")
+    known = tuple(dict.fromkeys((*CAMERA_NAMES, *(c.name for c in rig.cameras))))
+    if name not in known:
+        raise ValueError(f"camera name must be one of {known}, got {name!r}")
     try:
         return rig.camera(name)
     except KeyError:

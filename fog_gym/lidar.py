@@ -137,13 +137,13 @@ class LidarConfig:
         return cls(**values)
 
     @classmethod
-    def fogdrive_semantic(cls, **overrides: Any) -> LidarConfig:
-        """FogDrive's semantic LiDAR: as :meth:`fogdrive` with 750 k points/s.
+    def fogdrive_semantic(cls, **overrides: Any) -> SemanticLidarConfig:
+        """FogDrive's semantic LiDAR: as :meth:`fogdrive` with 750 k points/s (a :class:`SemanticLidarConfig`).
 
         >>> LidarConfig.fogdrive_semantic().points_per_channel(20)
         586
         """
-        return cls.fogdrive(**{"points_per_second": 750_000.0, **overrides})
+        return SemanticLidarConfig.fogdrive(**{"points_per_second": 750_000.0, **overrides})
 
     def points_per_channel(self, simulation_frequency: float = 20.0) -> int:
         """Rays per laser per tick, ``points_per_second / (simulation_frequency · channels)`` rounded half up.
@@ -180,6 +180,16 @@ class LidarConfig:
         step_az = self.tick_angle(simulation_frequency) / m
         azimuths = np.fmod(float(start_angle) + step_az * np.arange(m), self.horizontal_fov) - self.horizontal_fov / 2
         return elevations, azimuths
+
+
+@dataclass(frozen=True)
+class SemanticLidarConfig(LidarConfig):
+    """A semantic LiDAR (CARLA ``sensor.lidar.ray_cast_semantic``): the LiDAR's attributes, its own type so that a
+    rig's sensor registry builds a semantic LiDAR for it (:mod:`fog_gym.sensors`).
+
+    >>> isinstance(LidarConfig.fogdrive_semantic(), SemanticLidarConfig)
+    True
+    """
 
 
 @dataclass(frozen=True)

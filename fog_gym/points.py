@@ -29,21 +29,20 @@ RADAR = "RADAR_FRONT"
 COLUMNS = {LIDAR: 4, SEMANTIC_LIDAR: 6, RADAR: 4}
 
 
-#: Point channels of sensors added to a rig (:mod:`fog_gym.sensors` registers them): any non-zero row is a point.
-ADDED: set[str] = set()
-
-
-def channel_kind(channel: str) -> str:
-    """``LIDAR_TOP``, ``SEM_LIDAR_TOP`` or ``RADAR_FRONT`` for a channel name (fog variants ``LIDAR_TOP_FOG_*`` included)."""
+def channel_kind(channel: str) -> str | None:
+    """``LIDAR_TOP``, ``SEM_LIDAR_TOP`` or ``RADAR_FRONT`` for a FogDrive point channel (fog variants
+    ``LIDAR_TOP_FOG_*`` included); None for an added point sensor's channel, whose points are its non-zero rows.
+    A camera or box channel (``CAM_*``, ``*_DEPTH``, ``*_SEM``, ``*_BBOX``) raises ``ValueError``."""
     if channel == SEMANTIC_LIDAR or channel.startswith(SEMANTIC_LIDAR + "_"):
         return SEMANTIC_LIDAR
     if channel == LIDAR or channel.startswith(LIDAR + "_"):
         return LIDAR
     if channel == RADAR or channel.startswith(RADAR + "_"):
         return RADAR
-    if channel in ADDED:
-        return channel
-    raise ValueError(f"channel must be a point channel ({LIDAR}[_FOG_*], {SEMANTIC_LIDAR}, {RADAR}), got {channel!r}")
+    if channel.startswith("CAM_") or channel.endswith(("_DEPTH", "_SEM", "_BBOX")) or channel == "BBOX_3D":
+        raise ValueError(f"channel must be a point channel ({LIDAR}[_FOG_*], {SEMANTIC_LIDAR}, {RADAR} or an added "
+                         f"point sensor's), got the camera or box channel {channel!r}")  # fmt: skip
+    return None
 
 
 def pack_points(points: np.ndarray, capacity: int) -> np.ndarray:
@@ -58,10 +57,9 @@ def pack_points(points: np.ndarray, capacity: int) -> np.ndarray:
 
 def unpack_points(obs: Mapping[str, np.ndarray] | np.ndarray, channel: str | None = None) -> np.ndarray:
     """The exact ``(N, 4)`` / ``(N, 6)`` / ``(N, 4)`` float32 points of ``LIDAR_TOP*``, ``SEM_LIDAR_TOP`` or
-    ``RADAR_FRONT`` from an observation dict (or from the channel's array itself)."""
-    kind = None if channel is None else channel_kind(channel)
-    if kind in ADDED:  # a sensor added to the rig: any non-zero row is a point
-        kind = None
+    ``RADAR_FRONT`` (or ``(N, C)`` of an added point sensor) from an observation dict (or from the channel's array
+    itself)."""
+    kind = None if channel is None else channel_kind(channel)  # None: an added sensor, any non-zero row is a point
     if isinstance(obs, Mapping):
         if channel is None:
             raise ValueError("unpack_points needs the channel name when given an observation dict")

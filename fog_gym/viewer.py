@@ -106,7 +106,8 @@ def sample_from_dataset(ds: Any, sample_token: str) -> dict[str, Any]:
     """Decode every file of one sample of a :class:`fog_gym.dataset.access.FogDrive` dataset."""
     from fog_gym.dataset.decode import load_channel
 
-    return {ch: load_channel(ch, path) for ch, path in ds.get_sample_paths(sample_token).items()}
+    layout = getattr(ds, "channels", {})  # the set's layout: added sensors' channels decode as their rig declared
+    return {ch: load_channel(ch, path, layout.get(ch)) for ch, path in ds.get_sample_paths(sample_token).items()}
 
 
 def sample_from_env(obs: Mapping[str, np.ndarray], info: Mapping[str, Any]) -> dict[str, Any]:

@@ -25,12 +25,12 @@ def first_idle(action_space):
 
 @pytest.fixture(autouse=True)
 def _restore_sensor_and_fog_registries():
-    """A test (or README example) that adds a sensor or a fog model leaves the registries as it found them."""
-    from fog_gym import fog_models, points, sensors
-    from fog_gym.dataset import layout
+    """A test (or README example) that registers a sensor class or a fog model leaves the registries as it found
+    them (a dataset's channel layout comes from its rig, nothing global to restore)."""
+    from fog_gym import fog_models, sensors
 
-    saved = (dict(layout.CHANNELS), set(points.ADDED), dict(sensors.REGISTRY), dict(fog_models.MODELS))
+    saved = (dict(sensors.REGISTRY), dict(fog_models.MODELS))
     yield
-    for live, old in zip((layout.CHANNELS, points.ADDED, sensors.REGISTRY, fog_models.MODELS), saved):
+    for live, old in zip((sensors.REGISTRY, fog_models.MODELS), saved):
         live.clear()
         live.update(old)

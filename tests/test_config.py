@@ -82,3 +82,93 @@ def test_make_forwards_kwargs():
     }
     assert env.observation_space["CAM_BACK"].shape == (32, 48, 3)
     env.close()
+
+
+# -- the rig as one sequence of named sensor configs ------------------------------------------------------------
+from dataclasses import replace  # noqa: E402
+
+from hypothesis import given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+from fog_gym.config import FOGDRIVE_CAMERA_POSES  # noqa: E402
+from fog_gym.lidar import LidarConfig, RadarConfig, SemanticLidarConfig  # noqa: E402
+
+
+def _fogdrive_sequence(w=1280, h=960):
+    cams = [(n, CameraConfig(n, FOGDRIVE_CAMERA_POSES[n], w, h, 100.0)) for n in fog_gym.CAMERA_NAMES]
+    return (*cams, ("LIDAR_TOP", LidarConfig.fogdrive()), ("SEM_LIDAR_TOP", LidarConfig.fogdrive_semantic()),
+            ("RADAR_FRONT", RadarConfig.fogdrive()))  # fmt: skip
+
+
+def test_a_rig_built_from_a_sequence_equals_the_fogdrive_preset():
+    rig = RigConfig(_fogdrive_sequence())
+    preset = RigConfig.fogdrive()
+    assert rig == preset and hash(rig) == hash(preset)
+    assert rig.names == ("CAM_FRONT", "CAM_BACK", "CAM_LEFT", "CAM_RIGHT", "LIDAR_TOP", "SEM_LIDAR_TOP", "RADAR_FRONT")
+    assert (rig.lidar, rig.semantic_lidar, rig.radar) == (LidarConfig.fogdrive(), LidarConfig.fogdrive_semantic(),
+                                                          RadarConfig.fogdrive())  # fmt: skip
+    assert rig.extra == () and type(rig.semantic_lidar) is SemanticLidarConfig
+
+
+def test_the_pre_sequence_keyword_constructor_builds_the_same_sequence():
+    preset = RigConfig.fogdrive(resolution=(64, 48))
+    legacy = RigConfig(preset.cameras, lidar=LidarConfig.fogdrive(), semantic_lidar=LidarConfig.fogdrive(points_per_second=750_000.0),
+                       radar=RadarConfig.fogdrive())  # fmt: skip
+    assert legacy == preset  # a plain LidarConfig as semantic_lidar becomes the semantic LiDAR's config type
+    assert RigConfig(cameras=preset.cameras, lidar=None, radar=None).names == tuple(fog_gym.CAMERA_NAMES)
+
+
+def test_named_keywords_replace_in_place_remove_with_none_and_reinsert_in_fogdrive_order():
+    rig = RigConfig.fogdrive(resolution=(64, 48))
+    lidar32 = LidarConfig.fogdrive(channels=32)
+    changed = replace(rig, lidar=lidar32)
+    assert changed.names == rig.names and changed.lidar == lidar32
+    without = replace(rig, lidar=None)
+    assert "LIDAR_TOP" not in without.names and without.lidar is None
+    assert replace(without, lidar=LidarConfig.fogdrive()) == rig  # back where FogDrive puts it
+    assert replace(rig, cameras=rig.cameras[2:3]).names[0] == "CAM_LEFT"
+    assert rig.with_resolution((32, 24)).names == rig.names
+
+
+def test_properties_are_read_only_views_of_the_sequence():
+    rig = RigConfig.fogdrive(resolution=(64, 48))
+    with pytest.raises(AttributeError):
+        rig.lidar = None
+    assert rig.sensor("RADAR_FRONT") is rig.radar
+    with pytest.raises(KeyError, match="no sensor named 'RADAR_BACK'"):
+        rig.sensor("RADAR_BACK")
+
+
+_POOL = [*_fogdrive_sequence(16, 12), ("RADAR_BACK", RadarConfig.fogdrive()), ("LIDAR_REAR", LidarConfig.fogdrive()),
+         ("CAM_FRONT_NARROW", CameraConfig("CAM_FRONT_NARROW", Pose(1.8, 0, 1.2), 16, 12, 40.0))]  # fmt: skip
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.sampled_from(_POOL), max_size=12))
+def test_any_order_of_sensors_is_a_rig_exactly_when_the_names_are_unique(entries):
+    names = [n for n, _ in entries]
+    if len(set(names)) == len(names):
+        rig = RigConfig(entries)
+        assert rig.names == tuple(names) and RigConfig(rig.sensors) == rig
+        assert [c.name for c in rig.cameras] == [n for n, c in entries if isinstance(c, CameraConfig)]
+    else:
+        with pytest.raises(ValueError, match="sensor names must be unique"):
+            RigConfig(entries)
+
+
+@pytest.mark.parametrize(
+    ("entry", "match"),
+    [
+        (RadarConfig.fogdrive(), "pairs or CameraConfig"),
+        (("RADAR_BACK", RadarConfig.fogdrive(), "x"), "pairs or CameraConfig"),
+        (("radar_back", RadarConfig.fogdrive()), "upper-case channel name"),
+        (("RADAR_BACK", object()), "'RADAR_BACK': config type must be one of the registered sensor configs"),
+        (("SEM_LIDAR_TOP", LidarConfig.fogdrive()), "'SEM_LIDAR_TOP' is FogDrive's and needs a SemanticLidarConfig"),
+        (("LIDAR_TOP", LidarConfig.fogdrive_semantic()), "'LIDAR_TOP' is FogDrive's and needs a LidarConfig"),
+        (("CAM_BACK", RadarConfig.fogdrive()), "'CAM_BACK' is a FogDrive camera and needs a CameraConfig"),
+        (("CAM_X", CameraConfig("CAM_Y", Pose(0, 0, 1))), "a camera's sensor name is its config's name"),
+    ],
+)
+def test_a_bad_sequence_entry_is_refused_naming_the_problem(entry, match):
+    with pytest.raises(ValueError, match=match):
+        RigConfig((entry,))

@@ -34,6 +34,9 @@ def parse_fog_levels(fog: FogSpec | Sequence[FogSpec]) -> tuple[tuple[FogLevel, 
 class FogWrapper(gym.Wrapper):
     """Fog on camera RGB (Koschmieder) and LiDAR (Hahner et al.) at any visibility; ground truth untouched.
 
+    The fogged channels follow the rig: every sensor whose kind has a fog model (:mod:`fog_gym.fog_models`) —
+    every camera, added ones included, and every LiDAR.
+
     * **In place** (``fog`` a single level: "clear", "light" 160 m, "moderate" 100 m, "dense" 50 m, or metres):
       fogged ``CAM_*`` RGB and ``LIDAR_TOP`` replace the clean data under the same keys; the observation space
       does not depend on the level, so :meth:`set_fog` can change it between episodes (curricula).
@@ -76,13 +79,13 @@ class FogWrapper(gym.Wrapper):
         self._pending: FogLevel | None = None
         self._last: dict | None = None
         self.cameras = list(base.camera_names)
-        # the fogged channels and their models, from the rig: cameras first, then the point sensors in rig order
-        self.models = {cam: model_for("camera") for cam in self.cameras}
-        for sensor in base.point_sensors.sensors:
+        # the fogged channels and their models, from the rig in rig order: each sensor's first channel (a camera's
+        # RGB, a LiDAR's points) gets the model of its kind (fog_gym.fog_models); kinds without one stay clean
+        self.models = {}
+        for sensor in base.sensors:
             model = model_for(sensor.kind)
-            if model is not None:
-                self.models.update({ch: model for ch in sensor.channels if ch in env.observation_space.spaces})
-        self.models = {ch: m for ch, m in self.models.items() if m is not None}
+            if model is not None and sensor.channels[0] in env.observation_space.spaces:
+                self.models[sensor.channels[0]] = model
         self.has_lidar = any(model_for("lidar") is m for m in self.models.values())
         self.airlight: dict[str, np.ndarray] = {}
         self._rngs: dict[str, np.random.Generator] = {}

@@ -10,7 +10,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from fog_gym.dataset.layout import CAMERAS, DATA_ROOT, FOGDRIVE_CHANNELS, parse_scene_folder, scene_folder_name, scene_id
+from fog_gym.dataset.layout import CAMERAS, DATA_ROOT, parse_scene_folder, scene_folder_name, scene_id
 from fog_gym.dataset.writer import SceneWriter, build_index
 from fog_gym.wrappers.fog import FogWrapper
 
@@ -23,9 +23,10 @@ class RecordFogDrive(gym.Wrapper):
     rebuilds ``index/{scene,sample,sample_data}.json`` from disk when an episode ends and on ``close``.
 
     Wrap a clean FogDrive-v0 env (the paired fog wrapper is added) or one already in paired fog with the three
-    FogDrive levels. The rig must be the full FogDrive rig (4 cameras, LiDAR, semantic LiDAR, radar) with
-    ground truth on; sensors added with ``RigConfig.extra`` are recorded too, each channel in the folder its
-    sensor declares. Runs are numbered after those already under ``root`` for the same town and time of day.
+    FogDrive levels. The rig must hold the FogDrive rig (4 cameras, LiDAR, semantic LiDAR, radar) with ground
+    truth on; every further sensor of the rig (a rear radar, a second LiDAR, another camera with its fog levels,
+    depth, semantics and 2D boxes) is recorded too, each channel in the folder its sensor declares, and the
+    layout goes with the set (``index/channels.json``) for ``validate`` and the loaders. Runs are numbered after those already under ``root`` for the same town and time of day.
 
     Writing overlaps simulation: sample k is encoded and written (its files in parallel by ``workers``
     threads, default one per core, ``BBOX_3D`` last) while the env simulates sample k + 1; ``step`` waits for
@@ -62,9 +63,14 @@ class RecordFogDrive(gym.Wrapper):
             raise ValueError(f"workers must be a positive integer or None, got {workers!r}")
         super().__init__(env)
         self.workers = workers
-        #: The channels written: FogDrive's 35, then those of the rig's added sensors (``RigConfig.extra``).
-        added = [ch for s in base.point_sensors.sensors for ch in s.layout() if ch not in FOGDRIVE_CHANNELS]
-        self.channels = (*FOGDRIVE_CHANNELS, *(ch for ch in added if ch in self.env.observation_space.spaces))
+        from fog_gym.sensors import rig_layout
+
+        #: The layout written, from the rig: every sensor's channels in rig order (a channel without data in the
+        #: observation, such as the fog variants of a sensor kind without a fog model, is left out), then BBOX_3D.
+        obs_keys = self.env.observation_space.spaces
+        self.layout = {ch: spec for ch, spec in rig_layout(rig).items()
+                       if spec.encoding in ("box2d", "box3d") or ch in obs_keys}  # fmt: skip
+        self.channels = tuple(self.layout)
         self._writer: SceneWriter | None = None
         self._index = 0
         self._background: ThreadPoolExecutor | None = None
@@ -99,7 +105,7 @@ class RecordFogDrive(gym.Wrapper):
         town, tod = base.config.town_number, base.config.time_of_day
         run = self._next_run(town, tod)
         folder = scene_folder_name(town, tod, run, scene_id(town, tod, run, base.episode_seed))
-        self._writer = SceneWriter(self.root, folder, self.channels, workers=self.workers)
+        self._writer = SceneWriter(self.root, folder, self.layout, workers=self.workers)
         self._writer.write_extrinsics(info["extrinsics"])
         self._submit(0, obs, info)
         self._index = 1

@@ -18,7 +18,7 @@ import json
 from pathlib import Path, PurePosixPath
 from typing import Any
 
-from fog_gym.dataset.layout import SPLITS, TABLES
+from fog_gym.dataset.layout import FOGDRIVE_CHANNELS, LAYOUT_FILE, SPLITS, TABLES, ChannelSpec, layout_from_json
 
 
 class DatasetError(ValueError):
@@ -56,6 +56,21 @@ def read_json(path: Path) -> Any:
         raise DatasetError(f"{path}: missing") from None
     except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
         raise DatasetError(f"{path}: not valid JSON ({e})") from None
+
+
+def read_layout(root: str | Path) -> dict[str, ChannelSpec]:
+    """A dataset's channels → :class:`~fog_gym.dataset.layout.ChannelSpec`: ``index/channels.json`` (written by
+    :func:`~fog_gym.dataset.writer.build_index` for a rig with added sensors), else the 35 FogDrive channels.
+    A corrupt file raises :class:`DatasetError` naming it."""
+    path = Path(root) / LAYOUT_FILE
+    if not path.exists():
+        return dict(FOGDRIVE_CHANNELS)
+    try:
+        return layout_from_json(read_json(path))
+    except DatasetError:
+        raise
+    except ValueError as e:
+        raise DatasetError(f"{path}: {e}") from None
 
 
 _REQUIRED = {
@@ -99,6 +114,8 @@ class FogDrive:
             safe_relative_path(rec["filename"])
         for rec in self.scene:
             safe_relative_path(rec["extrinsic_config_path"])
+        #: The dataset's channels and where and how each is stored (:func:`read_layout`).
+        self.channels: dict[str, ChannelSpec] = read_layout(self.dataroot)
         splits_path = index / "splits.json"
         self.splits: dict[str, list[str]] | None = read_json(splits_path) if splits_path.exists() else None
         self._index = {name: {rec["token"]: i for i, rec in enumerate(getattr(self, name))} for name in TABLES}

@@ -16,7 +16,7 @@ import cv2
 import numpy as np
 
 from fog_gym.dataset.access import DatasetError
-from fog_gym.dataset.layout import CHANNELS
+from fog_gym.dataset.layout import FOGDRIVE_CHANNELS, ChannelSpec
 from fog_gym.encoding import decode_depth
 
 
@@ -48,9 +48,14 @@ def decode_bbox_json(data: bytes) -> dict[str, np.ndarray]:
             "vehicle_class": np.asarray(d["vehicle_class"], np.int64)}  # fmt: skip
 
 
-def load_channel(channel: str, path: str | Path) -> Any:
-    """Decode one file of ``channel``; a missing or corrupt file raises :class:`DatasetError` naming its path."""
-    fmt, encoding = CHANNELS[channel].fileformat, CHANNELS[channel].encoding
+def load_channel(channel: str, path: str | Path, spec: ChannelSpec | None = None) -> Any:
+    """Decode one file of ``channel`` stored as ``spec`` (default: the FogDrive channel's; a dataset's own specs
+    are ``FogDrive(root).channels``); a missing or corrupt file raises :class:`DatasetError` naming its path."""
+    if spec is None:
+        if channel not in FOGDRIVE_CHANNELS:
+            raise ValueError(f"channel {channel!r} is not a FogDrive channel: pass its spec, FogDrive(root).channels[{channel!r}]")
+        spec = FOGDRIVE_CHANNELS[channel]
+    fmt, encoding = spec.fileformat, spec.encoding
     try:
         if fmt == "npy":
             return np.load(path, allow_pickle=False).astype(np.float32, copy=False)

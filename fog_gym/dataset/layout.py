@@ -14,7 +14,7 @@ import hashlib
 import re
 from typing import NamedTuple
 
-from fog_gym.config import CAMERA_NAMES as CAMERAS  # the FogDrive cameras, one definition (Table 2)
+from fog_gym.camera_config import CAMERA_NAMES as CAMERAS  # the FogDrive cameras, one definition (Table 2)
 FOG_LEVELS = ("LIGHT", "MODERATE", "DENSE")
 DATA_ROOT = "data_root"
 SPLITS = ("train", "val", "test")
@@ -50,47 +50,95 @@ def _channels() -> dict[str, ChannelSpec]:
         out[f"LIDAR_TOP_FOG_{lv}"] = ChannelSpec(f"lidar_fog_{lv.lower()}", "npy", "points", 4)
     out["SEM_LIDAR_TOP"] = ChannelSpec("semantic_lidar", "npy", "points", 6)
     out["RADAR_FRONT"] = ChannelSpec("radar", "npy", "points", 4)
-    out["BBOX_3D"] = ChannelSpec("out_3dbbox", "json", "box3d")
+    out["BBOX_3D"] = ChannelSpec("out_3dbbox", "json", "box3d")  # ground truth, not a sensor
     return out
 
 
 #: The 35 channels of a FogDrive sample → :class:`ChannelSpec` (folder inside the scene, file format, encoding).
 FOGDRIVE_CHANNELS: dict[str, ChannelSpec] = _channels()
-#: Every known channel: the 35 FogDrive channels and those of sensors added with :func:`register_channel`.
-CHANNELS: dict[str, ChannelSpec] = dict(FOGDRIVE_CHANNELS)
+#: The FogDrive channels (the name predates per-dataset layouts). A dataset's own channels, those of the rig that
+#: recorded it, are ``FogDrive(root).channels`` (:func:`read_layout`); a rig's are ``fog_gym.sensors.rig_layout``.
+CHANNELS: dict[str, ChannelSpec] = FOGDRIVE_CHANNELS
+BBOX_3D = "BBOX_3D"
+#: A scene's layout when it is not FogDrive's (a rig with added sensors), inside the scene folder, and the
+#: dataset's layout (every scene's channels) beside the index tables. Absent: the FogDrive channels.
+SCENE_LAYOUT_FILE = "channels.json"
+LAYOUT_FILE = "index/channels.json"
+_NAME_RE = re.compile(r"[A-Z][A-Z0-9_]*")
 
 
-def register_channel(name: str, spec: ChannelSpec) -> None:
-    """Add a sensor's channel to :data:`CHANNELS` (done by :mod:`fog_gym.sensors` for every sensor of a rig).
+def check_layout(pairs) -> dict[str, ChannelSpec]:
+    """A layout given as ``(name, spec)`` pairs (or a mapping), checked: upper-case names, each once; specs with an
+    encoding/format pair of :data:`ENCODINGS` and columns only for points; each folder once; a FogDrive channel
+    name keeps its FogDrive spec and a FogDrive folder its channel.
 
-    Registering the same spec again is a no-op; another spec under a known name or a folder already used raises.
-
-    >>> register_channel("LIDAR_TOP", CHANNELS["LIDAR_TOP"])  # unchanged
-    >>> register_channel("LIDAR_TOP", ChannelSpec("lidar2", "npy", "points", 4))
+    >>> check_layout([("RADAR_BACK", ChannelSpec("radar_back", "npy", "points", 4))])["RADAR_BACK"].folder
+    'radar_back'
+    >>> check_layout([("LIDAR_TOP", ChannelSpec("lidar2", "npy", "points", 4))])
     Traceback (most recent call last):
     ...
-    ValueError: channel 'LIDAR_TOP' is already registered as ChannelSpec(folder='lidar', fileformat='npy', encoding='points', columns=4)
+    ValueError: channel 'LIDAR_TOP' is a FogDrive channel stored as ChannelSpec(folder='lidar', fileformat='npy', encoding='points', columns=4), got ChannelSpec(folder='lidar2', fileformat='npy', encoding='points', columns=4)
     """
-    if not isinstance(name, str) or not re.fullmatch(r"[A-Z][A-Z0-9_]*", name):
-        raise ValueError(f"name must be an upper-case channel name like 'RADAR_BACK', got {name!r}")
-    if not isinstance(spec, ChannelSpec) or ENCODINGS.get(spec.encoding) != spec.fileformat:
-        raise ValueError(f"spec must be a ChannelSpec with an encoding/format pair of {ENCODINGS}, got {spec!r}")
-    if (spec.encoding == "points") != (spec.columns > 0):
-        raise ValueError(f"spec.columns must be > 0 for a point channel and 0 otherwise, got {spec!r}")
-    if name in CHANNELS:
-        if CHANNELS[name] != spec:
-            raise ValueError(f"channel {name!r} is already registered as {CHANNELS[name]!r}")
-        return
-    if any(s.folder == spec.folder for s in CHANNELS.values()):
-        raise ValueError(f"spec.folder {spec.folder!r} is already used by another channel")
-    CHANNELS[name] = spec
+    items = list(pairs.items()) if isinstance(pairs, dict) else list(pairs)
+    out: dict[str, ChannelSpec] = {}
+    folders: dict[str, str] = {}
+    fogdrive_folders = {s.folder: n for n, s in FOGDRIVE_CHANNELS.items()}
+    for name, spec in items:
+        if not isinstance(name, str) or not _NAME_RE.fullmatch(name):
+            raise ValueError(f"name must be an upper-case channel name like 'RADAR_BACK', got {name!r}")
+        if not isinstance(spec, ChannelSpec) or ENCODINGS.get(spec.encoding) != spec.fileformat:
+            raise ValueError(f"spec must be a ChannelSpec with an encoding/format pair of {ENCODINGS}, got {spec!r}")
+        if (spec.encoding == "points") != (spec.columns > 0):
+            raise ValueError(f"spec.columns must be > 0 for a point channel and 0 otherwise, got {spec!r}")
+        if name in out:
+            raise ValueError(f"channel {name!r} is declared twice")
+        if name in FOGDRIVE_CHANNELS and FOGDRIVE_CHANNELS[name] != spec:
+            raise ValueError(f"channel {name!r} is a FogDrive channel stored as {FOGDRIVE_CHANNELS[name]!r}, got {spec!r}")
+        if spec.folder in folders or fogdrive_folders.get(spec.folder, name) != name:
+            other = folders.get(spec.folder) or fogdrive_folders[spec.folder]
+            raise ValueError(f"spec.folder {spec.folder!r} of channel {name!r} is already used by {other!r}")
+        folders[spec.folder] = name
+        out[name] = spec
+    return out
 
 
-def unregister_channel(name: str) -> None:
-    """Remove a channel added with :func:`register_channel` (the 35 FogDrive channels stay)."""
-    if name in FOGDRIVE_CHANNELS:
-        raise ValueError(f"name must not be a FogDrive channel, got {name!r}")
-    CHANNELS.pop(name, None)
+def is_fogdrive_layout(layout: dict[str, ChannelSpec]) -> bool:
+    """Whether every channel of ``layout`` is a FogDrive channel (then the dataset carries no layout file)."""
+    return all(FOGDRIVE_CHANNELS.get(n) == s for n, s in layout.items())
+
+
+def layout_to_json(layout: dict[str, ChannelSpec]) -> dict:
+    """``{"channels": {name: {folder, fileformat, encoding, columns}}}`` in layout order (JSON-ready)."""
+    return {"channels": {n: s._asdict() for n, s in layout.items()}}
+
+
+def layout_from_json(data) -> dict[str, ChannelSpec]:
+    """The layout of :func:`layout_to_json`'s output, checked with :func:`check_layout`; ``ValueError`` if bad."""
+    chans = data.get("channels") if isinstance(data, dict) else None
+    if not isinstance(chans, dict):
+        raise ValueError('expected {"channels": {name: {"folder", "fileformat", "encoding", "columns"}}}')
+    pairs = []
+    for name, spec in chans.items():
+        try:
+            pairs.append((name, ChannelSpec(**spec)))
+        except TypeError:
+            raise ValueError(f"channel {name!r}: expected folder, fileformat, encoding, columns, got {spec!r}") from None
+    return check_layout(pairs)
+
+
+def extrinsic_key(camera: str) -> str:
+    """The key of a camera's LiDAR→camera matrix in ``extrinsic_config.json``: FogDrive's ``extrinsic_front`` …
+    for ``CAM_FRONT`` …, and the same rule for an added camera.
+
+    >>> extrinsic_key("CAM_RIGHT"), extrinsic_key("CAM_FRONT_NARROW")
+    ('extrinsic_right', 'extrinsic_front_narrow')
+    """
+    return "extrinsic_" + camera.lower().removeprefix("cam_")
+
+
+def layout_cameras(layout: dict[str, ChannelSpec]) -> list[str]:
+    """The cameras of a layout: each camera ``C`` stores its 2D boxes as ``C_BBOX``."""
+    return [n.removesuffix("_BBOX") for n, s in layout.items() if s.encoding == "box2d"]
 
 
 #: Channel sets ``fog-gym generate`` can write: everything, or the LiDAR, its fog variants, the semantic LiDAR and
@@ -129,9 +177,11 @@ def scene_name(town_number: int, time_of_day: str, run: int) -> str:
     return f"T{town_number}_{time_of_day}_scene{run:03d}"
 
 
-def channel_path(channel: str, scene_folder: str, index: int) -> str:
-    """A sample file's path relative to the dataset root (starts with ``data_root/``)."""
-    if channel not in CHANNELS:
-        raise ValueError(f"channel must be one of the 35 FogDrive channels or a registered one, got {channel!r}")
-    folder, ext = CHANNELS[channel][:2]
+def channel_path(channel: str, scene_folder: str, index: int, layout: dict[str, ChannelSpec] | None = None) -> str:
+    """A sample file's path relative to the dataset root (starts with ``data_root/``); ``layout`` defaults to the
+    FogDrive channels."""
+    layout = FOGDRIVE_CHANNELS if layout is None else layout
+    if channel not in layout:
+        raise ValueError(f"channel must be one of the layout's channels (default: the 35 FogDrive ones), got {channel!r}")
+    folder, ext = layout[channel][:2]
     return f"{DATA_ROOT}/{scene_folder}/{folder}/{index:06d}.{ext}"

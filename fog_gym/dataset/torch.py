@@ -19,7 +19,7 @@ import numpy as np
 
 from fog_gym.dataset.access import SPLITS, FogDrive
 from fog_gym.dataset.decode import decode_bbox_json, load_channel
-from fog_gym.dataset.layout import CHANNELS, FOGDRIVE_CHANNELS
+from fog_gym.dataset.layout import FOGDRIVE_CHANNELS, ChannelSpec
 
 try:  # the torch extra; everything but FogDriveDataset works without it
     import torch
@@ -30,27 +30,30 @@ except ImportError:  # pragma: no cover - exercised where torch is absent
 
 
 def load_sample(ds: FogDrive, sample_token: str, channels: list[str] | None = None) -> dict[str, Any]:
-    """Every requested channel of one sample, decoded."""
-    return {c: load_channel(c, p) for c, p in ds.get_sample_paths(sample_token, channels).items()}
+    """Every requested channel of one sample, decoded as the dataset's layout (``ds.channels``) says."""
+    return {c: load_channel(c, p, ds.channels[c]) for c, p in ds.get_sample_paths(sample_token, channels).items()}
 
 
 class FogDriveDataset(_TorchDataset):
     """Samples of a split (or all) with the chosen channels, decoded; images become tensors (C, H, W).
 
     >>> # ds = FogDriveDataset("out/fogdrive", split="train", channels=["CAM_FRONT_FOG_DENSE", "BBOX_3D"])
-    >>> # loader = torch.utils.data.DataLoader(ds, batch_size=4, collate_fn=collate)
+    >>> # loader = torch.utils.data.DataLoader(ds, batch_size=4, collate_fn=ds.collate)
     """
 
     def __init__(self, dataroot: str | Path, split: str | None = None, channels: list[str] | None = None) -> None:
         if torch is None:
             raise ImportError("FogDriveDataset needs PyTorch: pip install -e '.[torch]'")
-        for c in channels or []:
-            if c not in CHANNELS:
-                raise ValueError(f"channels must be FogDrive channel names, got {c!r}")
         if split is not None and split not in SPLITS:
             raise ValueError(f"split must be one of {SPLITS} or None, got {split!r}")
         self.fogdrive = FogDrive(dataroot)
-        self.channels = list(channels) if channels else sorted(FOGDRIVE_CHANNELS)
+        #: The dataset's layout (its rig's channels; the FogDrive ones for a FogDrive set).
+        self.layout: dict[str, ChannelSpec] = self.fogdrive.channels
+        for c in channels or []:
+            if c not in self.layout:
+                raise ValueError(f"channels must be FogDrive channel names or the dataset's own (its layout, "
+                                 f"index/channels.json), got {c!r}; the dataset has {sorted(self.layout)}")  # fmt: skip
+        self.channels = list(channels) if channels else sorted(self.layout)
         self.tokens = (self.fogdrive.get_sample_tokens_for_split(split) if split
                        else [s["token"] for s in self.fogdrive.sample])  # fmt: skip
 
@@ -69,11 +72,20 @@ class FogDriveDataset(_TorchDataset):
         return out
 
 
-def collate(batch: list[dict[str, Any]]) -> dict[str, Any]:
-    """Stack images and depth/semantic maps; keep point clouds, box dicts and tokens as per-sample lists."""
+    def collate(self, batch: list[dict[str, Any]]) -> dict[str, Any]:
+        """:func:`collate` under this dataset's layout (added cameras' images are stacked too)."""
+        return collate(batch, self.layout)
+
+
+def collate(batch: list[dict[str, Any]], layout: dict[str, ChannelSpec] | None = None) -> dict[str, Any]:
+    """Stack images and depth/semantic maps; keep point clouds, box dicts and tokens as per-sample lists.
+
+    ``layout`` (default: the FogDrive channels; a dataset's is ``FogDriveDataset.layout``, or use
+    :meth:`FogDriveDataset.collate`) says which keys are images; other keys stay lists."""
+    layout = FOGDRIVE_CHANNELS if layout is None else layout
     out: dict[str, Any] = {}
     for key in batch[0]:
         values = [b[key] for b in batch]
-        fmt = CHANNELS[key].fileformat if key in CHANNELS else ""
+        fmt = layout[key].fileformat if key in layout else ""
         out[key] = torch.stack(values) if fmt == "png" else values
     return out

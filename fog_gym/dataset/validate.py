@@ -4,7 +4,8 @@
 depth and semantic PNG, ``.npy`` point clouds, box JSON, extrinsics, index JSON) and every index entry that points
 at a missing file or outside the root becomes one line naming the file and the problem. Where the dataset has a
 generation manifest (``index/manifest.json``, written by ``fog-gym generate``) the files are also checked against
-it: image sizes, channel set and scene count.
+it: image sizes, channel set and scene count. Channels are checked as the set's layout stores them
+(``index/channels.json``, written for a rig with added sensors; the FogDrive channels otherwise).
 
 Example:
     >>> import tempfile
@@ -25,7 +26,7 @@ import numpy as np
 
 from fog_gym.dataset.access import TABLES, DatasetError, FogDrive, load_table, read_json, safe_relative_path
 from fog_gym.dataset.decode import decode_png
-from fog_gym.dataset.layout import CHANNELS, DATA_ROOT, FOGDRIVE_CHANNELS
+from fog_gym.dataset.layout import DATA_ROOT, FOGDRIVE_CHANNELS, ChannelSpec, extrinsic_key, layout_cameras
 from fog_gym.dataset.manifest import MANIFEST_FILE, read_manifest
 
 EXTRINSIC_KEYS = ("extrinsic_front", "extrinsic_right", "extrinsic_left", "extrinsic_back")
@@ -44,10 +45,6 @@ def dataset_root_problem(root: str | Path) -> str | None:
     if missing:
         return f"{root}: not a FogDrive dataset (missing {', '.join(missing)})"
     return None
-
-
-def _point_columns(channel: str) -> int:
-    return CHANNELS[channel].columns  # the channel's own rule (fog_gym.sensors registers it)
 
 
 def check_png(path: Path, width: int | None = None, height: int | None = None) -> str | None:
@@ -116,15 +113,16 @@ def check_box_json(path: Path, three_d: bool) -> str | None:
     return None
 
 
-def check_extrinsics(path: Path) -> str | None:
-    """The problem with one ``extrinsic_config.json`` (four 4×4 finite matrices), or None."""
+def check_extrinsics(path: Path, keys: Iterable[str] = EXTRINSIC_KEYS) -> str | None:
+    """The problem with one ``extrinsic_config.json`` (a finite 4×4 matrix under each of ``keys``: FogDrive's
+    four by default), or None."""
     try:
         data = read_json(path)
     except DatasetError as e:
         return str(e).removeprefix(f"{path}: ")
     if not isinstance(data, dict):
         return "expected a JSON object"
-    for key in EXTRINSIC_KEYS:
+    for key in keys:
         try:
             m = np.asarray(data.get(key), np.float64)
         except (ValueError, TypeError):
@@ -134,7 +132,7 @@ def check_extrinsics(path: Path) -> str | None:
     return None
 
 
-def _check_file(root: Path, rec: dict, size: tuple[int, int] | None) -> str | None:
+def _check_file(root: Path, rec: dict, size: tuple[int, int] | None, layout: dict[str, ChannelSpec]) -> str | None:
     channel, fmt = rec["channel"], rec["fileformat"]
     path = root / rec["filename"]
     if not path.is_file():
@@ -143,7 +141,7 @@ def _check_file(root: Path, rec: dict, size: tuple[int, int] | None) -> str | No
         w, h = size if size is not None else (rec.get("width"), rec.get("height"))
         return check_png(path, w, h)
     if fmt == "npy":
-        return check_npy(path, _point_columns(channel))
+        return check_npy(path, layout[channel].columns)  # the column count its sensor declared
     if fmt == "json":
         return check_box_json(path, channel == "BBOX_3D")
     return f"unknown file format {fmt!r}"
@@ -182,9 +180,11 @@ def validate(root: str | Path, progress: bool = False) -> list[str]:
         ds = FogDrive(root)
     except (DatasetError, FileNotFoundError) as e:
         return [str(e)]
-    # without a manifest: the 35 FogDrive channels, plus any registered sensor channel the set holds
-    channels = set(manifest["channels"]) if manifest else (
-        set(FOGDRIVE_CHANNELS) | {r["channel"] for r in ds.sample_data if r["channel"] in CHANNELS})
+    # the set's layout is its rig's (index/channels.json; the FogDrive channels where it has none); without a
+    # manifest every sample must have the 35 FogDrive channels and every channel of that layout
+    layout = ds.channels
+    channels = set(manifest["channels"]) if manifest else set(FOGDRIVE_CHANNELS) | set(layout)
+    extrinsic_keys = list(dict.fromkeys((*EXTRINSIC_KEYS, *(extrinsic_key(c) for c in layout_cameras(layout)))))
     size = tuple(manifest["resolution"]) if manifest else None
     if manifest and manifest["scenes"] != len(ds.scene):
         problems.append(f"{index / 'scene.json'}: {len(ds.scene)} scenes, the manifest ({MANIFEST_FILE}) says "
@@ -196,7 +196,7 @@ def validate(root: str | Path, progress: bool = False) -> list[str]:
         if samples and (samples[0]["token"] != sc["first_sample_token"] or samples[-1]["token"] != sc["last_sample_token"]):
             problems.append(f"{sc['name']}: first/last sample tokens do not match the prev/next chain")
         ext = ds.get_extrinsic_config_path(sc["token"])
-        found = "missing file" if not ext.is_file() else check_extrinsics(ext)
+        found = "missing file" if not ext.is_file() else check_extrinsics(ext, extrinsic_keys)
         if found:
             problems.append(f"{sc['extrinsic_config_path']}: {found}")
     records: Iterable[dict] = ds.sample_data
@@ -205,10 +205,10 @@ def validate(root: str | Path, progress: bool = False) -> list[str]:
 
         records = tqdm(records, desc="files", unit="file", total=len(ds.sample_data))
     for rec in records:
-        if rec["channel"] not in CHANNELS:
-            problems.append(f"{rec['filename']}: unknown channel {rec['channel']!r}")
+        if rec["channel"] not in layout:
+            problems.append(f"{rec['filename']}: unknown channel {rec['channel']!r} (not in the set's layout)")
             continue
-        found = _check_file(root, rec, size)
+        found = _check_file(root, rec, size, layout)
         if found:
             problems.append(f"{rec['filename']}: {found}")
     for s in ds.sample:

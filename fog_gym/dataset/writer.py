@@ -17,7 +17,7 @@ import json
 import os
 import struct
 import uuid
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
@@ -26,8 +26,8 @@ import cv2
 import numpy as np
 
 from fog_gym.dataset.layout import (
-    CAMERAS, CHANNELS, DATA_ROOT, FOGDRIVE_CHANNELS, EXTRINSIC_FILE, SAMPLE_PERIOD_US, channel_path, parse_scene_folder,
-    scene_name,
+    BBOX_3D, DATA_ROOT, FOGDRIVE_CHANNELS, EXTRINSIC_FILE, LAYOUT_FILE, SAMPLE_PERIOD_US, SCENE_LAYOUT_FILE, ChannelSpec,
+    channel_path, check_layout, is_fogdrive_layout, layout_from_json, layout_to_json, parse_scene_folder, scene_name,
 )  # fmt: skip
 from fog_gym.encoding import encode_depth, semantic_to_carla_rgb
 
@@ -81,24 +81,37 @@ class SceneWriter:
     ``write_sample`` takes a paired-fog observation (clean + ``*_FOG_{LIGHT,MODERATE,DENSE}``) and the env's
     ``info`` (``boxes_2d``, ``boxes_3d``); ``write_extrinsics`` the ``info["extrinsics"]`` dict.
 
+    ``channels`` is the scene's layout: a ``{channel: ChannelSpec}`` mapping (a rig's,
+    :func:`fog_gym.sensors.rig_layout`) or FogDrive channel names (default: all 35). A layout with channels that
+    are not FogDrive's is recorded in the scene folder (``channels.json``), from which :func:`build_index` builds
+    the dataset's ``index/channels.json``; a FogDrive layout writes no such file (the set stays FogDrive's format).
+
     A sample's files are encoded and written by ``workers`` threads (default: one per core; cv2's PNG encoder
     and file I/O release the GIL). ``BBOX_3D`` is still written alone after every other file of the sample has
     been renamed into place. ``workers=1`` encodes and writes one file after another.
     """
 
-    def __init__(self, root: str | Path, folder: str, channels: tuple[str, ...] | None = None,
-                 workers: int | None = None) -> None:  # fmt: skip
+    def __init__(self, root: str | Path, folder: str, channels: Any = None, workers: int | None = None) -> None:
         if parse_scene_folder(folder) is None:
             raise ValueError(f"not a FogDrive scene folder name: {folder!r}")
-        channels = tuple(FOGDRIVE_CHANNELS) if channels is None else tuple(channels)
-        unknown = [c for c in channels if c not in CHANNELS]
-        if unknown or "BBOX_3D" not in channels:
-            raise ValueError(f"channels must be FogDrive channels including BBOX_3D, got {list(channels)}")
+        if isinstance(channels, Mapping):
+            layout = check_layout(dict(channels))
+        else:
+            names = tuple(FOGDRIVE_CHANNELS) if channels is None else tuple(channels)
+            unknown = [c for c in names if c not in FOGDRIVE_CHANNELS]
+            if unknown:
+                raise ValueError(f"channels must be FogDrive channel names or a {{channel: ChannelSpec}} layout, "
+                                 f"got unknown {unknown}")  # fmt: skip
+            layout = {c: FOGDRIVE_CHANNELS[c] for c in names}
+        if BBOX_3D not in layout:
+            raise ValueError(f"channels must include BBOX_3D, got {list(layout)}")
         if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
             raise ValueError(f"workers must be a positive integer or None, got {workers!r}")
         self.root = Path(root)
         self.folder = folder
-        self.channels = channels
+        self.layout: dict[str, ChannelSpec] = layout
+        self.channels = tuple(layout)
+        self._layout_written = is_fogdrive_layout(layout)  # FogDrive's own layout needs no file
         self.workers = default_workers() if workers is None else workers
         self._pool: ThreadPoolExecutor | None = None
 
@@ -109,9 +122,16 @@ class SceneWriter:
             self._pool = None
 
     def _path(self, channel: str, index: int) -> Path:
-        return self.root / channel_path(channel, self.folder, index)
+        return self.root / channel_path(channel, self.folder, index, self.layout)
+
+    def _write_layout(self) -> None:
+        if not self._layout_written:
+            data = json.dumps(layout_to_json(self.layout), indent=1).encode()
+            _atomic_write(self.root / DATA_ROOT / self.folder / SCENE_LAYOUT_FILE, data)
+            self._layout_written = True
 
     def write_extrinsics(self, extrinsics: dict[str, np.ndarray]) -> None:
+        self._write_layout()
         data = {k: np.asarray(v).tolist() for k, v in extrinsics.items()}
         _atomic_write(self.root / DATA_ROOT / self.folder / EXTRINSIC_FILE, json.dumps(data).encode())
 
@@ -135,7 +155,7 @@ class SceneWriter:
 
         jobs: dict[str, Callable[[], bytes]] = {}
         for channel in self.channels:
-            encoding = CHANNELS[channel].encoding
+            encoding = self.layout[channel].encoding
             if encoding == "box3d":
                 continue
             if encoding == "points":
@@ -161,6 +181,7 @@ class SceneWriter:
 
     def write_files(self, index: int, files: dict[str, bytes]) -> None:
         """Write encoded files; ``BBOX_3D`` goes last so its presence marks the sample complete."""
+        self._write_layout()
         for channel, data in files.items():
             if channel != "BBOX_3D":
                 _atomic_write(self._path(channel, index), data)
@@ -168,6 +189,7 @@ class SceneWriter:
 
     def write_sample(self, index: int, obs: dict[str, np.ndarray], info: dict[str, Any]) -> None:
         """Encode and write one sample; with ``workers > 1`` its files in parallel, ``BBOX_3D`` after all."""
+        self._write_layout()
         if self.workers == 1:
             self.write_files(index, self.encode_sample(obs, info))
             return
@@ -202,11 +224,26 @@ def complete_samples(root: Path, folder: str) -> int:
     return n
 
 
+def scene_layout(root: str | Path, folder: str) -> dict[str, ChannelSpec]:
+    """The layout a scene was written with: its ``channels.json``, or the FogDrive channels where it has none.
+    An unreadable or bad file raises ``ValueError`` naming it."""
+    path = Path(root) / DATA_ROOT / folder / SCENE_LAYOUT_FILE
+    if not path.exists():
+        return dict(FOGDRIVE_CHANNELS)
+    try:
+        return layout_from_json(json.loads(path.read_bytes()))
+    except (OSError, UnicodeDecodeError, json.JSONDecodeError, ValueError) as e:
+        raise ValueError(f"{path}: {e}") from None
+
+
 def build_index(root: str | Path, split_seed: int = 0) -> dict[str, Any]:
     """Rebuild ``index/{scene,sample,sample_data,splits}.json`` from the scene folders on disk; returns the tables.
 
-    Only complete samples count; scenes with none are left out. A scene's channels are those its first sample
-    has (all 35, or a subset such as :data:`fog_gym.dataset.layout.MODALITIES` ``["lidar"]``). Scenes are ordered
+    Only complete samples count; scenes with none are left out. A scene's channels are those of its layout
+    (:func:`scene_layout`) that its first sample has (all 35, a subset such as
+    :data:`fog_gym.dataset.layout.MODALITIES` ``["lidar"]``, or a rig's with added sensors). Where the channels
+    are not all FogDrive's, ``index/channels.json`` records every channel's storage for ``validate`` and the
+    loaders; two scenes that store one channel differently raise ``ValueError``. Scenes are ordered
     by (town, time of day, run). Splits come from :func:`fog_gym.dataset.splits.make_splits` over the scene names.
     """
     root = Path(root)
@@ -216,13 +253,19 @@ def build_index(root: str | Path, split_seed: int = 0) -> dict[str, Any]:
         key=lambda n: parse_scene_folder(n)[:3],
     )
     scenes, samples, sample_data = [], [], []
+    dataset_layout: dict[str, ChannelSpec] = {}
     size_cache: dict[tuple[str, str], tuple[int, int]] = {}
     for folder in folders:
         town, tod, run, _ = parse_scene_folder(folder)
         n = complete_samples(root, folder)
         if n == 0:
             continue
-        present = [c for c in CHANNELS if (root / channel_path(c, folder, 0)).exists()]  # the scene's channel set
+        layout = scene_layout(root, folder)
+        present = [c for c in layout if (root / channel_path(c, folder, 0, layout)).exists()]  # the scene's channels
+        for c in present:
+            if dataset_layout.setdefault(c, layout[c]) != layout[c]:
+                raise ValueError(f"{root / DATA_ROOT / folder / SCENE_LAYOUT_FILE}: channel {c!r} is stored as "
+                                 f"{layout[c]!r} here and as {dataset_layout[c]!r} in an earlier scene")  # fmt: skip
         scene_token = token_for("scene", folder)
         tokens = [token_for("sample", folder, i) for i in range(n)]
         scenes.append({
@@ -235,8 +278,8 @@ def build_index(root: str | Path, split_seed: int = 0) -> dict[str, Any]:
             samples.append({"token": tok, "timestamp": float(i * SAMPLE_PERIOD_US), "scene_token": scene_token,
                             "prev": tokens[i - 1] if i else "", "next": tokens[i + 1] if i + 1 < n else ""})  # fmt: skip
             for channel in present:
-                ext = CHANNELS[channel][1]
-                rel = channel_path(channel, folder, i)
+                ext = layout[channel][1]
+                rel = channel_path(channel, folder, i, layout)
                 rec = {"token": token_for("sample_data", folder, i, channel), "sample_token": tok, "channel": channel,
                        "filename": rel, "fileformat": ext}  # fmt: skip
                 if ext == "png":
@@ -252,4 +295,10 @@ def build_index(root: str | Path, split_seed: int = 0) -> dict[str, Any]:
     for name, table in tables.items():
         _atomic_write(root / "index" / f"{name}.json", json.dumps(table).encode())
     _atomic_write(root / "index" / "splits.json", json.dumps(splits).encode())
+    layout_path = root / LAYOUT_FILE
+    if is_fogdrive_layout(dataset_layout):  # FogDrive's own channels: no layout file, the format's default
+        layout_path.unlink(missing_ok=True)
+    else:
+        check_layout(dataset_layout)
+        _atomic_write(layout_path, (json.dumps(layout_to_json(dataset_layout), indent=1) + "\n").encode())
     return {**tables, "splits": splits}

@@ -2,8 +2,10 @@
 
 :mod:`~fog_gym.sensors.camera` (RGB, depth, semantic tags), :mod:`~fog_gym.sensors.lidar` (``LIDAR_TOP``),
 :mod:`~fog_gym.sensors.semantic_lidar` (``SEM_LIDAR_TOP``), :mod:`~fog_gym.sensors.radar` (``RADAR_FRONT``).
-A new point sensor is a :class:`~fog_gym.sensors.base.PointSensor` subclass registered for its config type
-(:func:`~fog_gym.sensors.base.register`) and listed in :attr:`RigConfig.extra <fog_gym.config.RigConfig>`.
+A rig (:class:`~fog_gym.config.RigConfig`) is a sequence of ``(name, config)``; the config's type picks the
+sensor class from :data:`~fog_gym.sensors.base.REGISTRY`. A new sensor is a class registered for its config
+type (:func:`~fog_gym.sensors.base.register`) and one more entry of the sequence; a new camera is a
+:class:`~fog_gym.config.CameraConfig` with a name of its own.
 
 Example:
     >>> from fog_gym.config import RigConfig
@@ -17,42 +19,47 @@ import numpy as np
 
 from fog_gym.primitives import Primitives
 from fog_gym.scene import Scene
-from fog_gym.dataset.layout import FOGDRIVE_CHANNELS, register_channel
-from fog_gym.points import ADDED
-from fog_gym.sensors.base import REGISTRY, PointSensor, Sensor, register, sensor_class
+from fog_gym.dataset.layout import BBOX_3D, FOGDRIVE_CHANNELS, ChannelSpec, check_layout
+from fog_gym.sensors.base import REGISTRY, PointSensor, Sensor, build_sensor, register, sensor_class
 from fog_gym.sensors.camera import LIGHT_RANGE, MAX_TAG, CameraFrame, CameraRig, CameraSensor
 from fog_gym.sensors.lidar import LidarSensor
 from fog_gym.sensors.radar import RadarSensor
 from fog_gym.sensors.semantic_lidar import SemanticLidarSensor
 
 
-def rig_sensors(rig, simulation_frequency: float = 20.0) -> tuple:
-    """The point sensors of a rig in observation order: ``lidar``, ``semantic_lidar``, ``radar``, then
-    :attr:`RigConfig.extra`. Every sensor's channels are registered in the dataset layout.
+def rig_sensors(rig, simulation_frequency: float = 20.0, far: float = 1000.0) -> tuple:
+    """Every sensor of a rig, in rig order, each built by the class registered for its config type.
 
     >>> from fog_gym.config import RigConfig
-    >>> [s.channel for s in rig_sensors(RigConfig.fogdrive(cameras=[]))]
-    ['LIDAR_TOP', 'SEM_LIDAR_TOP', 'RADAR_FRONT']
+    >>> [s.channels[0] for s in rig_sensors(RigConfig.fogdrive(cameras=["CAM_BACK"]))]
+    ['CAM_BACK', 'LIDAR_TOP', 'SEM_LIDAR_TOP', 'RADAR_FRONT']
     """
-    out = []
-    for cls, cfg in ((LidarSensor, rig.lidar), (SemanticLidarSensor, rig.semantic_lidar), (RadarSensor, rig.radar)):
-        if cfg is not None:
-            out.append(cls(cfg, simulation_frequency))
-    for name, cfg in rig.extra:
-        out.append(sensor_class(type(cfg))(cfg, simulation_frequency, channel=name))
-    channels = [c for s in out for c in s.channels]
-    if len(set(channels)) != len(channels):
-        raise ValueError(f"rig.extra: channel names must be unique across the rig, got {channels}")
-    for s in out:
-        for name, spec in s.layout().items():
-            register_channel(name, spec)
-            if spec.encoding == "points" and name not in FOGDRIVE_CHANNELS:
-                ADDED.add(name)
-    return tuple(out)
+    return tuple(build_sensor(name, cfg, simulation_frequency, far) for name, cfg in rig.sensors)
+
+
+def rig_layout(rig) -> dict[str, ChannelSpec]:
+    """The dataset layout of a rig: every sensor's channels in rig order, then the ground truth ``BBOX_3D``.
+
+    What the recorder writes, records in the dataset (``index/channels.json`` where it is not FogDrive's own
+    layout) and ``validate`` and the loaders read back. Names and folders must not clash, and a FogDrive channel
+    name keeps its FogDrive storage; a clash raises :class:`ValueError` naming it.
+
+    >>> from fog_gym.config import RigConfig
+    >>> rig_layout(RigConfig.fogdrive()) == FOGDRIVE_CHANNELS
+    True
+    """
+    pairs = []
+    for s in rig_sensors(rig):
+        pairs += list(s.layout().items())
+    pairs.append((BBOX_3D, FOGDRIVE_CHANNELS[BBOX_3D]))
+    try:
+        return check_layout(pairs)
+    except ValueError as e:
+        raise ValueError(f"rig {list(rig.names)}: {e}") from None
 
 
 class PointSensors:
-    """Every point sensor of a rig (``LIDAR_TOP``, ``SEM_LIDAR_TOP``, ``RADAR_FRONT``, then ``rig.extra``).
+    """Every point sensor of a rig (every sensor but the cameras), in rig order.
 
     :meth:`measure` returns each sensor's points for the tick that ends at the scene's instant, in the sensor
     frame, with CARLA's semantics (see :mod:`fog_gym.lidar`); the sensors draw from one generator in rig order.
@@ -61,7 +68,7 @@ class PointSensors:
     def __init__(self, rig, simulation_frequency: float = 20.0) -> None:
         self.rig = rig
         self.simulation_frequency = float(simulation_frequency)
-        self.sensors = rig_sensors(rig, simulation_frequency)
+        self.sensors = tuple(s for s in rig_sensors(rig, simulation_frequency) if not isinstance(s, CameraSensor))
         self.channels = tuple(c for s in self.sensors for c in s.channels)
 
     def observation_spaces(self):
@@ -76,5 +83,5 @@ class PointSensors:
 
 
 __all__ = ["LIGHT_RANGE", "MAX_TAG", "REGISTRY", "CameraFrame", "CameraRig", "CameraSensor", "LidarSensor",
-           "PointSensor", "PointSensors", "RadarSensor", "SemanticLidarSensor", "Sensor", "register", "rig_sensors",
-           "sensor_class"]  # fmt: skip
+           "PointSensor", "PointSensors", "RadarSensor", "SemanticLidarSensor", "Sensor", "build_sensor", "register",
+           "rig_layout", "rig_sensors", "sensor_class"]  # fmt: skip

@@ -5,7 +5,8 @@ observation spaces, ``measure(scene, prims, rng, tick)``, and for each channel t
 :class:`~fog_gym.dataset.layout.ChannelSpec` (folder, file format, encoding, column count) that the writer,
 ``validate`` and the loaders read. The physics stays in :mod:`fog_gym.lidar` and :mod:`fog_gym.render`.
 
-See :func:`fog_gym.sensors.rig_sensors` for the sensors of a rig.
+See :func:`fog_gym.sensors.rig_sensors` for the sensors of a rig and :func:`fog_gym.sensors.rig_layout` for its
+dataset layout.
 """
 
 from __future__ import annotations
@@ -16,6 +17,7 @@ import numpy as np
 from gymnasium import spaces
 
 from fog_gym.dataset.layout import ChannelSpec
+from fog_gym.registry import REGISTRY, register, sensor_class
 from fog_gym.primitives import Primitives
 from fog_gym.scene import Scene
 
@@ -30,7 +32,8 @@ class Sensor(Protocol):
 
     @property
     def channels(self) -> tuple[str, ...]:
-        """The observation keys the sensor fills."""
+        """The observation keys the sensor fills; the first is the one a fog model of the sensor's kind fogs
+        (a camera's RGB, a LiDAR's points)."""
 
     def observation_spaces(self) -> dict[str, spaces.Space]:
         """One space per channel."""
@@ -41,36 +44,20 @@ class Sensor(Protocol):
     def layout(self) -> dict[str, ChannelSpec]:
         """The dataset channels of the sensor → where and how they are stored."""
 
+    @classmethod
+    def build(cls, name: str, config: Any, simulation_frequency: float, far: float) -> Sensor:
+        """The sensor of the rig entry ``(name, config)`` (what :func:`fog_gym.sensors.rig_sensors` calls)."""
 
-#: Sensor config type → sensor class (see :func:`register`).
-REGISTRY: dict[type, type] = {}
 
-
-def register(config_type: type):
-    """Class decorator: sensors of ``config_type`` (in :attr:`RigConfig.extra`) are built by the class.
+def build_sensor(name: str, config: Any, simulation_frequency: float = 20.0, far: float = 1000.0):
+    """The sensor ``name`` of a rig, built by the class registered for the config's type (:func:`register`).
 
     >>> sensor_class(object)
     Traceback (most recent call last):
     ...
-    ValueError: config type must be one of the registered sensor configs (LidarConfig, RadarConfig), got object
+    ValueError: config type must be one of the registered sensor configs (CameraConfig, LidarConfig, RadarConfig, SemanticLidarConfig), got object
     """
-    if not isinstance(config_type, type):
-        raise TypeError(f"config_type must be a class, got {config_type!r}")
-
-    def deco(cls: type) -> type:
-        REGISTRY[config_type] = cls
-        return cls
-
-    return deco
-
-
-def sensor_class(config_type: type) -> type:
-    """The sensor class registered for ``config_type`` (the most specific one along its MRO)."""
-    for t in getattr(config_type, "__mro__", (config_type,)):
-        if t in REGISTRY:
-            return REGISTRY[t]
-    names = ", ".join(sorted(t.__name__ for t in REGISTRY))
-    raise ValueError(f"config type must be one of the registered sensor configs ({names}), got {config_type.__name__}")
+    return sensor_class(type(config)).build(name, config, simulation_frequency, far)
 
 
 class PointSensor:
@@ -90,6 +77,11 @@ class PointSensor:
         self.channel = self.default_channel if channel is None else channel
         if not isinstance(self.channel, str) or not self.channel:
             raise ValueError(f"channel must be a non-empty channel name, got {channel!r}")
+
+    @classmethod
+    def build(cls, name: str, config: Any, simulation_frequency: float = 20.0, far: float = 1000.0) -> PointSensor:
+        """The sensor of a rig entry ``(name, config)``: its channel is ``name``."""
+        return cls(config, simulation_frequency, channel=name)
 
     @property
     def channels(self) -> tuple[str, ...]:

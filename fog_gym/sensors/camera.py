@@ -16,6 +16,7 @@ Example:
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -23,8 +24,9 @@ import numpy as np
 from fog_gym import geometry
 from gymnasium import spaces
 
-from fog_gym.config import CameraConfig, RigConfig
+from fog_gym.camera_config import CameraConfig
 from fog_gym.dataset.layout import FOG_LEVELS, ChannelSpec
+from fog_gym.sensors.base import register
 from fog_gym.render.lights import beam_window, concat_lights, cull_lights, lamp_light_map, render_night, street_lamp_lights
 from fog_gym.render.raster import render
 from fog_gym.primitives import Primitives
@@ -49,17 +51,19 @@ class CameraFrame:
 
 
 class CameraRig:
-    """Renders every camera of a :class:`RigConfig` from a :class:`Scene`."""
+    """Renders every camera of a :class:`~fog_gym.config.RigConfig` (or of a sequence of
+    :class:`~fog_gym.camera_config.CameraConfig`) from a :class:`Scene`."""
 
-    def __init__(self, rig: RigConfig, far: float = 1000.0, render_radius: float = 600.0) -> None:
+    def __init__(self, rig: RigConfig | Sequence[CameraConfig], far: float = 1000.0, render_radius: float = 600.0) -> None:
         self.rig = rig
+        cameras = tuple(rig.cameras if hasattr(rig, "cameras") else rig)
         self.far = float(far)
         self.render_radius = float(render_radius)
-        self.names = tuple(c.name for c in rig.cameras)
-        self.intrinsics = {c.name: c.intrinsic() for c in rig.cameras}
-        self.sensor_to_vehicle = {c.name: geometry.transform_matrix(c.pose.location, c.pose.rotation) for c in rig.cameras}
+        self.names = tuple(c.name for c in cameras)
+        self.intrinsics = {c.name: c.intrinsic() for c in cameras}
+        self.sensor_to_vehicle = {c.name: geometry.transform_matrix(c.pose.location, c.pose.rotation) for c in cameras}
         groups: dict[tuple[int, int], list] = {}
-        for c in rig.cameras:
+        for c in cameras:
             groups.setdefault((c.width, c.height), []).append(c)
         self._groups = list(groups.items())
         self._props_cache: tuple[object, dict] | None = None
@@ -124,6 +128,7 @@ class CameraRig:
         return heads, lights, (lamp_map, beam_window(lamp_map, beams, ego))
 
 
+@register(CameraConfig)
 class CameraSensor:
     """One camera: channels ``C``, ``C_DEPTH`` (metres, sky = ``far``), ``C_SEM``; in the dataset also
     ``C_FOG_<LEVEL>`` and ``C_BBOX`` under ``c/out_rgb``, ``c/out_fog_<level>``, ``c/out_depth``, ``c/out_seg``,
@@ -136,6 +141,11 @@ class CameraSensor:
             raise TypeError(f"config must be a CameraConfig, got {type(config).__name__}")
         self.config, self.far = config, float(far)
         self._rig: CameraRig | None = None
+
+    @classmethod
+    def build(cls, name: str, config: CameraConfig, simulation_frequency: float = 20.0, far: float = 1000.0):
+        """The camera of the rig entry ``(name, config)`` (``name`` is ``config.name``)."""
+        return cls(config, far)
 
     @property
     def channels(self) -> tuple[str, ...]:
@@ -161,7 +171,7 @@ class CameraSensor:
     def measure(self, scene: Scene, prims: Primitives, rng: np.random.Generator, tick: int) -> dict[str, np.ndarray]:
         """The camera's RGB, depth and tags (``rng`` and ``tick`` unused: rendering is deterministic)."""
         if self._rig is None:
-            self._rig = CameraRig(RigConfig((self.config,)), far=self.far)
+            self._rig = CameraRig((self.config,), far=self.far)
         f = self._rig.render(scene, prims)[self.config.name]
         return dict(zip(self.channels, (f.rgb, f.depth, f.semantic)))
 

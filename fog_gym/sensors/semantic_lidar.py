@@ -11,13 +11,14 @@ from __future__ import annotations
 
 import numpy as np
 
-from fog_gym.lidar import sensor_to_world, simulate_semantic_lidar
+from fog_gym.lidar import SemanticLidarConfig, sensor_to_world, simulate_semantic_lidar
 from fog_gym.points import SEMANTIC_LIDAR, lidar_space
-from fog_gym.sensors.base import PointSensor
+from fog_gym.sensors.base import PointSensor, register
 
 
+@register(SemanticLidarConfig)
 class SemanticLidarSensor(PointSensor):
-    """Built from :attr:`RigConfig.semantic_lidar` (its config type is the LiDAR's, so it is not registered)."""
+    """Built for a :class:`~fog_gym.lidar.SemanticLidarConfig` (``LidarConfig.fogdrive_semantic()``)."""
 
     kind = "semantic_lidar"
     default_channel, columns, default_folder = SEMANTIC_LIDAR, 6, "semantic_lidar"
