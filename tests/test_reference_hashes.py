@@ -1,7 +1,10 @@
 """Refactors keep behaviour: fixed seeds give byte-identical observations, labels and datasets.
 
 The reference digests in ``tests/reference_hashes.json`` were recorded before the structure work of the
-sensor/fog/world refactor. A change that alters any of them changes what users get for the same seed; if
+sensor/fog/world refactor. Images, point clouds and ids are compared bit for bit; float64 label values (the
+``info`` boxes, the JSON box files) at 9 significant digits, because numpy's SIMD kernels for ``sin``/``cos``
+differ in the last bit between CPUs (AVX-512 or not: ``NPY_DISABLE_CPU_FEATURES="X86_V4 AVX512_ICL"`` reproduces
+the other machines' values). A change that alters any of them changes what users get for the same seed; if
 that is intended (a physics fix, a new default), re-record with ``python -m tests.test_reference_hashes
 --record`` and say why in the commit.
 """
@@ -33,23 +36,40 @@ def _digest(data: bytes) -> str:
     return hashlib.sha256(data).hexdigest()[:16]
 
 
+SIGNIFICANT = 9  # float64 labels are compared to this many significant digits (module docstring)
+
+
+def _float(v: float) -> str:
+    return f"{float(v):.{SIGNIFICANT}g}"
+
+
+def _plain(v: Any) -> Any:
+    """JSON-able form of labels: float64 values as text at :data:`SIGNIFICANT` digits, other arrays as digests."""
+    if isinstance(v, np.ndarray):
+        if v.dtype == np.float64:
+            return {"shape": list(v.shape), "values": [_float(x) for x in v.ravel()]}
+        return {"dtype": str(v.dtype), "shape": list(v.shape), "sha": _digest(np.ascontiguousarray(v).tobytes())}
+    if isinstance(v, dict):
+        return {str(k): _plain(x) for k, x in sorted(v.items(), key=lambda kv: str(kv[0]))}
+    if isinstance(v, (list, tuple)):
+        return [_plain(x) for x in v]
+    if isinstance(v, (np.floating, float)):
+        return _float(v)
+    if isinstance(v, np.integer):
+        return int(v)
+    return v if isinstance(v, (str, int, bool, type(None))) else repr(v)
+
+
 def _labels_digest(info: dict[str, Any]) -> str:
-    """Digest of the label part of ``info`` (boxes and every other key), exact to the float's bits."""
+    """Digest of the label part of ``info`` (boxes and every other key)."""
+    return _digest(json.dumps(_plain(info), sort_keys=True).encode())
 
-    def plain(v: Any) -> Any:
-        if isinstance(v, np.ndarray):
-            return {"dtype": str(v.dtype), "shape": list(v.shape), "sha": _digest(np.ascontiguousarray(v).tobytes())}
-        if isinstance(v, dict):
-            return {str(k): plain(x) for k, x in sorted(v.items(), key=lambda kv: str(kv[0]))}
-        if isinstance(v, (list, tuple)):
-            return [plain(x) for x in v]
-        if isinstance(v, (np.floating, float)):
-            return float(v).hex()
-        if isinstance(v, np.integer):
-            return int(v)
-        return v if isinstance(v, (str, int, bool, type(None))) else repr(v)
 
-    return _digest(json.dumps(plain(info), sort_keys=True).encode())
+def _file_digest(path: Path) -> str:
+    """A file's digest: JSON files by their content with floats at :data:`SIGNIFICANT` digits, others bytewise."""
+    if path.suffix == ".json":
+        return _digest(json.dumps(_plain(json.loads(path.read_text())), sort_keys=True).encode())
+    return _digest(path.read_bytes())
 
 
 def env_hashes(town: str, time_of_day: str, traffic: str, fog: tuple[str, ...], seed: int) -> dict[str, str]:
@@ -82,7 +102,7 @@ def dataset_hashes() -> dict[str, str]:
         root = Path(tmp) / "set"
         generate(root, plan_scenes(2, towns=("roundabout",), seed=11, resolution=(32, 24), seconds=0.2),
                  workers=1, progress=False)  # fmt: skip
-        return {str(p.relative_to(root)): _digest(p.read_bytes()) for p in sorted(root.rglob("*")) if p.is_file()}
+        return {str(p.relative_to(root)): _file_digest(p) for p in sorted(root.rglob("*")) if p.is_file()}
 
 
 def all_hashes() -> dict[str, dict[str, str]]:
