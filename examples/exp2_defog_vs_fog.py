@@ -43,6 +43,9 @@ def main(argv: list[str] | None = None) -> dict:
     p.add_argument("--min-height", type=float, default=0.0,
                    help="evaluate only boxes at least this many pixels high at the detector input; lower ones are "
                         "ignore regions (default 0: every box, as the paper)")
+    p.add_argument("--hsv", type=float, nargs=3, default=[0.015, 0.7, 0.4], metavar=("H", "S", "V"),
+                   help="colour jitter of the detectors' training images, gains of hue, saturation, value "
+                        "(default Ultralytics' 0.015 0.7 0.4; 0 0 0 = flips only)")
     p.add_argument("--device", default="auto", help="torch device: auto (GPU when present), cpu, cuda")
     p.add_argument("--seed", type=int, default=0, help="seed of scene choice, weights and augmentation (default 0)")
     p.add_argument("--smoke", action="store_true",
@@ -69,7 +72,8 @@ def main(argv: list[str] | None = None) -> dict:
                             input_size=size(args.input_size, "--input-size"), train_fraction=args.train_fraction,
                             val_fraction=args.val_fraction, test_fraction=args.test_fraction,
                             aod_epochs=args.aod_epochs, aod_pairs=args.aod_pairs, cameras=tuple(args.cameras),
-                            seed=args.seed, device=args.device, min_height=args.min_height)  # fmt: skip
+                            seed=args.seed, device=args.device, min_height=args.min_height,
+                            hsv=tuple(args.hsv))  # fmt: skip
     except ValueError as e:
         p.error(str(e))
     if args.generate:

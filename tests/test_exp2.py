@@ -97,7 +97,7 @@ def test_experiment2_runs_every_pipeline_and_a_second_run_reuses_the_models(came
     "bad, message",
     [({"input_size": (50, 40)}, "multiples of 16"), ({"epochs": 0}, "epochs"), ({"test_fraction": 0.0}, "test_fraction"),
      ({"cameras": ("CAM_TOP",)}, "cameras"), ({"lr": -1.0}, "lr"), ({"min_height": -1.0}, "min_height"),
-     ({"min_height": 1e9}, "min_height")],
+     ({"min_height": 1e9}, "min_height"), ({"hsv": (0.1, 2.0, 0.1)}, "hsv"), ({"hsv": (0.1, 0.1)}, "hsv")],
 )  # fmt: skip
 def test_bad_settings_fail_before_any_work(bad, message):
     with pytest.raises(ValueError, match=message):
@@ -116,3 +116,20 @@ def test_scene_choice_is_a_seeded_uniform_subset():
     names = [f"T1_day_scene{i:03d}" for i in range(40)]
     a, b = choose_scenes(names, 0.15, 3), choose_scenes(names, 0.15, 4)
     assert len(a) == 6 and set(a) <= set(names) and a == choose_scenes(list(reversed(names)), 0.15, 3) and a != b
+
+
+def test_colour_jitter_keeps_geometry_and_grey_and_is_seeded():
+    from fog_gym.detect2d.experiment import augment_hsv
+
+    rng = np.random.default_rng(3)
+    img = rng.integers(0, 256, (24, 32, 3), dtype=np.uint8)
+    a = augment_hsv(img, (0.015, 0.7, 0.4), np.random.default_rng(1))
+    b = augment_hsv(img, (0.015, 0.7, 0.4), np.random.default_rng(1))
+    assert a.shape == img.shape and a.dtype == np.uint8 and (a == b).all()
+    assert not (a == img).all()
+    # zero gains change nothing beyond the HSV round trip's rounding
+    same = augment_hsv(img, (0.0, 0.0, 0.0), np.random.default_rng(1))
+    assert np.abs(same.astype(int) - img).max() <= 8
+    grey = np.full((4, 4, 3), 77, np.uint8)  # no hue or saturation: only the value gain acts
+    out = augment_hsv(grey, (0.5, 0.5, 0.0), np.random.default_rng(2))
+    assert (out == grey).all()

@@ -77,6 +77,10 @@ class Exp2Config:
     #: Ground-truth boxes lower than this many pixels *at the detector input* are ignore regions in evaluation
     #: (COCO crowd: neither hit nor miss); 0 evaluates every box, as the paper does at 1280 × 960.
     min_height: float = 0.0
+    #: Photometric augmentation of the detectors' training images: random hue, saturation and value gains within
+    #: ±(h, s, v) — Ultralytics' defaults (0.015, 0.7, 0.4), part of the paper's "default augmentations"; zeros
+    #: switch it off (horizontal flips always apply).
+    hsv: tuple[float, float, float] = (0.015, 0.7, 0.4)
 
     def __post_init__(self) -> None:
         for name in ("epochs", "batch_size", "every", "test_every", "eval_every", "width", "aod_epochs", "aod_pairs"):
@@ -91,6 +95,9 @@ class Exp2Config:
                 raise ValueError(f"{name} must lie in (0, 1], got {getattr(self, name)}")
         if not self.lr > 0:
             raise ValueError(f"lr must be > 0, got {self.lr}")
+        if len(self.hsv) != 3 or not all(isinstance(g, (int, float)) and 0 <= g <= 1 for g in self.hsv):
+            raise ValueError(f"hsv must be three gains in [0, 1] (hue, saturation, value), got {self.hsv!r}")
+        object.__setattr__(self, "hsv", tuple(float(g) for g in self.hsv))
         if not (isinstance(self.min_height, (int, float)) and 0 <= self.min_height < h):
             raise ValueError(f"min_height must lie in [0, input height {h}), got {self.min_height!r}")
         bad = [c for c in self.cameras if c not in ("CAM_FRONT", "CAM_BACK", "CAM_LEFT", "CAM_RIGHT")]
@@ -191,12 +198,33 @@ class OracleDehazer:
 
 
 # -- detector training and evaluation ----------------------------------------------------------------------------
+def augment_hsv(image: np.ndarray, gains: Sequence[float], rng: np.random.Generator) -> np.ndarray:
+    """Ultralytics-style colour jitter of a uint8 RGB image: hue, saturation and value multiplied by random gains
+    in ``1 ± gains`` (hue wraps around), through lookup tables.
+
+    >>> img = np.full((2, 2, 3), 128, np.uint8)  # grey has no hue or saturation to change
+    >>> out = augment_hsv(img, (0.5, 0.5, 0.0), np.random.default_rng(0))
+    >>> bool((out == img).all())
+    True
+    """
+    r = rng.uniform(-1.0, 1.0, 3) * np.asarray(gains, np.float64) + 1.0
+    hue, sat, val = cv2.split(cv2.cvtColor(image, cv2.COLOR_RGB2HSV))
+    x = np.arange(256, dtype=np.float64)
+    lut_h = ((x * r[0]) % 180).astype(np.uint8)
+    lut_s = np.clip(x * r[1], 0, 255).astype(np.uint8)
+    lut_v = np.clip(x * r[2], 0, 255).astype(np.uint8)
+    hsv = cv2.merge((cv2.LUT(hue, lut_h), cv2.LUT(sat, lut_s), cv2.LUT(val, lut_v)))
+    return cv2.cvtColor(hsv, cv2.COLOR_HSV2RGB)
+
+
 class ImageSet(torch.utils.data.Dataset):
-    """Frames at a fog level, resized to the input size, with CenterNet targets; horizontal flips when ``augment``."""
+    """Frames at a fog level, resized to the input size, with CenterNet targets; horizontal flips and the ``hsv``
+    colour jitter (:func:`augment_hsv`) when ``augment``."""
 
     def __init__(self, ds: FogDrive, items: Sequence[Frame], level: str, size: tuple[int, int], augment: bool = False,
-                 seed: int = 0) -> None:  # fmt: skip
+                 seed: int = 0, hsv: Sequence[float] = (0.0, 0.0, 0.0)) -> None:  # fmt: skip
         self.ds, self.items, self.level, self.size, self.augment = ds, list(items), level, tuple(size), augment
+        self.hsv = tuple(hsv)
         self.rng = np.random.default_rng(seed)
 
     def __len__(self) -> int:
@@ -210,6 +238,8 @@ class ImageSet(torch.utils.data.Dataset):
         w, h = self.size
         img = resize(img, self.size)
         boxes = boxes * np.array([w / w0, h / h0, w / w0, h / h0])
+        if self.augment and any(self.hsv):
+            img = augment_hsv(img, self.hsv, self.rng)
         if self.augment and self.rng.random() < 0.5:
             img = np.ascontiguousarray(img[:, ::-1])
             boxes = np.stack([w - boxes[:, 2], boxes[:, 1], w - boxes[:, 0], boxes[:, 3]], 1)
@@ -376,7 +406,7 @@ def run_experiment2(root: str | Path, out: str | Path, config: Exp2Config = Exp2
             log(f"detector {name}: kept from {path}")
             return model
         vi, vg, vs = _eval_set(ds, val_f, level, size, min_height=config.min_height)
-        model, summary = train_detector(ImageSet(ds, train_f, level, size, augment=True, seed=config.seed), vi, vg, vs,
+        model, summary = train_detector(ImageSet(ds, train_f, level, size, augment=True, seed=config.seed, hsv=config.hsv), vi, vg, vs,
                                         config, device, name, out / "tb" / name, progress)  # fmt: skip
         torch.save(model.state_dict(), path)
         _write_atomic(meta_path, json.dumps({"config": settings, "scenes": chosen, "summary": summary}, indent=1))
@@ -392,7 +422,9 @@ def run_experiment2(root: str | Path, out: str | Path, config: Exp2Config = Exp2
     # AOD-Net on the train split's (clean, fog) pairs: random full-resolution crops, every level
     aod_path, aod_meta = out / "models" / "aodnet.pt", out / "models" / "aodnet.json"
     aod = AODNet().to(device)
-    if aod_path.exists() and aod_meta.exists() and json.loads(aod_meta.read_text())["config"] == settings:
+    aod_keys = ("aod_epochs", "aod_pairs", "batch_size", "seed", "input_size", "every", "train_fraction", "cameras")
+    aod_settings = {k: settings[k] for k in aod_keys}
+    if aod_path.exists() and aod_meta.exists() and {k: json.loads(aod_meta.read_text())["config"].get(k) for k in aod_keys} == aod_settings:
         aod.load_state_dict(torch.load(aod_path, map_location=device))
         log(f"AOD-Net: kept from {aod_path}")
     else:
