@@ -608,7 +608,7 @@ def shade_night(
 
 
 #: The exposure of :func:`render_night` is measured on a render this many times smaller in each direction.
-EXPOSURE_DOWNSCALE = 4
+EXPOSURE_DOWNSCALE = 8
 
 
 def render_night(
