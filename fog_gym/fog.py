@@ -170,7 +170,18 @@ def night_airlight(rgb: np.ndarray, depth: np.ndarray, max_range: float = NIGHT_
         raise ValueError(f"rgb must be (H, W, 3) and depth (H, W), got {img.shape} and {np.shape(depth)}")
     near = np.asarray(depth) < max_range
     pixels = img[near] if near.any() else img.reshape(-1, 3)
-    return np.percentile(pixels.astype(np.float64), NIGHT_AIRLIGHT_PERCENTILE, axis=0)
+    if pixels.dtype != np.uint8:
+        return np.percentile(pixels.astype(np.float64), NIGHT_AIRLIGHT_PERCENTILE, axis=0)
+    # np.percentile's linear rule from the channels' 256-bin counts (no sort): the order statistics at
+    # floor(q·(n − 1)) and the next one, interpolated by the fraction
+    pos = NIGHT_AIRLIGHT_PERCENTILE / 100.0 * (len(pixels) - 1)
+    lo, frac = int(math.floor(pos)), pos - math.floor(pos)
+    out = np.empty(3)
+    for ch in range(3):
+        cum = np.cumsum(np.bincount(pixels[:, ch], minlength=256))
+        a, b = np.searchsorted(cum, [lo + 1, min(lo + 2, len(pixels))]).astype(np.float64)
+        out[ch] = b - (b - a) * (1.0 - frac) if frac >= 0.5 else a + (b - a) * frac
+    return out
 
 
 def glow_sigma_px(K: np.ndarray, alpha: float) -> float:
@@ -200,12 +211,21 @@ def add_glow(fogged: np.ndarray, clean: np.ndarray, depth: np.ndarray, K: np.nda
     if not src.any():
         return fogged
     h, w = depth.shape
-    ell = depth * ray_length_factor(w, h, K)
-    weight = np.where(src, GLOW_FORWARD * GLOW_SOURCE_GAIN * (1.0 - np.exp(-alpha * ell)), 0.0).astype(np.float32)
-    energy = clean.astype(np.float32) * weight[..., None]
     sigma = max(glow_sigma_px(K, alpha), 0.5)
+    # only the sources' bounding box grown by the kernel's reach can receive glow (OpenCV's float kernel spans
+    # ±4σ): blur that window alone, with the same zero border
+    reach = int(round(4.0 * sigma)) + 2
+    rows, cols = np.flatnonzero(src.any(axis=1)), np.flatnonzero(src.any(axis=0))
+    r0, r1 = max(rows[0] - reach, 0), min(rows[-1] + reach + 1, h)
+    c0, c1 = max(cols[0] - reach, 0), min(cols[-1] + reach + 1, w)
+    win = (slice(r0, r1), slice(c0, c1))
+    ell = depth[win] * ray_length_factor(w, h, K)[win]
+    weight = np.where(src[win], GLOW_FORWARD * GLOW_SOURCE_GAIN * (1.0 - np.exp(-alpha * ell)), 0.0).astype(np.float32)
+    energy = clean[win].astype(np.float32) * weight[..., None]
     glow = cv2.GaussianBlur(energy, (0, 0), sigmaX=sigma, sigmaY=sigma, borderType=cv2.BORDER_CONSTANT)
-    return np.clip(fogged.astype(np.float32) + glow + 0.5, 0, 255).astype(np.uint8)
+    out = np.array(fogged, np.uint8, copy=True)
+    out[win] = np.clip(fogged[win].astype(np.float32) + glow + 0.5, 0, 255).astype(np.uint8)
+    return out
 
 
 _F32 = np.float32

@@ -151,7 +151,12 @@ class Props:
 
 @dataclass(frozen=True)
 class SceneryStyle:
-    """How a town dresses its roadside. Offsets are metres beyond the outer road edge."""
+    """How a town dresses its roadside. Offsets are metres beyond the outer road edge.
+
+    Street-light poles stand every ``pole_spacing`` metres along each outer road edge and are ``pole_height``
+    tall; the lamp hangs at the pole's top (:func:`lamp_heads`). Real roads light with 8–10 m mounting heights
+    and 25–40 m spacing (e.g. EN 13201 / IES RP-8 layouts), and so do the styles.
+    """
 
     guard_rails: bool = True
     building_offset: tuple[float, float] = (16.0, 30.0)
@@ -159,17 +164,22 @@ class SceneryStyle:
     building_height: tuple[float, float] = (6.0, 24.0)
     tree_offset: tuple[float, float] = (5.0, 12.0)
     tree_spacing: tuple[float, float] = (7.0, 16.0)
-    pole_spacing: float = 40.0
+    pole_spacing: float = 36.0
+    pole_height: float = 10.0
+
+    def __post_init__(self) -> None:
+        if not (self.pole_spacing > 0 and self.pole_height > 0):
+            raise ValueError(f"pole_spacing and pole_height must be > 0, got {self.pole_spacing}, {self.pole_height}")
 
 
 STYLES: dict[str, SceneryStyle] = {
     "freeway": SceneryStyle(),
     "urban": SceneryStyle(guard_rails=False, building_offset=(5.0, 12.0), building_spacing=(10.0, 20.0),
                           building_height=(8.0, 30.0), tree_offset=(3.2, 4.5), tree_spacing=(10.0, 18.0),
-                          pole_spacing=25.0),
+                          pole_spacing=28.0, pole_height=8.0),
     "circuit": SceneryStyle(building_offset=(25.0, 40.0), building_spacing=(40.0, 80.0),
                             building_height=(5.0, 12.0), tree_offset=(6.0, 15.0), tree_spacing=(6.0, 12.0),
-                            pole_spacing=60.0),
+                            pole_spacing=32.0, pole_height=9.0),
 }  # fmt: skip
 
 _BUILDING_COLORS = np.array([[0.55, 0.50, 0.45], [0.62, 0.60, 0.58], [0.45, 0.40, 0.38], [0.70, 0.66, 0.55],
@@ -230,7 +240,22 @@ def _outer_edges(lanes: list[LaneGeometry], surface: SurfaceMap):
                 yield side, sign * unit, heading, ln.s, outside
 
 
-#: Street-lamp heads: on top of each pole (tag 6, 7 m), on an arm reaching this far over the road [m].
+def lit_edge_length(lanes: list[LaneGeometry], surface: SurfaceMap) -> float:
+    """Length [m] of the outer road edges that the street-light poles line (lane sides bordering no other road).
+
+    >>> lane = LaneGeometry.straight((0, 0), (100, 0), width=4.0, line_types=(2, 2))
+    >>> round(lit_edge_length([lane], build_surface([lane], resolution=0.5)))
+    200
+    """
+    total = 0.0
+    for side, _, _, _, outside in _outer_edges(lanes, surface):
+        seg = np.linalg.norm(np.diff(side, axis=0), axis=1)
+        total += float(seg[outside[:-1] & outside[1:]].sum())
+    return total
+
+
+#: Street-lamp heads: on top of each pole (tag 6, the style's ``pole_height``), on an arm reaching this far over
+#: the road [m].
 LAMP_ARM = 3.5
 POLE_TAG = 6
 
@@ -292,7 +317,7 @@ def place_props(lanes: list[LaneGeometry], surface: SurfaceMap, rng: np.random.G
                 continue
             p = side[k] + normal[k] * (SIDEWALK_WIDTH + 0.6)
             if placer.try_place(p[0], p[1], 0.25, 0.25, heading[k], min_paved_dist=0.0, min_road_dist=2.0, pad=0.2):
-                add(p[0], p[1], 0.0, 0.25, 0.25, 7.0, heading[k], (0.45, 0.45, 0.47), 6)
+                add(p[0], p[1], 0.0, 0.25, 0.25, style.pole_height, heading[k], (0.45, 0.45, 0.47), POLE_TAG)
     # trees: trunk + canopy
     for side, normal, heading, s, outside in edges:
         s0 = rng.uniform(0, style.tree_spacing[1])

@@ -13,7 +13,9 @@ from fog_gym.fog import add_glow, glow_sigma_px, night_airlight
 from fog_gym.render import lights as L
 from fog_gym.render.raster import render
 from fog_gym.scene import headlights
-from fog_gym.scenery import POLE_TAG, SIDEWALK_WIDTH, LaneGeometry, Props, build_surface, lamp_heads
+from fog_gym.scenery import (
+    POLE_TAG, SIDEWALK_WIDTH, STYLES, LaneGeometry, Props, build_surface, lamp_heads, lit_edge_length, place_props,
+)  # fmt: skip
 from tests.test_render import front_rig, make_scene
 
 UP = np.array([0.0, 0.0, 1.0])
@@ -74,6 +76,30 @@ def test_lamp_heads_hang_over_the_road_at_pole_top():
     heads_other_side = lamp_heads(pole_props([20.0], y=-y), surf)
     assert abs(heads_other_side[0, 1]) < 2.0
     assert lamp_heads(Props.empty(), surf).shape == (0, 3)
+
+
+@pytest.mark.parametrize("style", sorted(STYLES))
+def test_every_style_hangs_lamps_8_to_10_m_high_and_25_to_40_m_apart_as_real_roads(style):
+    lane = LaneGeometry.straight((0, 0), (400, 0), width=4.0, line_types=(2, 2))
+    surf = build_surface([lane], resolution=0.5)
+    props = place_props([lane], surf, np.random.default_rng(1), STYLES[style])
+    heads = lamp_heads(props, surf)
+    assert len(heads) >= 2 * (400 // 40)
+    np.testing.assert_allclose(heads[:, 2], STYLES[style].pole_height)  # at the pole's top
+    assert 8.0 <= STYLES[style].pole_height <= 10.0 and 25.0 <= STYLES[style].pole_spacing <= 40.0
+    for side in (heads[:, 1] > 0, heads[:, 1] < 0):  # consecutive lamps along each road edge
+        gaps = np.diff(np.sort(heads[side, 0]))
+        np.testing.assert_allclose(gaps, STYLES[style].pole_spacing, atol=1.0)
+    assert 25.0 <= lit_edge_length([lane], surf) / len(heads) <= 40.0
+    poles = props.tags == POLE_TAG  # the poles are geometry of that height
+    np.testing.assert_allclose(props.centers[poles, 2] + props.sizes[poles, 2] / 2, STYLES[style].pole_height)
+
+
+def test_a_style_refuses_a_pole_of_no_height():
+    from fog_gym.scenery import SceneryStyle
+
+    with pytest.raises(ValueError, match="pole_height"):
+        SceneryStyle(pole_height=0.0)
 
 
 # -- exposure -------------------------------------------------------------------------------------------------

@@ -608,7 +608,7 @@ def shade_night(
 
 
 #: The exposure of :func:`render_night` is measured on a render this many times smaller in each direction.
-EXPOSURE_DOWNSCALE = 4
+EXPOSURE_DOWNSCALE = 8
 
 
 def render_night(
@@ -622,7 +622,8 @@ def render_night(
     1. the exposure: an albedo render :data:`EXPOSURE_DOWNSCALE`× smaller, lit by :func:`shade_night`'s
        kernel, gives the histogram and so the gain of each camera;
     2. the full-size render lights, exposes and encodes every pixel as it is drawn (ground from the light maps,
-       faces from their irradiance grids), so the night costs one raster pass plus small set-ups;
+       faces from their irradiance grids, both read every few pixels and interpolated in between; see
+       :mod:`fog_gym.render.raster`), so the night costs one raster pass plus small set-ups;
     3. the lamp heads are drawn on top.
     """
     from fog_gym.render.raster import render

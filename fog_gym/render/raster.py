@@ -8,6 +8,11 @@ Cost scales with the pixels each primitive covers, not with pixels × primitives
    analytic ground plane (ray/plane intersection + a road-surface map lookup) or the sky, then scan-converts
    the faces whose screen bounds touch the band, span by span, with a depth test.
 
+At night (``night=``, built by :mod:`fog_gym.render.lights`) the same pass lights, exposes and encodes each pixel
+as it is drawn: a ground row samples its light map every few pixels (at most half a map cell apart, every pixel
+across a beam's edge) and a lit face span its irradiance grid every :data:`FACE_STEP` pixels, linear in between;
+albedo × irradiance × gain is encoded through one tone table (:func:`night_tone_table`).
+
 Outputs follow CARLA: planar depth (metres along the optical axis), sky at ``far``.
 Pixel ``(i, j)`` is sampled at its centre ``(j + 0.5, i + 0.5)``.
 """
@@ -275,6 +280,189 @@ def _light_ground(out_rgb, c, i, j, wx, wy, g, knee, ambient, wmap, w_ox, w_oy, 
 
 
 @njit(cache=True, inline="always")
+def _ground_irradiance(wx, wy, ambient, wmap, w_ox, w_oy, w_inv, smap, s_ox, s_oy, s_inv):
+    """Irradiance (RGB, ambient included) of the ground at world (wx, wy): bilinear in the window map, nearest
+    in the static map beyond it (as :func:`_light_ground`)."""
+    e0 = ambient
+    e1 = ambient
+    e2 = ambient
+    fi = (wy - w_oy) * w_inv - 0.5
+    fj = (wx - w_ox) * w_inv - 0.5
+    if fi >= 0.0 and fj >= 0.0 and fi < wmap.shape[0] - 1 and fj < wmap.shape[1] - 1:
+        mi = int(fi)
+        mj = int(fj)
+        ti = fi - mi
+        tj = fj - mj
+        b00 = (1.0 - ti) * (1.0 - tj)
+        b01 = (1.0 - ti) * tj
+        b10 = ti * (1.0 - tj)
+        b11 = ti * tj
+        e0 += b00 * wmap[mi, mj, 0] + b01 * wmap[mi, mj + 1, 0] + b10 * wmap[mi + 1, mj, 0] + b11 * wmap[mi + 1, mj + 1, 0]
+        e1 += b00 * wmap[mi, mj, 1] + b01 * wmap[mi, mj + 1, 1] + b10 * wmap[mi + 1, mj, 1] + b11 * wmap[mi + 1, mj + 1, 1]
+        e2 += b00 * wmap[mi, mj, 2] + b01 * wmap[mi, mj + 1, 2] + b10 * wmap[mi + 1, mj, 2] + b11 * wmap[mi + 1, mj + 1, 2]
+    else:
+        fi = (wy - s_oy) * s_inv
+        fj = (wx - s_ox) * s_inv
+        if fi >= 0.0 and fj >= 0.0 and fi < smap.shape[0] and fj < smap.shape[1]:
+            mi = int(fi)
+            mj = int(fj)
+            e0 += smap[mi, mj, 0]
+            e1 += smap[mi, mj, 1]
+            e2 += smap[mi, mj, 2]
+    return e0, e1, e2
+
+
+#: Night encoding: albedo (0–255) × exposed irradiance in units of ``255/TONE_STEPS`` (``E·gain·TONE_STEPS/255``,
+#: float32) is the index of the exposed radiance in a tone table of :data:`TONE_STEPS` entries per unit up to
+#: :data:`TONE_MAX` (the tone curve is 255 from ≈ 4 on): one product, one conversion and one lookup per channel,
+#: at most a quarter of an 8-bit level from the exact ``round(tone(x)·255)``.
+TONE_STEPS, TONE_MAX = 1024, 8
+#: A ground row samples its irradiance every ``step`` pixels (linear in between), ``step`` pixels spanning at most
+#: :data:`LIGHT_SPAN` window-map cells and at most :data:`MAX_LIGHT_STEP`; a face span every :data:`FACE_STEP`
+#: pixels where that spans at most one cell of the face's grid (else every pixel).
+MAX_LIGHT_STEP = 16
+LIGHT_SPAN = 0.5
+FACE_STEP = 8
+#: Two ground samples further apart than this (in the encoding's units: two 8-bit levels on white) and than an
+#: eighth of the smaller are not interpolated (beam edges): the pixels between them are lit one by one.
+_JUMP = 8.0 / 255.0
+
+
+def night_tone_table(knee: float) -> np.ndarray:
+    """``table[i] = round(tone((i + ½)/TONE_STEPS)·255)`` (uint8): the night encoding of exposed radiance."""
+    x = (np.arange(TONE_STEPS * TONE_MAX + 1) + 0.5) / TONE_STEPS
+    y = np.where(x <= knee, x, knee + (1 - knee) * (1 - np.exp(-(np.maximum(x, knee) - knee) / (1 - knee))))
+    return np.floor(y * 255.0 + 0.5).astype(np.uint8)
+
+
+@njit(cache=True, inline="always")
+def _fix(e, scale):
+    """Irradiance ``e`` in the units of the night encoding (``scale`` = gain · TONE_STEPS/255), float32."""
+    return np.float32(min(e * scale, 1e30))
+
+
+@njit(cache=True, inline="always")
+def _tone_at(tone, albedo, efix):
+    return tone[np.int32(min(np.float32(albedo) * efix, np.float32(TONE_STEPS * TONE_MAX)))]
+
+
+@njit(cache=True)
+def _night_ground_row(out_rgb, out_sem, out_depth, c, i, width, tf, fxw, fyw, kx, ky, surface, s_rows, s_cols,
+                      tiles_x, surf_lut, surf_tag, surf_x0, surf_y0, surf_res, escale, ambient, wmap, w_ox, w_oy,
+                      w_inv, smap, s_ox, s_oy, s_inv, tone):  # fmt: skip
+    """Draw, light, expose and encode a ground row (every pixel of it ground): pixel ``j`` sees surface-map
+    coordinates (fxw + j·kx, fyw + j·ky). The irradiance is sampled every ``step`` pixels (``step`` pixels spanning
+    at most :data:`LIGHT_SPAN` cells of the window map) and interpolated linearly in between."""
+    dwx = kx * surf_res
+    dwy = ky * surf_res
+    wx0 = surf_x0 + fxw * surf_res
+    wy0 = surf_y0 + fyw * surf_res
+    cpp = max(abs(dwx), abs(dwy)) * w_inv  # window cells per pixel
+    step = 1
+    if cpp * MAX_LIGHT_STEP <= LIGHT_SPAN:
+        step = MAX_LIGHT_STEP
+    elif cpp * 2.0 <= LIGHT_SPAN:
+        step = int(LIGHT_SPAN / cpp)
+    e0, e1, e2 = _ground_irradiance(wx0, wy0, ambient, wmap, w_ox, w_oy, w_inv, smap, s_ox, s_oy, s_inv)
+    a0 = _fix(e0, escale)
+    a1 = _fix(e1, escale)
+    a2 = _fix(e2, escale)
+    j0 = 0
+    while True:
+        j1 = min(j0 + step, width - 1)
+        b0, b1, b2 = a0, a1, a2
+        d0 = d1 = d2 = np.float32(0.0)
+        if j1 > j0:
+            e0, e1, e2 = _ground_irradiance(wx0 + dwx * j1, wy0 + dwy * j1, ambient, wmap, w_ox, w_oy, w_inv, smap,
+                                            s_ox, s_oy, s_inv)  # fmt: skip
+            b0 = _fix(e0, escale)
+            b1 = _fix(e1, escale)
+            b2 = _fix(e2, escale)
+            inv = np.float32(1.0 / (j1 - j0))
+            d0 = (b0 - a0) * inv
+            d1 = (b1 - a1) * inv
+            d2 = (b2 - a2) * inv
+        last = j1 == width - 1
+        # samples more than an eighth and two levels apart (a beam's edge): every pixel between them is lit exactly
+        jump = max(abs(b0 - a0) - max(0.125 * min(a0, b0), _JUMP), abs(b1 - a1) - max(0.125 * min(a1, b1), _JUMP),
+                   abs(b2 - a2) - max(0.125 * min(a2, b2), _JUMP))  # fmt: skip
+        exact = jump > 0
+        q0, q1, q2 = a0, a1, a2
+        for j in range(j0, j1 + 1 if last else j1):
+            fxj = fxw + kx * j
+            fyj = fyw + ky * j
+            cls = 0
+            gx = 0
+            gy = 0
+            if fxj >= 0.0 and fyj >= 0.0 and fxj < s_cols and fyj < s_rows:
+                gx = int(fxj)
+                gy = int(fyj)
+                cls = surface[(((gy >> 3) * tiles_x + (gx >> 3)) << 6) + ((gy & 7) << 3) + (gx & 7)]
+            k = cls * 16 + _hash_noise(gx, gy)
+            if exact and j > j0:
+                e0, e1, e2 = _ground_irradiance(wx0 + dwx * j, wy0 + dwy * j, ambient, wmap, w_ox, w_oy, w_inv, smap,
+                                                s_ox, s_oy, s_inv)  # fmt: skip
+                q0 = _fix(e0, escale)
+                q1 = _fix(e1, escale)
+                q2 = _fix(e2, escale)
+            out_rgb[c, i, j, 0] = _tone_at(tone, surf_lut[k, 0], q0)
+            out_rgb[c, i, j, 1] = _tone_at(tone, surf_lut[k, 1], q1)
+            out_rgb[c, i, j, 2] = _tone_at(tone, surf_lut[k, 2], q2)
+            out_sem[c, i, j] = surf_tag[cls]
+            out_depth[c, i, j] = tf
+            q0 += d0
+            q1 += d1
+            q2 += d2
+        if last:
+            break
+        j0 = j1
+        a0, a1, a2 = b0, b1, b2
+
+
+@njit(cache=True, inline="always")
+def _grid_bilinear(o, n1, n2, s1, s2, g_data):
+    """Bilinear read of an ``n1 × n2`` irradiance grid at ``data[o:]`` at grid coordinates (s1, s2), clamped."""
+    s1 = min(max(s1, 0.0), n1 - 1.0)
+    s2 = min(max(s2, 0.0), n2 - 1.0)
+    u0 = min(int(s1), n1 - 1)
+    v0 = min(int(s2), n2 - 1)
+    u1 = min(u0 + 1, n1 - 1)
+    v1 = min(v0 + 1, n2 - 1)
+    fu = s1 - u0
+    fv = s2 - v0
+    w00 = (1.0 - fu) * (1.0 - fv)
+    w01 = (1.0 - fu) * fv
+    w10 = fu * (1.0 - fv)
+    w11 = fu * fv
+    k00 = o + u0 * n2 + v0
+    k01 = o + u0 * n2 + v1
+    k10 = o + u1 * n2 + v0
+    k11 = o + u1 * n2 + v1
+    e0 = w00 * g_data[k00, 0] + w01 * g_data[k01, 0] + w10 * g_data[k10, 0] + w11 * g_data[k11, 0]
+    e1 = w00 * g_data[k00, 1] + w01 * g_data[k01, 1] + w10 * g_data[k10, 1] + w11 * g_data[k11, 1]
+    e2 = w00 * g_data[k00, 2] + w01 * g_data[k01, 2] + w10 * g_data[k10, 2] + w11 * g_data[k11, 2]
+    return e0, e1, e2
+
+
+@njit(cache=True, inline="always")
+def _grid_axis(R, ccx, ccy, ccz, p, ax, n, centers, halves, cossin):
+    """Coefficients (gx, gy, gz, o) of grid coordinate ``s = g·P + o`` along local axis ``ax`` (``n`` cells) of
+    primitive ``p``'s face grid for a camera-frame point ``P`` (camera rotation ``R``, centre ``cc`` in the world)."""
+    if ax == 0:
+        ux, uy, uz = cossin[p, 0], cossin[p, 1], 0.0
+    elif ax == 1:
+        ux, uy, uz = -cossin[p, 1], cossin[p, 0], 0.0
+    else:
+        ux, uy, uz = 0.0, 0.0, 1.0
+    sc = 0.5 * n / halves[p, ax]
+    gx = (R[0, 0] * ux + R[0, 1] * uy + R[0, 2] * uz) * sc
+    gy = (R[1, 0] * ux + R[1, 1] * uy + R[1, 2] * uz) * sc
+    gz = (R[2, 0] * ux + R[2, 1] * uy + R[2, 2] * uz) * sc
+    o = (ux * (ccx - centers[p, 0]) + uy * (ccy - centers[p, 1]) + uz * (ccz - centers[p, 2])) * sc + 0.5 * n - 0.5
+    return gx, gy, gz, o
+
+
+@njit(cache=True, inline="always")
 def face_irradiance(p, fs, wx, wy, wz, centers, halves, cossin, g_off, g_dims, g_data):
     """Bilinear irradiance (RGB) of face ``fs`` of primitive ``p`` at world point w from its grid (0 if unlit)."""
     o = g_off[p, fs]
@@ -321,7 +509,7 @@ def _raster_bands(
     verts, nverts, planes, face_rgb, face_tag, face_inst, bounds, counts,
     out_rgb, out_depth, out_sem, out_inst, want_face, out_face,
     night, gains, knee, ambient, emis_gain, sky_gain, wmap, w_ox, w_oy, w_inv, smap, s_ox, s_oy, s_inv,
-    face_emis, face_prim, face_side, centers, halves, cossin, g_off, g_dims, g_data,
+    face_emis, face_prim, face_side, centers, halves, cossin, g_off, g_dims, g_data, tone,
 ):  # fmt: skip
     n_cam = cam_rot.shape[0]
     n_bands = (height + BAND_ROWS - 1) // BAND_ROWS
@@ -330,6 +518,7 @@ def _raster_bands(
         c = task // n_bands
         r0 = (task % n_bands) * BAND_ROWS
         r1 = min(r0 + BAND_ROWS, height)
+        escale = gains[c] * (TONE_STEPS / 255.0)
         R = cam_rot[c]
         T = cam_trans[c]
         fx, fy, cx, cy = cam_k[c, 0], cam_k[c, 1], cam_k[c, 2], cam_k[c, 3]
@@ -371,14 +560,15 @@ def _raster_bands(
                     kx = t * sx * inv_res
                     ky = t * sy * inv_res
                     tf = np.float32(t)
-                    for j in range(width):
-                        _ground_pixel(out_rgb, out_sem, c, i, j, fxw + kx * j, fyw + ky * j, surface,
-                                      s_rows, s_cols, tiles_x, surf_lut, surf_tag)
-                        out_depth[c, i, j] = tf
-                        if night:
-                            _light_ground(out_rgb, c, i, j, surf_x0 + (fxw + kx * j) * surf_res,
-                                          surf_y0 + (fyw + ky * j) * surf_res, gains[c], knee, ambient,
-                                          wmap, w_ox, w_oy, w_inv, smap, s_ox, s_oy, s_inv)
+                    if night:
+                        _night_ground_row(out_rgb, out_sem, out_depth, c, i, width, tf, fxw, fyw, kx, ky, surface,
+                                          s_rows, s_cols, tiles_x, surf_lut, surf_tag, surf_x0, surf_y0, surf_res,
+                                          escale, ambient, wmap, w_ox, w_oy, w_inv, smap, s_ox, s_oy, s_inv, tone)
+                    else:
+                        for j in range(width):
+                            _ground_pixel(out_rgb, out_sem, c, i, j, fxw + kx * j, fyw + ky * j, surface,
+                                          s_rows, s_cols, tiles_x, surf_lut, surf_tag)
+                            out_depth[c, i, j] = tf
                 else:
                     for j in range(width):
                         out_rgb[c, i, j, 0] = s0
@@ -419,6 +609,11 @@ def _raster_bands(
             lit = False
             p_f = 0
             s_f = 0
+            g_o = 0
+            gn1 = 1
+            gn2 = 1
+            g1x = g1y = g1z = go1 = g2x = g2y = g2z = go2 = 0.0
+            fa0 = fa1 = fa2 = np.uint8(0)
             if night:
                 p_f = face_prim[c, f]
                 s_f = face_side[c, f]
@@ -432,6 +627,17 @@ def _raster_bands(
                     fr0 = _enc(face_rgb[c, f, 0] * kf * ambient, knee)
                     fr1 = _enc(face_rgb[c, f, 1] * kf * ambient, knee)
                     fr2 = _enc(face_rgb[c, f, 2] * kf * ambient, knee)
+                if lit:
+                    # grid coordinates (s1, s2) of the face's irradiance grid are affine in the camera-frame point
+                    # P = z·(xn, yn, 1): s = g·P + o (see face_irradiance for the same map from world points)
+                    g_o = g_off[p_f, s_f]
+                    gn1 = g_dims[p_f, s_f, 0]
+                    gn2 = g_dims[p_f, s_f, 1]
+                    g1x, g1y, g1z, go1 = _grid_axis(R, ccx, ccy, ccz, p_f, FACE_AXES[s_f, 1], gn1, centers, halves, cossin)
+                    g2x, g2y, g2z, go2 = _grid_axis(R, ccx, ccy, ccz, p_f, FACE_AXES[s_f, 2], gn2, centers, halves, cossin)
+                    fa0 = face_rgb[c, f, 0]
+                    fa1 = face_rgb[c, f, 1]
+                    fa2 = face_rgb[c, f, 2]
             pa = planes[c, f, 0]
             pb = planes[c, f, 1]
             pc = planes[c, f, 2]
@@ -460,27 +666,75 @@ def _raster_bands(
                 j0 = max(int(np.ceil(lo - 0.5)), bounds[c, f, 2])
                 j1 = min(int(np.floor(hi - 0.5)), bounds[c, f, 3])
                 rowz = pb * v + pc
+                yn = (v - cy) / fy
+                rb1 = g1y * yn + g1z
+                rb2 = g2y * yn + g2z
+                if lit:  # irradiance sampled every FACE_STEP pixels of the span, linear in between
+                    ja = j0
+                    zz = 1.0 / (pa * (ja + 0.5) + rowz)
+                    xn = (ja + 0.5 - cx) / fx
+                    sa1 = zz * (g1x * xn + rb1) + go1
+                    sa2 = zz * (g2x * xn + rb2) + go2
+                    e0, e1, e2 = _grid_bilinear(g_o, gn1, gn2, sa1, sa2, g_data)
+                    a0 = _fix(ambient + e0, escale)
+                    a1 = _fix(ambient + e1, escale)
+                    a2 = _fix(ambient + e2, escale)
+                    while ja <= j1:
+                        jb = min(ja + FACE_STEP, j1)
+                        b0, b1, b2 = a0, a1, a2
+                        sb1, sb2 = sa1, sa2
+                        d0 = d1 = d2 = np.float32(0.0)
+                        if jb > ja:
+                            zz = 1.0 / (pa * (jb + 0.5) + rowz)
+                            xn = (jb + 0.5 - cx) / fx
+                            sb1 = zz * (g1x * xn + rb1) + go1
+                            sb2 = zz * (g2x * xn + rb2) + go2
+                            e0, e1, e2 = _grid_bilinear(g_o, gn1, gn2, sb1, sb2, g_data)
+                            b0 = _fix(ambient + e0, escale)
+                            b1 = _fix(ambient + e1, escale)
+                            b2 = _fix(ambient + e2, escale)
+                            inv = np.float32(1.0 / (jb - ja))
+                            d0 = (b0 - a0) * inv
+                            d1 = (b1 - a1) * inv
+                            d2 = (b2 - a2) * inv
+                        last = jb == j1
+                        exact = max(abs(sb1 - sa1), abs(sb2 - sa2)) > 1.0  # more than a grid cell: every pixel
+                        for j in range(ja, jb + 1 if last else jb):
+                            invz = pa * (j + 0.5) + rowz
+                            if invz * out_depth[c, i, j] > 1.0:  # nearer than what is there (no division)
+                                out_depth[c, i, j] = 1.0 / invz
+                                t = np.float32(j - ja)
+                                q0 = a0 + d0 * t
+                                q1 = a1 + d1 * t
+                                q2 = a2 + d2 * t
+                                if exact and t > 0:
+                                    zz = 1.0 / invz
+                                    xn = (j + 0.5 - cx) / fx
+                                    e0, e1, e2 = _grid_bilinear(g_o, gn1, gn2, zz * (g1x * xn + rb1) + go1,
+                                                                zz * (g2x * xn + rb2) + go2, g_data)  # fmt: skip
+                                    q0 = _fix(ambient + e0, escale)
+                                    q1 = _fix(ambient + e1, escale)
+                                    q2 = _fix(ambient + e2, escale)
+                                out_rgb[c, i, j, 0] = _tone_at(tone, fa0, q0)
+                                out_rgb[c, i, j, 1] = _tone_at(tone, fa1, q1)
+                                out_rgb[c, i, j, 2] = _tone_at(tone, fa2, q2)
+                                out_sem[c, i, j] = face_tag[c, f]
+                                out_inst[c, i, j] = face_inst[c, f]
+                                if want_face:
+                                    out_face[c, i, j] = f
+                        if last:
+                            break
+                        ja = jb
+                        a0, a1, a2 = b0, b1, b2
+                        sa1, sa2 = sb1, sb2
+                    continue
                 for j in range(j0, j1 + 1):
                     invz = pa * (j + 0.5) + rowz
                     if invz * out_depth[c, i, j] > 1.0:  # nearer than what is there (no division)
                         out_depth[c, i, j] = 1.0 / invz
-                        if lit:
-                            zz = 1.0 / invz
-                            xc = (j + 0.5 - cx) / fx * zz - T[0]
-                            yc = (v - cy) / fy * zz - T[1]
-                            zc = zz - T[2]
-                            e0, e1, e2 = face_irradiance(
-                                p_f, s_f, R[0, 0] * xc + R[1, 0] * yc + R[2, 0] * zc,
-                                R[0, 1] * xc + R[1, 1] * yc + R[2, 1] * zc, R[0, 2] * xc + R[1, 2] * yc + R[2, 2] * zc,
-                                centers, halves, cossin, g_off, g_dims, g_data)  # fmt: skip
-                            kf = gains[c] * (1.0 / 255.0)
-                            out_rgb[c, i, j, 0] = _enc(face_rgb[c, f, 0] * kf * (ambient + e0), knee)
-                            out_rgb[c, i, j, 1] = _enc(face_rgb[c, f, 1] * kf * (ambient + e1), knee)
-                            out_rgb[c, i, j, 2] = _enc(face_rgb[c, f, 2] * kf * (ambient + e2), knee)
-                        else:
-                            out_rgb[c, i, j, 0] = fr0
-                            out_rgb[c, i, j, 1] = fr1
-                            out_rgb[c, i, j, 2] = fr2
+                        out_rgb[c, i, j, 0] = fr0
+                        out_rgb[c, i, j, 1] = fr1
+                        out_rgb[c, i, j, 2] = fr2
                         out_sem[c, i, j] = face_tag[c, f]
                         out_inst[c, i, j] = face_inst[c, f]
                         if want_face:
@@ -497,6 +751,19 @@ def _night_args(night: dict | None, n_cam: int) -> tuple:
     return (True, np.ascontiguousarray(night["gains"], np.float64), float(night["knee"]), float(night["ambient"]),
             float(night["emissive_gain"]), float(night["sky_gain"]), w.irradiance, w.origin[0], w.origin[1],
             1.0 / w.resolution, s.irradiance, s.origin[0], s.origin[1], 1.0 / s.resolution)  # fmt: skip
+
+
+_NO_TONE = np.zeros(1, np.uint8)
+_TONE_TABLES: dict[float, np.ndarray] = {}
+
+
+def _night_tone(night: dict | None) -> np.ndarray:
+    if night is None:
+        return _NO_TONE
+    knee = float(night["knee"])
+    if knee not in _TONE_TABLES:
+        _TONE_TABLES[knee] = night_tone_table(knee)
+    return _TONE_TABLES[knee]
 
 
 def _night_prims(night: dict | None) -> tuple:
@@ -597,6 +864,7 @@ def render(
         np.asarray(sky_horizon, np.float64), np.asarray(sky_zenith, np.float64),
         *faces[:8], out["rgb"], out["depth"], out["sem"], out["inst"], bool(face_ids), face,
         *_night_args(night, n_cam), faces[9], faces[10], faces[11], *_night_prims(night),
+        _night_tone(night),
     )  # fmt: skip
     if face_ids:
         out = {**out, "face": face, "face_normal": faces[8], "face_emissive": faces[9], "face_prim": faces[10],
