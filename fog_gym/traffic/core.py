@@ -105,7 +105,10 @@ def install(road: Any) -> None:
 
     if type(road) not in (Road, RegulatedRoad):
         return  # an unknown Road subclass keeps highway-env's path
+    from fog_gym.traffic.vehicles import RoadFast
+
     road._fog_lane_cache = None
+    road._fog_fast = RoadFast(road)
     road.act = types.MethodType(_act, road)
     road.neighbour_vehicles = types.MethodType(_neighbour_vehicles, road)
     road.step = types.MethodType(_regulated_step if type(road) is RegulatedRoad else _step, road)
@@ -129,13 +132,28 @@ def lane_cache(road: Any) -> dict:
 
 
 def _act(self: Any) -> None:
-    """``Road.act`` with a per-call lane-projection cache (positions are frozen during act)."""
-    self._fog_lane_cache = lane_cache(self)
+    """``Road.act`` with a per-call lane-projection cache (positions are frozen during act).
+
+    Vehicles whose class runs highway-env's IDM/MOBIL unchanged act through
+    :meth:`fog_gym.traffic.vehicles.RoadFast.idm_act`; every other vehicle through its own ``act``, in order.
+    """
+    from fog_gym.traffic.vehicles import act_eligible
+
+    cache = self._fog_lane_cache = lane_cache(self)
+    fast = self._fog_fast
+    pos = cache["pos"]
+    heading = np.array([e.heading for e in cache["entities"]], dtype=np.float64)
+    fast.xy = dict(zip(cache["index"], zip(*pos.T.tolist(), np.cos(heading).tolist(), np.sin(heading).tolist())))
+    nb = self.neighbour_vehicles
     try:
         for vehicle in self.vehicles:
-            vehicle.act()
+            if act_eligible(vehicle):
+                fast.idm_act(vehicle, nb)
+            else:
+                vehicle.act()
     finally:
         self._fog_lane_cache = None
+        fast.xy = {}
 
 
 def _lane_arrays(cache: dict, lane: Any) -> tuple[np.ndarray, np.ndarray]:
@@ -255,9 +273,24 @@ def _collide(self: Any, dt: float) -> None:
 
 
 def _step(self: Any, dt: float) -> None:
-    """``Road.step`` with the collision pre-check vectorised."""
-    for vehicle in self.vehicles:
-        vehicle.step(dt)
+    """``Road.step`` with the kinematics inlined, one closest-lane pass and the collision pre-check vectorised.
+
+    The inlined path needs every vehicle to step through highway-env's own ``Vehicle.step`` (no vehicle reads
+    another's lane during the step, so the closest-lane updates can wait for the last one); otherwise each
+    vehicle steps through its own method, as in highway-env.
+    """
+    from fog_gym.traffic.vehicles import step_kind
+
+    vehicles = self.vehicles
+    kinds = [step_kind(v, self) for v in vehicles]
+    if not self.record_history and None not in kinds:
+        fast = self._fog_fast
+        for vehicle, idm in zip(vehicles, kinds):
+            fast.kinematic_step(vehicle, dt, idm)
+        fast.update_lanes(vehicles)
+    else:
+        for vehicle in vehicles:
+            vehicle.step(dt)
     _collide(self, dt)
 
 
