@@ -31,6 +31,7 @@ and poly-lanes) to be bit-identical; the remaining per-query work is a few numpy
 from __future__ import annotations
 
 import types
+from bisect import bisect_left
 from typing import Any
 
 import numpy as np
@@ -128,6 +129,8 @@ def lane_cache(road: Any) -> dict:
         "landmark": np.array([isinstance(v, Landmark) for v in entities], dtype=bool),
         "pos": np.array([v.position for v in entities], dtype=np.float64).reshape(len(entities), 2),
         "lanes": {},
+        "sorted": {},
+        "landmark_list": [isinstance(v, Landmark) for v in entities],
     }
 
 
@@ -212,39 +215,61 @@ def straight_lane_projection(
     return s, on
 
 
+def _lane_sorted(cache: dict, lane: Any) -> tuple[list, list, list]:
+    """Every entity's ``s`` on ``lane`` and the on-lane entities sorted by (s, index), as Python lists."""
+    key = id(lane)
+    hit = cache["sorted"].get(key)
+    if hit is not None and hit[0] is lane:
+        return hit[1], hit[2], hit[3]
+    s, on = _lane_arrays(cache, lane)
+    idx = np.flatnonzero(on)
+    order = idx[np.lexsort((idx, s[idx]))]
+    s_list = s.tolist()
+    cache["sorted"][key] = (lane, s_list, s[order].tolist(), order.tolist())
+    return s_list, cache["sorted"][key][2], cache["sorted"][key][3]
+
+
 def _neighbour_vehicles(self: Any, vehicle: Any, lane_index: Any = None) -> tuple[Any, Any]:
-    """``Road.neighbour_vehicles`` over cached per-lane arrays; identical results and tie rules."""
+    """``Road.neighbour_vehicles`` over cached, sorted per-lane projections; identical results and tie rules.
+
+    highway-env scans every entity: the front vehicle is the *last* one at the smallest ``s_v >= s``, the rear
+    one the *first* at the largest ``s_v < s``. Sorted by (s, entity index), both are a bisection away.
+    """
     cache = self._fog_lane_cache
     if cache is None or self.neighbour_vehicles_connected_lanes:
         return type(self).neighbour_vehicles(self, vehicle, lane_index)
     lane_index = lane_index or vehicle.lane_index
     if not lane_index:
         return None, None
-    lane = self.network.get_lane(lane_index)
-    s_all, on = _lane_arrays(cache, lane)
-    i_self = cache["index"].get(id(vehicle))
-    if i_self is not None and not cache["landmark"][i_self]:
+    lane = self._fog_fast.lane(lane_index)
+    s_all, ss, ii = _lane_sorted(cache, lane)
+    i_self = cache["index"].get(id(vehicle), -1)
+    if i_self >= 0 and not cache["landmark_list"][i_self]:
         s = s_all[i_self]
     else:
         s = lane.local_coordinates(vehicle.position)[0]
-    if i_self is not None and on[i_self]:
-        on = on.copy()
-        on[i_self] = False
     entities = cache["entities"]
-    front = on & (s_all >= s)
+    n = len(ss)
+    k = pos = bisect_left(ss, s)
+    while k < n and ii[k] == i_self:
+        k += 1
     v_front = None
-    if front.any():
-        idx = np.flatnonzero(front)
-        vals = s_all[idx]
-        best = idx[vals == vals.min()]
-        v_front = entities[int(best[-1])]  # highway-env keeps the last one at equal s (s_v <= s_front)
-    rear = on & (s_all < s)
+    if k < n:
+        s_front = ss[k]
+        best = ii[k]
+        k += 1
+        while k < n and ss[k] == s_front:  # equal s: highway-env keeps the last one
+            if ii[k] != i_self:
+                best = ii[k]
+            k += 1
+        v_front = entities[best]
     v_rear = None
-    if rear.any():
-        idx = np.flatnonzero(rear)
-        vals = s_all[idx]
-        best = idx[vals == vals.max()]
-        v_rear = entities[int(best[0])]  # and the first one at equal s (s_v > s_rear)
+    if pos > 0:
+        k = pos - 1
+        s_rear = ss[k]
+        while k > 0 and ss[k - 1] == s_rear:  # equal s: highway-env keeps the first one
+            k -= 1
+        v_rear = entities[ii[k]]
     return v_front, v_rear
 
 

@@ -40,12 +40,18 @@ _KIN_ATTRS = ("velocity", "direction", "lane_distance_to")
 _class_cache: dict[str, dict[type, bool]] = {"act": {}, "step": {}, "kin": {}}
 
 
-def _classes() -> tuple[Any, ...]:
-    from highway_env.vehicle.behavior import IDMVehicle
-    from highway_env.vehicle.kinematics import Vehicle
-    from highway_env.vehicle.objects import RoadObject
+_CLASSES: tuple[Any, ...] = ()
 
-    return IDMVehicle, Vehicle, RoadObject
+
+def _classes() -> tuple[Any, ...]:
+    global _CLASSES
+    if not _CLASSES:
+        from highway_env.vehicle.behavior import IDMVehicle
+        from highway_env.vehicle.kinematics import Vehicle
+        from highway_env.vehicle.objects import RoadObject
+
+        _CLASSES = (IDMVehicle, Vehicle, RoadObject)
+    return _CLASSES
 
 
 def _class_is(cls: type, kind: str) -> bool:
