@@ -32,12 +32,12 @@ _QUARTER_PI = math.pi / 4
 _STRAIGHT, _SINE, _CIRCULAR, _OTHER = 0, 1, 2, 3
 
 #: Methods a vehicle class must inherit unchanged from highway-env for the fast ``act`` / ``step``.
-_ACT_METHODS = ("act", "follow_road", "change_lane_policy", "mobil", "steering_control", "acceleration",
-                "desired_gap", "lane_distance_to")  # fmt: skip
-_STEP_METHODS = ("step", "clip_actions", "on_state_update")
+_ACT_METHODS = frozenset(("act", "follow_road", "change_lane_policy", "mobil", "steering_control", "acceleration",
+                          "desired_gap", "lane_distance_to"))  # fmt: skip
+_STEP_METHODS = frozenset(("step", "clip_actions", "on_state_update"))
 _KIN_ATTRS = ("velocity", "direction", "lane_distance_to")
 
-_class_cache: dict[str, dict[type, bool]] = {"act": {}, "step": {}, "kin": {}}
+_class_cache: dict[str, dict[type, bool]] = {"act": {}, "step": {}, "kin": {}, "vehicle": {}, "controlled": {}}
 
 
 _CLASSES: tuple[Any, ...] = ()
@@ -63,7 +63,13 @@ def _class_is(cls: type, kind: str) -> bool:
             hit = issubclass(cls, IDMVehicle) and all(getattr(cls, m) is getattr(IDMVehicle, m) for m in _ACT_METHODS)
         elif kind == "step":  # IDMVehicle.step (timer + Vehicle.step) or Vehicle.step itself
             hit = (issubclass(cls, Vehicle) and getattr(cls, "step") in (IDMVehicle.step, Vehicle.step)
-                   and all(getattr(cls, m) is getattr(Vehicle, m) for m in _STEP_METHODS[1:]))  # fmt: skip
+                   and all(getattr(cls, m) is getattr(Vehicle, m) for m in ("clip_actions", "on_state_update")))  # fmt: skip
+        elif kind == "vehicle":
+            hit = issubclass(cls, Vehicle)
+        elif kind == "controlled":
+            from highway_env.vehicle.controller import ControlledVehicle
+
+            hit = issubclass(cls, ControlledVehicle)
         else:  # "kin": velocity = speed * (cos, sin)(heading), RoadObject.lane_distance_to
             hit = issubclass(cls, RoadObject) and all(
                 getattr(cls, a) in (getattr(Vehicle, a), getattr(RoadObject, a)) for a in _KIN_ATTRS
@@ -183,11 +189,10 @@ class RoadFast:
 
     def acceleration(self, v: Any, ego: Any, front: Any) -> float:
         """``IDMVehicle.acceleration(v, ego_vehicle=ego, front_vehicle=front)``."""
-        IDMVehicle, Vehicle, _ = _classes()
-        if ego is None or not isinstance(ego, Vehicle):
+        if ego is None or not _class_is(type(ego), "vehicle"):  # isinstance(ego, Vehicle), by class
             return 0
         if not _class_is(type(ego), "kin") or (front is not None and not _class_is(type(front), "kin")):
-            return IDMVehicle.acceleration(v, ego, front)
+            return _classes()[0].acceleration(v, ego, front)
         ts = getattr(ego, "target_speed", 0)
         lane = ego.lane
         if lane is not None and lane.speed_limit is not None:
@@ -214,11 +219,9 @@ class RoadFast:
 
     def abort_lane_change(self, v: Any) -> None:
         """``change_lane_policy``'s abort check: someone else is already changing into the same lane."""
-        from highway_env.vehicle.controller import ControlledVehicle
-
         target = v.target_lane_index
         for other in self.road.vehicles:
-            if (other is not v and other.lane_index != target and isinstance(other, ControlledVehicle)
+            if (other is not v and other.lane_index != target and _class_is(type(other), "controlled")
                     and other.target_lane_index == target):  # fmt: skip
                 if not (_class_is(type(v), "kin") and _class_is(type(other), "kin")):
                     d = v.lane_distance_to(other)
@@ -446,9 +449,15 @@ def _distance(s: np.ndarray, r: np.ndarray, heading: np.ndarray, lane_heading: n
     return np.abs(r) + np.maximum(s - length[None, :], 0) + np.maximum(0 - s, 0) + 1.0 * angle
 
 
+_ACT_CLASSES = _class_cache["act"]
+
+
 def act_eligible(v: Any) -> bool:
     """Whether ``v.act()`` is highway-env's ``IDMVehicle.act`` with its helpers unchanged (class and instance)."""
-    return _class_is(type(v), "act") and v.__dict__.keys().isdisjoint(_ACT_METHODS)
+    hit = _ACT_CLASSES.get(type(v))
+    if hit is None:
+        hit = _class_is(type(v), "act")
+    return hit and v.__dict__.keys().isdisjoint(_ACT_METHODS)
 
 
 def step_kind(v: Any, road: Any) -> bool | None:
