@@ -85,3 +85,32 @@ def test_vehicles_with_their_own_methods_keep_them():
     assert calls.count("act") == calls.count("step") > 0
     assert idm.position.tolist() == position.tolist()  # its own (no-op) step ran, not the inlined one
     env.close()
+
+
+@pytest.mark.parametrize("env_id", ["highway-v0", "roundabout-v0", "merge-v0"])
+def test_batched_idm_controls_equal_the_scalar_restatement_of_idm_act(env_id):
+    from fog_gym.traffic.core import lane_cache
+
+    env = accelerate(gym.make(env_id))
+    env.reset(seed=2)
+    road = env.unwrapped.road
+    rng = np.random.default_rng(2)
+    for v in road.vehicles[1:]:  # varied states: lane changes under way, speeds off target
+        v.speed = float(v.speed + rng.normal(0, 3))
+        if rng.random() < 0.3:
+            sides = road.network.side_lanes(v.lane_index)
+            if sides:
+                v.target_lane_index = sides[0]
+    fast = road._fog_fast
+    road._fog_lane_cache = lane_cache(road)
+    fast.xy = {}
+    idm = [v for v in road.vehicles if act_eligible(v) and not v.crashed]
+    assert len(idm) >= 4 and any(v.lane_index != v.target_lane_index for v in idm)
+    scalar = []
+    for v in idm:
+        fast.idm_control(v, road.neighbour_vehicles)
+        scalar.append(dict(v.action))
+    fast.idm_controls(idm, road.neighbour_vehicles)
+    road._fog_lane_cache = None
+    assert [v.action for v in idm] == scalar
+    env.close()

@@ -123,14 +123,15 @@ def lane_cache(road: Any) -> dict:
     from highway_env.vehicle.objects import Landmark
 
     entities = road.vehicles + road.objects
+    landmark = [isinstance(v, Landmark) for v in entities]
     return {
         "entities": entities,
         "index": {id(v): i for i, v in enumerate(entities)},
-        "landmark": np.array([isinstance(v, Landmark) for v in entities], dtype=bool),
+        "landmark": np.array(landmark, dtype=bool),
         "pos": np.array([v.position for v in entities], dtype=np.float64).reshape(len(entities), 2),
         "lanes": {},
         "sorted": {},
-        "landmark_list": [isinstance(v, Landmark) for v in entities],
+        "landmark_list": landmark,
     }
 
 
@@ -138,22 +139,15 @@ def _act(self: Any) -> None:
     """``Road.act`` with a per-call lane-projection cache (positions are frozen during act).
 
     Vehicles whose class runs highway-env's IDM/MOBIL unchanged act through
-    :meth:`fog_gym.traffic.vehicles.RoadFast.idm_act`; every other vehicle through its own ``act``, in order.
+    :meth:`fog_gym.traffic.vehicles.RoadFast.act_all`; every other vehicle through its own ``act``, in order.
     """
-    from fog_gym.traffic.vehicles import act_eligible
-
     cache = self._fog_lane_cache = lane_cache(self)
     fast = self._fog_fast
     pos = cache["pos"]
     heading = np.array([e.heading for e in cache["entities"]], dtype=np.float64)
     fast.xy = dict(zip(cache["index"], zip(*pos.T.tolist(), np.cos(heading).tolist(), np.sin(heading).tolist())))
-    nb = self.neighbour_vehicles
     try:
-        for vehicle in self.vehicles:
-            if act_eligible(vehicle):
-                fast.idm_act(vehicle, nb)
-            else:
-                vehicle.act()
+        fast.act_all(self.vehicles, self.neighbour_vehicles)
     finally:
         self._fog_lane_cache = None
         fast.xy = {}

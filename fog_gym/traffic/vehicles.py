@@ -260,10 +260,114 @@ class RoadFast:
                 return False
         return True
 
+    def act_all(self, vehicles: list, nb: Any) -> None:
+        """``Road.act``: every vehicle acts, in order; plain IDM vehicles' controls then in one numpy pass.
+
+        The lateral decisions (``follow_road``, MOBIL) run per vehicle in road order, because a vehicle's abort
+        check reads the others' target lanes. Steering and IDM acceleration read only the vehicle's own final
+        target lane and positions, speeds and lanes that do not change during ``act``, so they are computed
+        afterwards for all plain IDM vehicles at once (:meth:`idm_controls`), with the same element-wise
+        operations. Other vehicles act through their own ``act`` at their place in the order.
+        """
+        pending = []
+        for v in vehicles:
+            if act_eligible(v):
+                if not v.crashed:
+                    self.idm_decide(v, nb)
+                    pending.append(v)
+            else:
+                v.act()
+        if pending:
+            self.idm_controls(pending, nb)
+
+    def idm_controls(self, vehicles: list, nb: Any) -> None:
+        """Steering and IDM acceleration of ``IDMVehicle.act`` for ``vehicles`` (decisions taken), batched."""
+        n = len(vehicles)
+        r = np.empty(n)
+        future_heading = np.empty(n)
+        heading = np.empty(n)
+        nzs = np.empty(n)
+        params = np.empty((n, 6))  # KP_LATERAL, KP_HEADING, LENGTH / 2, MAX_STEERING_ANGLE, ACC_MAX, COMFORT_ACC_MAX
+        base = np.empty(n)
+        delta = np.empty(n)
+        x_own = np.zeros(n)
+        x_target = np.zeros(n)
+        has_own = np.zeros(n, dtype=bool)
+        has_target = np.zeros(n, dtype=bool)
+        changing = np.zeros(n, dtype=bool)
+        exact: dict[int, float] = {}  # IDM accelerations from highway-env itself (unusual neighbour classes)
+        for i, v in enumerate(vehicles):
+            x, y, _, _ = self.entity_xy(v)
+            sp = v.speed
+            tli = v.target_lane_index
+            g = self.geom_at(tli)
+            s, r[i] = self.long_lat(g, x, y, v.position)
+            future_heading[i] = g[10] if g[0] == _STRAIGHT else g[1].heading_at(s + sp * v.TAU_PURSUIT)
+            heading[i] = v.heading
+            nzs[i] = _nz(sp)
+            cam = v.COMFORT_ACC_MAX
+            params[i] = (v.KP_LATERAL, v.KP_HEADING, v.LENGTH / 2, v.MAX_STEERING_ANGLE, v.ACC_MAX, cam)
+            # IDM free-road term (ego = v)
+            ts = getattr(v, "target_speed", 0)
+            lane = v.lane
+            if lane is not None and lane.speed_limit is not None:
+                ts = _clip(ts, 0, lane.speed_limit)
+            base[i] = (sp if not 0 > sp else 0) / abs(_nz(ts))
+            delta[i] = v.DELTA
+            front, _ = nb(v, v.lane_index)
+            front_target = None
+            if v.lane_index != tli:
+                changing[i] = True
+                front_target, _ = nb(v, tli)
+            if (front is not None and not _class_is(type(front), "kin")) or (
+                front_target is not None and not _class_is(type(front_target), "kin")
+            ):
+                exact[i] = self._exact_idm(v, nb)
+                continue
+            if front is not None:
+                has_own[i] = True
+                x_own[i] = self.desired_gap(v, v, front) / _nz(self.lane_distance(v, front))
+            if front_target is not None:
+                has_target[i] = True
+                x_target[i] = self.desired_gap(v, v, front_target) / _nz(self.lane_distance(v, front_target))
+        kp_lat, kp_head, half_length, msa, acc_max, cam = params.T
+        # steering_control(target_lane_index), then act's clip
+        heading_command = np.arcsin(np.clip(-kp_lat * r / nzs, -1, 1))
+        heading_ref = future_heading + np.clip(heading_command, -_QUARTER_PI, _QUARTER_PI)
+        heading_rate_command = kp_head * _wrap_array(heading_ref - heading)
+        slip_angle = np.arcsin(np.clip(half_length / nzs * heading_rate_command, -1, 1))
+        steering = np.clip(np.clip(np.arctan(2 * np.tan(slip_angle)), -msa, msa), -msa, msa)
+        # acceleration(ego=v, front) on the current lane and, when changing lane, on the target lane
+        free = cam * (1 - np.power(base, delta))
+        acc = np.where(has_own, free - cam * np.power(x_own, 2), free)
+        acc_target = np.where(has_target, free - cam * np.power(x_target, 2), free)
+        acc = np.where(changing & (acc_target < acc), acc_target, acc)
+        acc = np.clip(acc, -acc_max, acc_max)
+        for i, (v, st, a) in enumerate(zip(vehicles, steering.tolist(), acc.tolist())):
+            if i in exact:
+                a = exact[i]
+            v.action = {"steering": st, "acceleration": a}
+
+    def _exact_idm(self, v: Any, nb: Any) -> float:
+        """The clipped IDM acceleration of ``IDMVehicle.act`` for ``v``, scalar (unusual neighbour classes)."""
+        front, _ = nb(v, v.lane_index)
+        acc = self.acceleration(v, v, front)
+        if v.lane_index != v.target_lane_index:
+            front, _ = nb(v, v.target_lane_index)
+            target_acc = self.acceleration(v, v, front)
+            if target_acc < acc:
+                acc = target_acc
+        return _clip(acc, -v.ACC_MAX, v.ACC_MAX)
+
     def idm_act(self, v: Any, nb: Any) -> None:
-        """``IDMVehicle.act()`` for a vehicle whose class uses highway-env's IDM/MOBIL unchanged."""
+        """``IDMVehicle.act()`` for a vehicle whose class uses highway-env's IDM/MOBIL unchanged, scalar."""
         if v.crashed:
             return
+        self.idm_decide(v, nb)
+        self.idm_control(v, nb)
+
+    def idm_decide(self, v: Any, nb: Any) -> None:
+        """``IDMVehicle.act``'s lateral decisions: ``follow_road`` and MOBIL's ``change_lane_policy``."""
         x, y, _, _ = self.entity_xy(v)
         pos = v.position
         # follow_road
@@ -285,6 +389,11 @@ class RoadFast:
                         continue
                     if self.mobil(v, lane_index, nb):
                         v.target_lane_index = lane_index
+
+    def idm_control(self, v: Any, nb: Any) -> None:
+        """``IDMVehicle.act``'s steering and IDM acceleration, scalar (``idm_controls`` batches them)."""
+        x, y, _, _ = self.entity_xy(v)
+        pos = v.position
         # steering_control(target_lane_index)
         sp = v.speed
         tli = v.target_lane_index
