@@ -19,13 +19,15 @@ This module keeps highway-env's ``Vehicle`` objects as the source of truth and r
   ``crashed`` and ``hit`` flags come out identical. Pairs the pre-check rejects have no side effect in
   highway-env either.
 
-Everything else (IDM, MOBIL with its random draws, lane updates, spawning and removal, regulation) runs
-unchanged, so seeds mean the same thing and trajectories equal the reference path. The replacement is
-installed as bound methods on one env's ``road`` object (re-installed after every reset): no class is
-modified, and other highway-env environments in the process behave exactly as before.
+The per-vehicle Python that remains (IDM/MOBIL ``act``, ``Vehicle.step``, the closest-lane update) is
+restated exactly in :mod:`fog_gym.traffic.vehicles` for the vehicles whose class uses highway-env's own methods;
+other vehicles keep theirs. Spawning, removal, road rules and every random draw stay highway-env's, so seeds
+mean the same thing and trajectories equal the reference path. The replacement is installed as bound methods
+on one env's ``road`` object (re-installed after every reset): no class is modified, and other highway-env
+environments in the process behave exactly as before.
 
-Why not numba here: the per-lane projections must call highway-env's lane objects (straight, sine, circular
-and poly-lanes) to be bit-identical; the remaining per-query work is a few numpy reductions.
+Why not numba here: the per-lane projections of unusual lanes must call highway-env's lane objects to be
+bit-identical, and the remaining per-query work is a bisection in Python lists.
 """
 
 from __future__ import annotations

@@ -11,6 +11,9 @@ class uses them unchanged (``IDMVehicle`` for ``act``; any ``Vehicle`` whose ``s
 * transcendental functions whose libm and numpy results can differ (``arctan``, ``arcsin``, ``tan``,
   ``arctan2``, ``power``) are still numpy's, so the very same rounding applies; ``cos``/``sin``/``sqrt`` are
   the C library's in both;
+* ``Road.act`` in two phases: the lateral decisions (``follow_road``, MOBIL's lane-change policy) per vehicle
+  in road order, then steering control and IDM acceleration for all plain IDM vehicles in one numpy pass
+  (:meth:`RoadFast.act_all`; numpy's element-wise results equal its scalar ones);
 * the closest lane of every stepped vehicle in one numpy pass over (vehicles × lanes) for straight, sine and
   circular lanes (the same element-wise operations as the scalar lane methods; ``argmin`` keeps the first
   minimum as highway-env's does), other lane kinds through their own ``distance_with_heading``.
