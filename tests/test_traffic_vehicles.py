@@ -114,3 +114,26 @@ def test_batched_idm_controls_equal_the_scalar_restatement_of_idm_act(env_id):
     road._fog_lane_cache = None
     assert [v.action for v in idm] == scalar
     env.close()
+
+
+def test_pairs_found_clearly_apart_have_no_collision_in_highway_env():
+    from highway_env.vehicle.kinematics import Vehicle
+
+    from fog_gym.traffic.core import clearly_apart
+
+    rng = np.random.default_rng(9)
+    vehicles = []
+    for _ in range(3000):  # pairs of rectangles of random size and pose, from overlapping to a few metres apart
+        a = Vehicle(None, rng.uniform(-1, 1, 2) + 1000.0, heading=float(rng.uniform(-np.pi, np.pi)),
+                    speed=float(rng.uniform(-5, 40)))  # fmt: skip
+        b = Vehicle(None, a.position + rng.normal(0, 4, 2), heading=float(a.heading + rng.normal(0, 0.5)),
+                    speed=float(rng.uniform(0, 40)))  # fmt: skip
+        for v in (a, b):
+            v.LENGTH, v.WIDTH = float(rng.uniform(3, 12)), float(rng.uniform(1.6, 2.6))
+            v.diagonal = float(np.hypot(v.LENGTH, v.WIDTH))
+        vehicles += [a, b]
+    i = np.arange(0, len(vehicles), 2)
+    apart = clearly_apart(vehicles, i, i + 1, 0.05)
+    outcomes = [vehicles[k]._is_colliding(vehicles[k + 1], 0.05)[:2] for k in i.tolist()]
+    assert all(out == (False, False) for out, skip in zip(outcomes, apart) if skip)
+    assert apart.sum() > 1000 and sum(any(out) for out in outcomes) > 300  # both kinds of pair are common

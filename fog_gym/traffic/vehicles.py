@@ -578,3 +578,23 @@ def step_kind(v: Any, road: Any) -> bool | None:
         return None
     IDMVehicle, _, _ = _classes()
     return type(v).step is IDMVehicle.step
+
+
+_GEOMETRY_METHODS = ("polygon", "handle_collisions", "_is_colliding")
+
+
+def plain_geometry(e: Any) -> bool:
+    """Whether ``e`` collides as highway-env's ``RoadObject`` (rectangle ``LENGTH`` × ``WIDTH`` at ``position``
+    and ``heading``, displacement ``speed * direction * dt``), class and instance."""
+    cls = type(e)
+    hit = _class_cache["kin"].get(cls)
+    if hit is None:
+        hit = _class_is(cls, "kin")
+    if not hit:
+        return False
+    geo = _class_cache.setdefault("geometry", {})
+    g = geo.get(cls)
+    if g is None:
+        _, _, RoadObject = _classes()
+        g = geo[cls] = all(getattr(cls, m) is getattr(RoadObject, m) for m in _GEOMETRY_METHODS)
+    return g and e.__dict__.keys().isdisjoint(_GEOMETRY_METHODS)
