@@ -2,7 +2,9 @@
 """Traffic core and parallel recorder against highway-env's own path and the serial writer.
 
 Reports numbers only (Markdown on stdout, progress on stderr); never asserts a timing. Every figure is a
-ratio of two paths measured in the same run, alternating step by step so both see the same machine load.
+ratio of two paths measured in the same run, alternating step by step so both see the same machine load; each
+speed-up is given from wall-clock time and from this process's CPU time per step (the steadier of the two on
+a machine shared with other jobs).
 
 1. **Traffic step vs vehicle count**: ``TrafficWorld.step`` (2 × 20 Hz sub-steps, highway-env's observation
    skipped) on the ``highway`` town with ``vehicles_count`` in ``--vehicles``, ``traffic="reference"`` and
@@ -10,7 +12,7 @@ ratio of two paths measured in the same run, alternating step by step so both se
 2. **Plain highway-env**: ``gym.make("highway-v0")`` against ``fog_gym.accelerate(gym.make("highway-v0"))``,
    steps per second with highway-env's observation included.
 3. **FogDriveRL-v0** steps per second, ``traffic="reference"`` against the default.
-4. **cProfile** of the fast traffic step (50 vehicles): the top functions by own time, as shares.
+4. **cProfile** of the fast traffic step (50 vehicles, CPU-time clock): the top functions by own time, as shares.
 5. **Recorder**: ms per full-rig paired sample (35 files) written serially (``workers=1``), with 2 threads and
    with one thread per core, against the serial PNG bound (the 24 images encoded one after another).
 6. ``--identity STEPS``: the long identity check (every plain scenario and town, seeds 0–2), failing loudly.
@@ -45,6 +47,14 @@ def _ms(fn: Any, *args: Any) -> tuple[Any, float]:
     return out, (time.perf_counter() - t) * 1e3
 
 
+def _ms_cpu(fn: Any, *args: Any) -> tuple[Any, float, float]:
+    """``fn(*args)``, its wall-clock ms and this process's CPU ms (robust to other jobs on a shared machine)."""
+    c = time.process_time()
+    t = time.perf_counter()
+    out = fn(*args)
+    return out, (time.perf_counter() - t) * 1e3, (time.process_time() - c) * 1e3
+
+
 def bench_scaling(counts: list[int], repeats: int) -> dict[int, dict[str, float]]:
     from fog_gym.world import TrafficWorld
 
@@ -52,17 +62,21 @@ def bench_scaling(counts: list[int], repeats: int) -> dict[int, dict[str, float]
     for n in tqdm(counts, desc="vehicle counts", file=sys.stderr):
         worlds = {m: TrafficWorld("highway", traffic=m, highway_config={"vehicles_count": n}) for m in ("reference", "fast")}
         times: dict[str, list[float]] = {m: [] for m in worlds}
+        cpu: dict[str, list[float]] = {m: [] for m in worlds}
         for w in worlds.values():
             w.reset(seed=0)
             w.step(1)
         for k in range(repeats):
             for m, w in worlds.items():
-                (_, term, _), ms = _ms(w.step, 1)
+                (_, term, _), ms, cpu_ms = _ms_cpu(w.step, 1)
                 times[m].append(ms)
+                cpu[m].append(cpu_ms)
                 if term:
                     w.reset(seed=k + 1)
         ref, fast = (float(np.median(times[m])) for m in ("reference", "fast"))
+        ref_cpu, fast_cpu = (float(np.median(cpu[m])) for m in ("reference", "fast"))
         out[n] = {"reference_ms": ref, "fast_ms": fast, "speedup": ref / fast,
+                  "reference_cpu_ms": ref_cpu, "fast_cpu_ms": fast_cpu, "speedup_cpu": ref_cpu / max(fast_cpu, 1e-9),
                   "vehicles": worlds["fast"].vehicle_count}  # fmt: skip
     return out
 
@@ -74,37 +88,39 @@ def bench_plain(repeats: int) -> dict[str, float]:
     from fog_gym.traffic import accelerate
 
     envs = {"reference": gym.make("highway-v0"), "fast": accelerate(gym.make("highway-v0"))}
-    times: dict[str, list[float]] = {m: [] for m in envs}
     for e in envs.values():
         e.reset(seed=0)
-    for k in tqdm(range(repeats), desc="highway-v0", file=sys.stderr):
+    return _steps_per_second(envs, repeats, "highway-v0")
+
+
+def _steps_per_second(envs: dict[str, Any], repeats: int, desc: str) -> dict[str, float]:
+    """Alternate ``step`` between the paths; steps/s from median wall-clock and median CPU time per step."""
+    times: dict[str, list[float]] = {m: [] for m in envs}
+    cpu: dict[str, list[float]] = {m: [] for m in envs}
+    for k in tqdm(range(repeats), desc=desc, file=sys.stderr):
         for m, e in envs.items():
-            (_, _, term, trunc, _), ms = _ms(e.step, 1)
+            (_, _, term, trunc, _), ms, cpu_ms = _ms_cpu(e.step, 1)
             times[m].append(ms)
+            cpu[m].append(cpu_ms)
             if term or trunc:
                 e.reset(seed=k + 1)
     ref, fast = (1e3 / float(np.median(times[m])) for m in ("reference", "fast"))
-    return {"reference_sps": ref, "fast_sps": fast, "speedup": fast / ref}
+    ref_cpu, fast_cpu = (float(np.median(cpu[m])) for m in ("reference", "fast"))
+    return {"reference_sps": ref, "fast_sps": fast, "speedup": fast / ref,
+            "speedup_cpu": ref_cpu / max(fast_cpu, 1e-9)}  # fmt: skip
 
 
 def bench_rl(repeats: int) -> dict[str, float]:
     from fog_gym.rl import make_fogdrive_rl
 
     envs = {m: make_fogdrive_rl(traffic=m) for m in ("reference", "fast")}
-    times: dict[str, list[float]] = {m: [] for m in envs}
     for e in envs.values():
         e.reset(seed=0)
         e.step(1)
-    for k in tqdm(range(repeats), desc="FogDriveRL-v0", file=sys.stderr):
-        for m, e in envs.items():
-            (_, _, term, trunc, _), ms = _ms(e.step, 1)
-            times[m].append(ms)
-            if term or trunc:
-                e.reset(seed=k + 1)
+    out = _steps_per_second(envs, repeats, "FogDriveRL-v0")
     for e in envs.values():
         e.close()
-    ref, fast = (1e3 / float(np.median(times[m])) for m in ("reference", "fast"))
-    return {"reference_sps": ref, "fast_sps": fast, "speedup": fast / ref}
+    return out
 
 
 def profile_fast(steps: int, top: int = 8) -> list[tuple[str, float]]:
@@ -113,7 +129,7 @@ def profile_fast(steps: int, top: int = 8) -> list[tuple[str, float]]:
     w = TrafficWorld("highway", traffic="fast", highway_config={"vehicles_count": 50})
     w.reset(seed=0)
     w.step(1)
-    prof = cProfile.Profile()
+    prof = cProfile.Profile(time.process_time)  # CPU time: other jobs' time slices land on no function
     for k in range(steps):
         prof.enable()
         _, term, _ = w.step(1)
@@ -209,16 +225,18 @@ def main(argv: list[str] | None = None) -> int:
     if not a.skip_speed:
         res["scaling"] = bench_scaling(counts, repeats)
         lines += ["## Traffic step (highway town, 2 × 20 Hz sub-steps)", "",
-                  "| vehicles_count | vehicles | highway-env [ms] | core [ms] | speed-up |", "|---|---|---|---|---|"]
-        lines += [f"| {n} | {r['vehicles']} | {r['reference_ms']:.1f} | {r['fast_ms']:.1f} | {r['speedup']:.2f}× |"
-                  for n, r in res["scaling"].items()]  # fmt: skip
+                  "| vehicles_count | vehicles | highway-env [ms] | core [ms] | speed-up | speed-up (CPU time) |",
+                  "|---|---|---|---|---|---|"]  # fmt: skip
+        lines += [f"| {n} | {r['vehicles']} | {r['reference_ms']:.1f} | {r['fast_ms']:.1f} | {r['speedup']:.2f}× "
+                  f"| {r['speedup_cpu']:.2f}× |" for n, r in res["scaling"].items()]  # fmt: skip
         save_figure(res["scaling"], a.figure)
         lines += ["", f"Figure: {a.figure}", ""]
         res["plain"] = bench_plain(repeats)
         res["rl"] = bench_rl(repeats)
-        lines += ["## Steps per second", "", "| env | reference | core | speed-up |", "|---|---|---|---|",
-                  f"| highway-v0 (observation included) | {res['plain']['reference_sps']:.1f} | {res['plain']['fast_sps']:.1f} | {res['plain']['speedup']:.2f}× |",
-                  f"| FogDriveRL-v0 | {res['rl']['reference_sps']:.1f} | {res['rl']['fast_sps']:.1f} | {res['rl']['speedup']:.2f}× |", ""]  # fmt: skip
+        lines += ["## Steps per second", "", "| env | reference | core | speed-up | speed-up (CPU time) |",
+                  "|---|---|---|---|---|",
+                  f"| highway-v0 (observation included) | {res['plain']['reference_sps']:.1f} | {res['plain']['fast_sps']:.1f} | {res['plain']['speedup']:.2f}× | {res['plain']['speedup_cpu']:.2f}× |",
+                  f"| FogDriveRL-v0 | {res['rl']['reference_sps']:.1f} | {res['rl']['fast_sps']:.1f} | {res['rl']['speedup']:.2f}× | {res['rl']['speedup_cpu']:.2f}× |", ""]  # fmt: skip
         res["profile"] = profile_fast(max(3, repeats // 2))
         lines += ["## cProfile of the core's traffic step (50 vehicles), own time", "", "| function | share |", "|---|---|"]
         lines += [f"| {f} | {s:.0%} |" for f, s in res["profile"]] + [""]

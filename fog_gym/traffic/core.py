@@ -19,18 +19,21 @@ This module keeps highway-env's ``Vehicle`` objects as the source of truth and r
   ``crashed`` and ``hit`` flags come out identical. Pairs the pre-check rejects have no side effect in
   highway-env either.
 
-Everything else (IDM, MOBIL with its random draws, lane updates, spawning and removal, regulation) runs
-unchanged, so seeds mean the same thing and trajectories equal the reference path. The replacement is
-installed as bound methods on one env's ``road`` object (re-installed after every reset): no class is
-modified, and other highway-env environments in the process behave exactly as before.
+The per-vehicle Python that remains (IDM/MOBIL ``act``, ``Vehicle.step``, the closest-lane update) is
+restated exactly in :mod:`fog_gym.traffic.vehicles` for the vehicles whose class uses highway-env's own methods;
+other vehicles keep theirs. Spawning, removal, road rules and every random draw stay highway-env's, so seeds
+mean the same thing and trajectories equal the reference path. The replacement is installed as bound methods
+on one env's ``road`` object (re-installed after every reset): no class is modified, and other highway-env
+environments in the process behave exactly as before.
 
-Why not numba here: the per-lane projections must call highway-env's lane objects (straight, sine, circular
-and poly-lanes) to be bit-identical; the remaining per-query work is a few numpy reductions.
+Why not numba here: the per-lane projections of unusual lanes must call highway-env's lane objects to be
+bit-identical, and the remaining per-query work is a bisection in Python lists.
 """
 
 from __future__ import annotations
 
 import types
+from bisect import bisect_left
 from typing import Any
 
 import numpy as np
@@ -105,7 +108,10 @@ def install(road: Any) -> None:
 
     if type(road) not in (Road, RegulatedRoad):
         return  # an unknown Road subclass keeps highway-env's path
+    from fog_gym.traffic.vehicles import RoadFast
+
     road._fog_lane_cache = None
+    road._fog_fast = RoadFast(road)
     road.act = types.MethodType(_act, road)
     road.neighbour_vehicles = types.MethodType(_neighbour_vehicles, road)
     road.step = types.MethodType(_regulated_step if type(road) is RegulatedRoad else _step, road)
@@ -119,23 +125,34 @@ def lane_cache(road: Any) -> dict:
     from highway_env.vehicle.objects import Landmark
 
     entities = road.vehicles + road.objects
+    landmark = [isinstance(v, Landmark) for v in entities]
     return {
         "entities": entities,
         "index": {id(v): i for i, v in enumerate(entities)},
-        "landmark": np.array([isinstance(v, Landmark) for v in entities], dtype=bool),
+        "landmark": np.array(landmark, dtype=bool),
         "pos": np.array([v.position for v in entities], dtype=np.float64).reshape(len(entities), 2),
         "lanes": {},
+        "sorted": {},
+        "landmark_list": landmark,
     }
 
 
 def _act(self: Any) -> None:
-    """``Road.act`` with a per-call lane-projection cache (positions are frozen during act)."""
-    self._fog_lane_cache = lane_cache(self)
+    """``Road.act`` with a per-call lane-projection cache (positions are frozen during act).
+
+    Vehicles whose class runs highway-env's IDM/MOBIL unchanged act through
+    :meth:`fog_gym.traffic.vehicles.RoadFast.act_all`; every other vehicle through its own ``act``, in order.
+    """
+    cache = self._fog_lane_cache = lane_cache(self)
+    fast = self._fog_fast
+    pos = cache["pos"]
+    heading = np.array([e.heading for e in cache["entities"]], dtype=np.float64)
+    fast.xy = dict(zip(cache["index"], zip(*pos.T.tolist(), np.cos(heading).tolist(), np.sin(heading).tolist())))
     try:
-        for vehicle in self.vehicles:
-            vehicle.act()
+        fast.act_all(self.vehicles, self.neighbour_vehicles)
     finally:
         self._fog_lane_cache = None
+        fast.xy = {}
 
 
 def _lane_arrays(cache: dict, lane: Any) -> tuple[np.ndarray, np.ndarray]:
@@ -194,39 +211,61 @@ def straight_lane_projection(
     return s, on
 
 
+def _lane_sorted(cache: dict, lane: Any) -> tuple[list, list, list]:
+    """Every entity's ``s`` on ``lane`` and the on-lane entities sorted by (s, index), as Python lists."""
+    key = id(lane)
+    hit = cache["sorted"].get(key)
+    if hit is not None and hit[0] is lane:
+        return hit[1], hit[2], hit[3]
+    s, on = _lane_arrays(cache, lane)
+    idx = np.flatnonzero(on)
+    order = idx[np.lexsort((idx, s[idx]))]
+    s_list = s.tolist()
+    cache["sorted"][key] = (lane, s_list, s[order].tolist(), order.tolist())
+    return s_list, cache["sorted"][key][2], cache["sorted"][key][3]
+
+
 def _neighbour_vehicles(self: Any, vehicle: Any, lane_index: Any = None) -> tuple[Any, Any]:
-    """``Road.neighbour_vehicles`` over cached per-lane arrays; identical results and tie rules."""
+    """``Road.neighbour_vehicles`` over cached, sorted per-lane projections; identical results and tie rules.
+
+    highway-env scans every entity: the front vehicle is the *last* one at the smallest ``s_v >= s``, the rear
+    one the *first* at the largest ``s_v < s``. Sorted by (s, entity index), both are a bisection away.
+    """
     cache = self._fog_lane_cache
     if cache is None or self.neighbour_vehicles_connected_lanes:
         return type(self).neighbour_vehicles(self, vehicle, lane_index)
     lane_index = lane_index or vehicle.lane_index
     if not lane_index:
         return None, None
-    lane = self.network.get_lane(lane_index)
-    s_all, on = _lane_arrays(cache, lane)
-    i_self = cache["index"].get(id(vehicle))
-    if i_self is not None and not cache["landmark"][i_self]:
+    lane = self._fog_fast.lane(lane_index)
+    s_all, ss, ii = _lane_sorted(cache, lane)
+    i_self = cache["index"].get(id(vehicle), -1)
+    if i_self >= 0 and not cache["landmark_list"][i_self]:
         s = s_all[i_self]
     else:
         s = lane.local_coordinates(vehicle.position)[0]
-    if i_self is not None and on[i_self]:
-        on = on.copy()
-        on[i_self] = False
     entities = cache["entities"]
-    front = on & (s_all >= s)
+    n = len(ss)
+    k = pos = bisect_left(ss, s)
+    while k < n and ii[k] == i_self:
+        k += 1
     v_front = None
-    if front.any():
-        idx = np.flatnonzero(front)
-        vals = s_all[idx]
-        best = idx[vals == vals.min()]
-        v_front = entities[int(best[-1])]  # highway-env keeps the last one at equal s (s_v <= s_front)
-    rear = on & (s_all < s)
+    if k < n:
+        s_front = ss[k]
+        best = ii[k]
+        k += 1
+        while k < n and ss[k] == s_front:  # equal s: highway-env keeps the last one
+            if ii[k] != i_self:
+                best = ii[k]
+            k += 1
+        v_front = entities[best]
     v_rear = None
-    if rear.any():
-        idx = np.flatnonzero(rear)
-        vals = s_all[idx]
-        best = idx[vals == vals.max()]
-        v_rear = entities[int(best[0])]  # and the first one at equal s (s_v > s_rear)
+    if pos > 0:
+        k = pos - 1
+        s_rear = ss[k]
+        while k > 0 and ss[k - 1] == s_rear:  # equal s: highway-env keeps the first one
+            k -= 1
+        v_rear = entities[ii[k]]
     return v_front, v_rear
 
 
@@ -250,14 +289,82 @@ def _collide(self: Any, dt: float) -> None:
     cols = np.arange(m)[None, :]
     rows = np.arange(n)[:, None]
     keep &= (cols > rows) | (cols >= n)  # vehicles[i + 1:], then every object
-    for i, j in zip(*np.nonzero(keep)):
-        vehicles[int(i)].handle_collisions(others[int(j)], dt)
+    rows_kept, cols_kept = np.nonzero(keep)
+    if len(rows_kept):
+        apart = clearly_apart(others, rows_kept, cols_kept, dt)
+        rows_kept, cols_kept = rows_kept[~apart], cols_kept[~apart]
+    for i, j in zip(rows_kept.tolist(), cols_kept.tolist()):
+        vehicles[i].handle_collisions(others[j], dt)
+
+
+#: Separation [m] a pair's swept rectangles need along one of their axes before ``clearly_apart`` skips it:
+#: far above the rounding of highway-env's polygon test, far below any gap that matters.
+_SAT_MARGIN = 1e-5
+
+
+def clearly_apart(entities: list, i: np.ndarray, j: np.ndarray, dt: float) -> np.ndarray:
+    """Pairs (``entities[i]``, ``entities[j]``) that highway-env's polygon test finds neither intersecting nor
+    about to intersect, because their rectangles (``i``'s swept by the relative displacement over ``dt``) are
+    separated by more than ``_SAT_MARGIN`` along one of the four axes that test projects on.
+
+    ``handle_collisions`` has no effect on such a pair, so skipping it changes nothing; a pair not found apart
+    (or of a class with its own geometry or collision code) still goes to highway-env's test.
+
+    >>> from highway_env.vehicle.kinematics import Vehicle
+    >>> a = Vehicle(None, [0.0, 0.0], heading=0.0, speed=10.0)  # 5 m × 2 m
+    >>> b = Vehicle(None, [0.0, 3.0], heading=0.0, speed=10.0)  # in the next lane
+    >>> c = Vehicle(None, [5.4, 0.0], heading=0.0, speed=0.0)  # 0.4 m ahead, at rest: reached within dt
+    >>> clearly_apart([a, b, c], np.array([0, 0]), np.array([1, 2]), 0.05).tolist()
+    [True, False]
+    """
+    from fog_gym.traffic.vehicles import plain_geometry
+
+    ok = np.array([plain_geometry(entities[a]) and plain_geometry(entities[b]) for a, b in zip(i.tolist(), j.tolist())])
+    ents = entities
+    pos = np.array([e.position for e in ents], dtype=np.float64).reshape(len(ents), 2)
+    heading = np.array([e.heading for e in ents], dtype=np.float64)
+    half = np.array([(e.LENGTH / 2, e.WIDTH / 2) for e in ents], dtype=np.float64).reshape(len(ents), 2)
+    speed = np.array([e.speed for e in ents], dtype=np.float64)
+    c, s = np.cos(heading), np.sin(heading)
+    disp = (speed * dt)[:, None] * np.stack([c, s], axis=1)
+    d = pos[j] - pos[i]  # b's centre relative to a's
+    rel = disp[i] - disp[j]  # a's displacement relative to b's
+    axes = np.stack([np.stack([c[i], s[i]], 1), np.stack([-s[i], c[i]], 1),
+                     np.stack([c[j], s[j]], 1), np.stack([-s[j], c[j]], 1)], axis=1)  # (K, 4, 2)  # fmt: skip
+
+    def extent(k: np.ndarray) -> np.ndarray:  # half-extent of entities k's rectangles along every axis: (K, 4)
+        along = np.abs(axes[..., 0] * c[k][:, None] + axes[..., 1] * s[k][:, None])
+        across = np.abs(-axes[..., 0] * s[k][:, None] + axes[..., 1] * c[k][:, None])
+        return half[k, 0][:, None] * along + half[k, 1][:, None] * across
+
+    ra, rb = extent(i), extent(j)
+    t = axes[..., 0] * d[:, None, 0] + axes[..., 1] * d[:, None, 1]
+    vp = axes[..., 0] * rel[:, None, 0] + axes[..., 1] * rel[:, None, 1]
+    min_a = -ra + np.minimum(vp, 0)
+    max_a = ra + np.maximum(vp, 0)
+    gap = np.maximum((t - rb) - max_a, min_a - (t + rb))
+    return ok & (gap > _SAT_MARGIN).any(axis=1)
 
 
 def _step(self: Any, dt: float) -> None:
-    """``Road.step`` with the collision pre-check vectorised."""
-    for vehicle in self.vehicles:
-        vehicle.step(dt)
+    """``Road.step`` with the kinematics inlined, one closest-lane pass and the collision pre-check vectorised.
+
+    The inlined path needs every vehicle to step through highway-env's own ``Vehicle.step`` (no vehicle reads
+    another's lane during the step, so the closest-lane updates can wait for the last one); otherwise each
+    vehicle steps through its own method, as in highway-env.
+    """
+    from fog_gym.traffic.vehicles import step_kind
+
+    vehicles = self.vehicles
+    kinds = [step_kind(v, self) for v in vehicles]
+    if not self.record_history and None not in kinds:
+        fast = self._fog_fast
+        for vehicle, idm in zip(vehicles, kinds):
+            fast.kinematic_step(vehicle, dt, idm)
+        fast.update_lanes(vehicles)
+    else:
+        for vehicle in vehicles:
+            vehicle.step(dt)
     _collide(self, dt)
 
 
