@@ -320,15 +320,6 @@ def _face_grids(centers, halves, yaws, emissive, prim_l, prim_n, lpos, laxis, lc
     return offsets, dims, data
 
 
-@njit(cache=True, inline="always")
-def _map_at(m, ox, oy, inv_res, x, y):
-    fj = (x - ox) * inv_res
-    fi = (y - oy) * inv_res
-    if fi < 0.0 or fj < 0.0 or fi >= m.shape[0] or fj >= m.shape[1]:
-        return -1, -1
-    return int(fi), int(fj)
-
-
 @njit(cache=True, parallel=True, fastmath=False)
 def _shade_pass(
     cam_rot, cam_trans, cam_k, far, rgb, depth, face, face_emis, face_prim, face_side,
@@ -365,32 +356,11 @@ def _shade_pass(
                     zc = z - T[2]
                     wx = R[0, 0] * xc + R[1, 0] * yc + R[2, 0] * zc
                     wy = R[0, 1] * xc + R[1, 1] * yc + R[2, 1] * zc
-                    e0, e1, e2 = ambient, ambient, ambient
                     if f < 0:  # ground: light maps (window near the ego, bilinear, with the beams; lamps beyond it)
-                        fi = (wy - w_oy) * w_inv - 0.5
-                        fj = (wx - w_ox) * w_inv - 0.5
-                        if fi >= 0.0 and fj >= 0.0 and fi < wmap.shape[0] - 1 and fj < wmap.shape[1] - 1:
-                            mi = int(fi)
-                            mj = int(fj)
-                            ti = fi - mi
-                            tj = fj - mj
-                            b00 = (1.0 - ti) * (1.0 - tj)
-                            b01 = (1.0 - ti) * tj
-                            b10 = ti * (1.0 - tj)
-                            b11 = ti * tj
-                            e0 += (b00 * wmap[mi, mj, 0] + b01 * wmap[mi, mj + 1, 0] + b10 * wmap[mi + 1, mj, 0]
-                                   + b11 * wmap[mi + 1, mj + 1, 0])
-                            e1 += (b00 * wmap[mi, mj, 1] + b01 * wmap[mi, mj + 1, 1] + b10 * wmap[mi + 1, mj, 1]
-                                   + b11 * wmap[mi + 1, mj + 1, 1])
-                            e2 += (b00 * wmap[mi, mj, 2] + b01 * wmap[mi, mj + 1, 2] + b10 * wmap[mi + 1, mj, 2]
-                                   + b11 * wmap[mi + 1, mj + 1, 2])
-                        else:
-                            mi, mj = _map_at(smap, s_ox, s_oy, s_inv, wx, wy)
-                            if mi >= 0:
-                                e0 += smap[mi, mj, 0]
-                                e1 += smap[mi, mj, 1]
-                                e2 += smap[mi, mj, 2]
+                        e0, e1, e2 = raster._ground_irradiance(wx, wy, ambient, wmap, w_ox, w_oy, w_inv, smap, s_ox,
+                                                               s_oy, s_inv)
                     else:  # a face: bilinear in its irradiance grid
+                        e0, e1, e2 = ambient, ambient, ambient
                         p = face_prim[c, f]
                         fs = face_side[c, f]
                         wz = R[0, 2] * xc + R[1, 2] * yc + R[2, 2] * zc

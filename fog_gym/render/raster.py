@@ -247,32 +247,7 @@ def _enc(x, knee):
 
 @njit(cache=True, inline="always")
 def _light_ground(out_rgb, c, i, j, wx, wy, g, knee, ambient, wmap, w_ox, w_oy, w_inv, smap, s_ox, s_oy, s_inv):
-    e0 = ambient
-    e1 = ambient
-    e2 = ambient
-    fi = (wy - w_oy) * w_inv - 0.5
-    fj = (wx - w_ox) * w_inv - 0.5
-    if fi >= 0.0 and fj >= 0.0 and fi < wmap.shape[0] - 1 and fj < wmap.shape[1] - 1:
-        mi = int(fi)
-        mj = int(fj)
-        ti = fi - mi
-        tj = fj - mj
-        b00 = (1.0 - ti) * (1.0 - tj)
-        b01 = (1.0 - ti) * tj
-        b10 = ti * (1.0 - tj)
-        b11 = ti * tj
-        e0 += b00 * wmap[mi, mj, 0] + b01 * wmap[mi, mj + 1, 0] + b10 * wmap[mi + 1, mj, 0] + b11 * wmap[mi + 1, mj + 1, 0]
-        e1 += b00 * wmap[mi, mj, 1] + b01 * wmap[mi, mj + 1, 1] + b10 * wmap[mi + 1, mj, 1] + b11 * wmap[mi + 1, mj + 1, 1]
-        e2 += b00 * wmap[mi, mj, 2] + b01 * wmap[mi, mj + 1, 2] + b10 * wmap[mi + 1, mj, 2] + b11 * wmap[mi + 1, mj + 1, 2]
-    else:
-        fi = (wy - s_oy) * s_inv
-        fj = (wx - s_ox) * s_inv
-        if fi >= 0.0 and fj >= 0.0 and fi < smap.shape[0] and fj < smap.shape[1]:
-            mi = int(fi)
-            mj = int(fj)
-            e0 += smap[mi, mj, 0]
-            e1 += smap[mi, mj, 1]
-            e2 += smap[mi, mj, 2]
+    e0, e1, e2 = _ground_irradiance(wx, wy, ambient, wmap, w_ox, w_oy, w_inv, smap, s_ox, s_oy, s_inv)
     k = g * (1.0 / 255.0)
     out_rgb[c, i, j, 0] = _enc(out_rgb[c, i, j, 0] * k * e0, knee)
     out_rgb[c, i, j, 1] = _enc(out_rgb[c, i, j, 1] * k * e1, knee)
@@ -282,7 +257,7 @@ def _light_ground(out_rgb, c, i, j, wx, wy, g, knee, ambient, wmap, w_ox, w_oy, 
 @njit(cache=True, inline="always")
 def _ground_irradiance(wx, wy, ambient, wmap, w_ox, w_oy, w_inv, smap, s_ox, s_oy, s_inv):
     """Irradiance (RGB, ambient included) of the ground at world (wx, wy): bilinear in the window map, nearest
-    in the static map beyond it (as :func:`_light_ground`)."""
+    in the static map beyond it (nearest cell)."""
     e0 = ambient
     e1 = ambient
     e2 = ambient
