@@ -217,7 +217,8 @@ def _hash_noise(ix, iy):
 
 
 @njit(cache=True, inline="always")
-def _ground_pixel(out_rgb, out_sem, c, i, j, fxw, fyw, surface, s_rows, s_cols, tiles_x, surf_lut, surf_tag):
+def _surface_cell(fxw, fyw, surface, s_rows, s_cols, tiles_x):
+    """Surface class at surface-grid coordinates (fxw, fyw) (0 off the map) and its colour-table row."""
     cls = 0
     gx = 0
     gy = 0
@@ -225,7 +226,12 @@ def _ground_pixel(out_rgb, out_sem, c, i, j, fxw, fyw, surface, s_rows, s_cols, 
         gx = int(fxw)
         gy = int(fyw)
         cls = surface[(((gy >> 3) * tiles_x + (gx >> 3)) << 6) + ((gy & 7) << 3) + (gx & 7)]
-    k = cls * 16 + _hash_noise(gx, gy)
+    return cls, cls * 16 + _hash_noise(gx, gy)
+
+
+@njit(cache=True, inline="always")
+def _ground_pixel(out_rgb, out_sem, c, i, j, fxw, fyw, surface, s_rows, s_cols, tiles_x, surf_lut, surf_tag):
+    cls, k = _surface_cell(fxw, fyw, surface, s_rows, s_cols, tiles_x)
     out_rgb[c, i, j, 0] = surf_lut[k, 0]
     out_rgb[c, i, j, 1] = surf_lut[k, 1]
     out_rgb[c, i, j, 2] = surf_lut[k, 2]
@@ -364,16 +370,7 @@ def _night_ground_row(out_rgb, out_sem, out_depth, c, i, width, tf, fxw, fyw, kx
         exact = jump > 0
         q0, q1, q2 = a0, a1, a2
         for j in range(j0, j1 + 1 if last else j1):
-            fxj = fxw + kx * j
-            fyj = fyw + ky * j
-            cls = 0
-            gx = 0
-            gy = 0
-            if fxj >= 0.0 and fyj >= 0.0 and fxj < s_cols and fyj < s_rows:
-                gx = int(fxj)
-                gy = int(fyj)
-                cls = surface[(((gy >> 3) * tiles_x + (gx >> 3)) << 6) + ((gy & 7) << 3) + (gx & 7)]
-            k = cls * 16 + _hash_noise(gx, gy)
+            cls, k = _surface_cell(fxw + kx * j, fyw + ky * j, surface, s_rows, s_cols, tiles_x)
             if exact and j > j0:
                 e0, e1, e2 = _ground_irradiance(wx0 + dwx * j, wy0 + dwy * j, ambient, wmap, w_ox, w_oy, w_inv, smap,
                                                 s_ox, s_oy, s_inv)  # fmt: skip
@@ -420,6 +417,17 @@ def _grid_bilinear(o, n1, n2, s1, s2, g_data):
 
 
 @njit(cache=True, inline="always")
+def _face_sample(j, pa, rowz, cx, fx, g1x, rb1, go1, g2x, rb2, go2, g_o, gn1, gn2, g_data, ambient, escale):
+    """Grid coordinates and fixed-point irradiance of a lit face's span at pixel column ``j`` (row terms given)."""
+    zz = 1.0 / (pa * (j + 0.5) + rowz)
+    xn = (j + 0.5 - cx) / fx
+    s1 = zz * (g1x * xn + rb1) + go1
+    s2 = zz * (g2x * xn + rb2) + go2
+    e0, e1, e2 = _grid_bilinear(g_o, gn1, gn2, s1, s2, g_data)
+    return s1, s2, _fix(ambient + e0, escale), _fix(ambient + e1, escale), _fix(ambient + e2, escale)
+
+
+@njit(cache=True, inline="always")
 def _grid_axis(R, ccx, ccy, ccz, p, ax, n, centers, halves, cossin):
     """Coefficients (gx, gy, gz, o) of grid coordinate ``s = g·P + o`` along local axis ``ax`` (``n`` cells) of
     primitive ``p``'s face grid for a camera-frame point ``P`` (camera rotation ``R``, centre ``cc`` in the world)."""
@@ -454,26 +462,9 @@ def face_irradiance(p, fs, wx, wy, wz, centers, halves, cossin, g_off, g_dims, g
     q2 = ly if ax2 == 1 else lz
     n1 = g_dims[p, fs, 0]
     n2 = g_dims[p, fs, 1]
-    s1 = min(max((q1 / halves[p, ax1] + 1.0) * 0.5 * n1 - 0.5, 0.0), n1 - 1.0)
-    s2 = min(max((q2 / halves[p, ax2] + 1.0) * 0.5 * n2 - 0.5, 0.0), n2 - 1.0)
-    u0 = min(int(s1), n1 - 1)
-    v0 = min(int(s2), n2 - 1)
-    u1 = min(u0 + 1, n1 - 1)
-    v1 = min(v0 + 1, n2 - 1)
-    fu = s1 - u0
-    fv = s2 - v0
-    w00 = (1.0 - fu) * (1.0 - fv)
-    w01 = (1.0 - fu) * fv
-    w10 = fu * (1.0 - fv)
-    w11 = fu * fv
-    k00 = o + u0 * n2 + v0
-    k01 = o + u0 * n2 + v1
-    k10 = o + u1 * n2 + v0
-    k11 = o + u1 * n2 + v1
-    e0 = w00 * g_data[k00, 0] + w01 * g_data[k01, 0] + w10 * g_data[k10, 0] + w11 * g_data[k11, 0]
-    e1 = w00 * g_data[k00, 1] + w01 * g_data[k01, 1] + w10 * g_data[k10, 1] + w11 * g_data[k11, 1]
-    e2 = w00 * g_data[k00, 2] + w01 * g_data[k01, 2] + w10 * g_data[k10, 2] + w11 * g_data[k11, 2]
-    return e0, e1, e2
+    s1 = (q1 / halves[p, ax1] + 1.0) * 0.5 * n1 - 0.5
+    s2 = (q2 / halves[p, ax2] + 1.0) * 0.5 * n2 - 0.5
+    return _grid_bilinear(o, n1, n2, s1, s2, g_data)
 
 
 @njit(cache=True, parallel=True, fastmath=False)
@@ -646,28 +637,16 @@ def _raster_bands(
                 rb2 = g2y * yn + g2z
                 if lit:  # irradiance sampled every FACE_STEP pixels of the span, linear in between
                     ja = j0
-                    zz = 1.0 / (pa * (ja + 0.5) + rowz)
-                    xn = (ja + 0.5 - cx) / fx
-                    sa1 = zz * (g1x * xn + rb1) + go1
-                    sa2 = zz * (g2x * xn + rb2) + go2
-                    e0, e1, e2 = _grid_bilinear(g_o, gn1, gn2, sa1, sa2, g_data)
-                    a0 = _fix(ambient + e0, escale)
-                    a1 = _fix(ambient + e1, escale)
-                    a2 = _fix(ambient + e2, escale)
+                    sa1, sa2, a0, a1, a2 = _face_sample(ja, pa, rowz, cx, fx, g1x, rb1, go1, g2x, rb2, go2, g_o, gn1,
+                                                        gn2, g_data, ambient, escale)  # fmt: skip
                     while ja <= j1:
                         jb = min(ja + FACE_STEP, j1)
                         b0, b1, b2 = a0, a1, a2
                         sb1, sb2 = sa1, sa2
                         d0 = d1 = d2 = np.float32(0.0)
                         if jb > ja:
-                            zz = 1.0 / (pa * (jb + 0.5) + rowz)
-                            xn = (jb + 0.5 - cx) / fx
-                            sb1 = zz * (g1x * xn + rb1) + go1
-                            sb2 = zz * (g2x * xn + rb2) + go2
-                            e0, e1, e2 = _grid_bilinear(g_o, gn1, gn2, sb1, sb2, g_data)
-                            b0 = _fix(ambient + e0, escale)
-                            b1 = _fix(ambient + e1, escale)
-                            b2 = _fix(ambient + e2, escale)
+                            sb1, sb2, b0, b1, b2 = _face_sample(jb, pa, rowz, cx, fx, g1x, rb1, go1, g2x, rb2, go2, g_o,
+                                                                gn1, gn2, g_data, ambient, escale)  # fmt: skip
                             inv = np.float32(1.0 / (jb - ja))
                             d0 = (b0 - a0) * inv
                             d1 = (b1 - a1) * inv
