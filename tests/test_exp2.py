@@ -133,3 +133,14 @@ def test_colour_jitter_keeps_geometry_and_grey_and_is_seeded():
     grey = np.full((4, 4, 3), 77, np.uint8)  # no hue or saturation: only the value gain acts
     out = augment_hsv(grey, (0.5, 0.5, 0.0), np.random.default_rng(2))
     assert (out == grey).all()
+
+
+def test_the_seed_check_refuses_a_run_without_results_before_any_work(tmp_path):
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    script = Path(__file__).resolve().parents[1] / "scripts" / "exp2_seed_check.py"
+    r = subprocess.run([sys.executable, str(script), "--root", str(tmp_path), "--run", str(tmp_path / "none"), "--seed", "1"],
+                       capture_output=True, text=True)  # fmt: skip
+    assert r.returncode == 2 and "results.json not found" in r.stderr
