@@ -340,7 +340,9 @@ def main(argv: list[str] | None = None) -> int:
     EPISODE_SECONDS["value"] = args.episode_seconds
     args.out.mkdir(parents=True, exist_ok=True)
     seeds = list(range(args.seeds))
-    agents = [(c, s) for c in args.conditions for s in seeds]
+    # seed-major: after each round of seeds every condition has the same number of finished agents, so an
+    # interrupted study can already be evaluated with a smaller --seeds on the same --out
+    agents = [(c, s) for s in seeds for c in args.conditions]
     t0 = time.perf_counter()
     for k, (cond, seed) in enumerate(agents):
         elapsed = time.perf_counter() - t0
