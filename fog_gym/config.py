@@ -286,6 +286,44 @@ def _merge_named(entries: list[tuple[str, Any]], cameras: Any, named: dict[str, 
 
 
 @dataclass(frozen=True)
+class HazardConfig:
+    """Stalled vehicles ahead of the ego: a task where seeing far enough decides the episode.
+
+    At every reset, stopped vehicles are placed on the ego's road, the first ``first`` = (min, max) metres ahead of
+    the ego, each next one ``gap`` = (min, max) metres further, up to ``span`` metres ahead, each in a lane drawn
+    uniformly; traffic within ``clearance`` metres of a stalled vehicle in its lane is removed. Distances and lanes
+    come from the reset's seed.
+
+    >>> HazardConfig().first, HazardConfig().gap
+    ((60.0, 120.0), (70.0, 140.0))
+    >>> HazardConfig(first=(50.0, 40.0))
+    Traceback (most recent call last):
+    ...
+    ValueError: first must be (min, max) metres with 0 < min <= max, got (50.0, 40.0)
+    """
+
+    first: tuple[float, float] = (60.0, 120.0)
+    gap: tuple[float, float] = (70.0, 140.0)
+    span: float = 700.0
+    clearance: float = 25.0
+
+    def __post_init__(self) -> None:
+        for name in ("first", "gap"):
+            v = getattr(self, name)
+            ok = isinstance(v, (tuple, list)) and len(v) == 2
+            if ok:
+                lo, hi = (_finite(name, x) for x in v)
+                ok = 0 < lo <= hi
+            if not ok:
+                raise ValueError(f"{name} must be (min, max) metres with 0 < min <= max, got {v!r}")
+            object.__setattr__(self, name, (float(v[0]), float(v[1])))
+        if not _finite("span", self.span) > 0:
+            raise ValueError(f"span must be > 0 metres, got {self.span!r}")
+        if not _finite("clearance", self.clearance) >= 0:
+            raise ValueError(f"clearance must be >= 0 metres, got {self.clearance!r}")
+
+
+@dataclass(frozen=True)
 class FogDriveConfig:
     """Everything that defines a FogDrive-v0 environment apart from the seed.
 
@@ -307,11 +345,14 @@ class FogDriveConfig:
     far_distance: float = 1000.0  # camera far plane; sky depth, as CARLA's depth camera saturates at 1 km
     labels: LabelConfig | None = field(default_factory=lambda: _default_labels())  # None: no boxes in info
     traffic: str = "fast"  # "fast": fog_gym.traffic core; "reference": highway-env's own Python path
+    hazards: HazardConfig | None = None  # stalled vehicles ahead of the ego (the RL hazard preset)
 
     def __post_init__(self) -> None:
         if self.town not in TOWNS:
             raise ValueError(f"town must be one of {TOWNS}, got {self.town!r}")
         check_traffic_mode(self.traffic)
+        if self.hazards is not None and not isinstance(self.hazards, HazardConfig):
+            raise ValueError(f"hazards must be a HazardConfig or None, got {type(self.hazards).__name__}")
         if self.time_of_day not in TIMES_OF_DAY:
             raise ValueError(f"time_of_day must be one of {TIMES_OF_DAY}, got {self.time_of_day!r}")
         if not isinstance(self.rig, RigConfig):

@@ -19,7 +19,7 @@ import numpy as np
 from gymnasium import spaces
 
 from fog_gym._kernels import announce_compilation
-from fog_gym.config import FogDriveConfig, RigConfig
+from fog_gym.config import FogDriveConfig, HazardConfig, RigConfig
 from fog_gym import geometry
 from fog_gym.dataset.layout import extrinsic_key
 from fog_gym.labels import CameraView, LabelConfig, annotate
@@ -49,8 +49,9 @@ class FogDriveEnv(gym.Env):
     ``resolution`` (W, H) for every camera, ``cameras`` (subset of camera names), ``rig`` (a full
     :class:`RigConfig`), ``episode_seconds``, ``simulation_frequency``, ``keyframe_frequency``,
     ``highway_config`` (highway-env config overrides), ``traffic`` ("fast", the default traffic core, or
-    "reference", highway-env's own Python path; same trajectories), or ``config`` (a complete
-    :class:`FogDriveConfig`).
+    "reference", highway-env's own Python path; same trajectories), ``hazards`` (a :class:`HazardConfig`: stalled
+    vehicles ahead of the ego at every reset; ``info["hazards"]`` then holds their (ahead, right) offsets from the
+    ego in metres), or ``config`` (a complete :class:`FogDriveConfig`).
 
     Public attributes (what wrappers and tools may use): ``config`` (the validated :class:`FogDriveConfig`),
     ``episode_seed`` (set by ``reset``; every random stream of the episode derives from it), ``scene`` (the
@@ -82,6 +83,7 @@ class FogDriveEnv(gym.Env):
         config: FogDriveConfig | None = None,
         render_mode: str | None = None,
         traffic: str | None = None,
+        hazards: HazardConfig | None = None,
     ) -> None:
         cfg = config if config is not None else FogDriveConfig()
         if not isinstance(cfg, FogDriveConfig):
@@ -101,7 +103,7 @@ class FogDriveEnv(gym.Env):
             for k, v in dict(
                 town=town, time_of_day=time_of_day, episode_seconds=episode_seconds,
                 simulation_frequency=simulation_frequency, keyframe_frequency=keyframe_frequency,
-                highway_config=highway_config, traffic=traffic,
+                highway_config=highway_config, traffic=traffic, hazards=hazards,
             ).items()
             if v is not None
         }  # fmt: skip
@@ -114,7 +116,7 @@ class FogDriveEnv(gym.Env):
         self.metadata = {**self.metadata, "render_fps": c.keyframe_frequency}
         announce_compilation()
         self.world = TrafficWorld(c.town, c.simulation_frequency, c.keyframe_frequency, c.episode_seconds, dict(c.highway_config),
-                                  traffic=c.traffic)  # fmt: skip
+                                  traffic=c.traffic, hazards=c.hazards)  # fmt: skip
         self.cameras = CameraRig(c.rig, far=c.far_distance)
         self.action_space = self.world.action_space
         rig_layout(c.rig)  # channel or folder clashes between the rig's sensors fail here, before any work
@@ -231,6 +233,8 @@ class FogDriveEnv(gym.Env):
             "speed": self.world.ego_speed,
             "crashed": self.world.ego_crashed,
         }
+        if self.config.hazards is not None:
+            info["hazards"] = self.world.hazards_ego()
         if "rewards" in hw_info:
             info["rewards"] = {k: float(v) for k, v in hw_info["rewards"].items()}
         if self.config.labels is not None:

@@ -28,8 +28,10 @@ RL_TRAFFIC = {"vehicles_count": 20, "lanes_count": 3}
 
 def make_fogdrive_rl(fog: Any = "clear", town: str = "highway", camera_size: Sequence[int] = (64, 64),
                      grayscale: bool = False, bev_size: int = 64, frame_stack: int = 1,
-                     highway_config: dict | None = None, render_mode: str | None = None, **kwargs: Any) -> gym.Env:  # fmt: skip
-    """Build the RL preset (see the module docstring); ``kwargs`` go to :class:`fog_gym.env.FogDriveEnv`."""
+                     highway_config: dict | None = None, render_mode: str | None = None, bev_ahead: float = 0.0,
+                     **kwargs: Any) -> gym.Env:  # fmt: skip
+    """Build the RL preset (see the module docstring); ``bev_ahead`` shifts the bird's-eye image forward (metres,
+    :class:`~fog_gym.wrappers.LidarBEV`'s ``ahead``); ``kwargs`` go to :class:`fog_gym.env.FogDriveEnv`."""
     from fog_gym.env import FogDriveEnv
     from fog_gym.wrappers import FogWrapper, LidarBEV, ResizeCameras, SelectKeys, StackFrames
 
@@ -41,12 +43,54 @@ def make_fogdrive_rl(fog: Any = "clear", town: str = "highway", camera_size: Seq
     base = FogDriveEnv(town=town, rig=rig, keyframe_frequency=5, highway_config={**RL_TRAFFIC, **(highway_config or {})},
                        labels=None, render_mode=render_mode, **kwargs)  # fmt: skip
     env: gym.Env = FogWrapper(base, fog)
-    env = LidarBEV(env, size=bev_size, metres=64.0)
+    env = LidarBEV(env, size=bev_size, metres=64.0, ahead=bev_ahead)
     env = ResizeCameras(env, size=(w, h), grayscale=grayscale)
     env = SelectKeys(env, ["CAM_FRONT", "LIDAR_BEV"])
     if frame_stack > 1:
         env = StackFrames(env, frame_stack)
     return env
+
+
+#: FogDriveRLHazard-v0's traffic, actions and reward (highway-env config keys).
+HAZARD_TRAFFIC = {
+    "vehicles_count": 10, "lanes_count": 3,
+    "action": {"type": "DiscreteMetaAction", "target_speeds": [0.0, 5.0, 10.0, 15.0, 20.0, 25.0, 30.0]},
+    "reward_speed_range": [0.0, 30.0], "high_speed_reward": 1.0, "collision_reward": -1.0,
+    "right_lane_reward": 0.0, "lane_change_reward": 0.0, "normalize_reward": False,
+}  # fmt: skip
+#: FogDriveRLHazard-v0's bird's-eye image: 64 m square from 8 m behind the LiDAR to 56 m ahead of it.
+HAZARD_BEV_AHEAD = 24.0
+
+
+def make_fogdrive_rl_hazard(fog: Any = "clear", hazards: Any = None, highway_config: dict | None = None,
+                            **kwargs: Any) -> gym.Env:  # fmt: skip
+    """``FogDriveRLHazard-v0``: FogDriveRL-v0's sensors on a task where seeing far enough decides the episode.
+
+    - **World**: the highway town, 3 lanes, 10 IDM vehicles, and stalled vehicles ahead of the ego
+      (:class:`~fog_gym.config.HazardConfig`: the first 60–120 m ahead, then every 70–140 m, each in a random
+      lane, over the whole episode).
+    - **Observation**: as FogDriveRL-v0 (64×64 front camera, 64×64 LiDAR bird's-eye image), but the bird's-eye
+      image looks ahead: it spans 8 m behind to 56 m ahead of the LiDAR (1 m per pixel, ±32 m across).
+    - **Actions**: highway-env's ``DiscreteMetaAction`` (lane left, idle, lane right, faster, slower) with target
+      speeds 0, 5, …, 30 m/s; the ego starts at 25 m/s.
+    - **Reward** per step: forward speed / 30 m/s (0–1), −1 on a collision; no normalisation, no lane term.
+    - **Termination**: a collision (with a stalled or a moving vehicle) or leaving the road; truncation after
+      20 s (100 steps at 5 Hz).
+
+    So a blind agent must crawl (or crash), and one that sees a stalled vehicle in time can change lanes at speed:
+    how far the sensors see through the fog sets what the agent can earn. ``hazards`` (a ``HazardConfig``) and
+    ``highway_config`` override the preset's; ``kwargs`` go to :func:`make_fogdrive_rl`.
+
+    >>> import gymnasium as gym, fog_gym
+    >>> env = gym.make("FogDriveRLHazard-v0", fog="dense")
+    >>> env.action_space.n, sorted(env.observation_space.spaces)
+    (5, ['CAM_FRONT', 'LIDAR_BEV'])
+    """
+    from fog_gym.config import HazardConfig
+
+    hz = HazardConfig() if hazards is None else hazards
+    return make_fogdrive_rl(fog=fog, highway_config={**HAZARD_TRAFFIC, **(highway_config or {})}, hazards=hz,
+                            bev_ahead=kwargs.pop("bev_ahead", HAZARD_BEV_AHEAD), **kwargs)  # fmt: skip
 
 
 def curriculum_callback(schedule: FogSchedule, verbose: int = 0):

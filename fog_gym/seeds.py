@@ -20,6 +20,7 @@ SALTS: dict[str, int] = {
     "scenery": 0x5CE,  # static props and lighting of an episode (fog_gym.env)
     "sensors": 0x11DA,  # sensor noise (fog_gym.env)
     "fog": 0xF06,  # LiDAR fog noise per level (fog_gym.wrappers.fog)
+    "hazards": 0x4A2,  # stalled vehicles: distances and lanes (fog_gym.world, HazardConfig)
 }
 
 

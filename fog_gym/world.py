@@ -22,7 +22,7 @@ from typing import Any
 
 import numpy as np
 
-from fog_gym.config import TOWNS, check_traffic_mode
+from fog_gym.config import TOWNS, HazardConfig, check_traffic_mode
 from fog_gym.scenery import LaneGeometry
 from fog_gym.traffic.core import accelerate, is_accelerated
 from fog_gym.seeds import stream
@@ -144,12 +144,18 @@ class TrafficWorld:
         episode_seconds: float = 20.0,
         highway_config: dict[str, Any] | None = None,
         traffic: str = "fast",
+        hazards: HazardConfig | None = None,
     ) -> None:
         import highway_env.envs as hw_envs  # noqa: F401  (registers highway-env and its vehicle classes)
 
         if town not in TOWN_SPECS:
             raise ValueError(f"town must be one of {TOWNS}, got {town!r}")
         self.traffic = check_traffic_mode(traffic)
+        if hazards is not None and not isinstance(hazards, HazardConfig):
+            raise ValueError(f"hazards must be a HazardConfig or None, got {type(hazards).__name__}")
+        self.hazards = hazards
+        #: The stalled vehicles of the episode (``hazards``), nearest first.
+        self.hazard_vehicles: list[Any] = []
         self.town = town
         self.spec = TOWN_SPECS[town]
         self.idm_profile: dict[str, float] = dict(IDM_PROFILES[self.spec.idm])
@@ -182,6 +188,7 @@ class TrafficWorld:
         self._next_id = EGO_ID + 1
         ego = self.hw.vehicle
         self._assign(ego, is_ego=True)
+        self.hazard_vehicles = self._place_hazards(stream(seed, "hazards")) if self.hazards is not None else []
         self._register_new()
         self.start_position = np.array(ego.position, dtype=np.float64)
 
@@ -215,6 +222,41 @@ class TrafficWorld:
         # highway-env's collision geometry equals the rendered box (maintainer's recipe, #490)
         v.LENGTH, v.WIDTH = length, width
         v.diagonal = math.hypot(length, width)
+
+    def _place_hazards(self, rng: np.random.Generator) -> list[Any]:
+        """Stalled vehicles ahead of the ego along its road edge (see :class:`~fog_gym.config.HazardConfig`)."""
+        from highway_env.vehicle.kinematics import Vehicle
+
+        hz, road, ego = self.hazards, self.hw.road, self.hw.vehicle
+        frm, to, _ = ego.lane_index
+        lanes = road.network.graph[frm][to]
+        ego_s = float(lanes[ego.lane_index[2]].local_coordinates(ego.position)[0])
+        placed: list[Any] = []
+        d = float(rng.uniform(*hz.first))
+        while d <= hz.span:
+            lane = lanes[int(rng.integers(len(lanes)))]
+            s = ego_s + d
+            if s > lane.length:
+                break
+            for v in list(road.vehicles):
+                lon, lat = lane.local_coordinates(v.position)
+                if v is not ego and abs(lon - s) < hz.clearance and abs(lat) < lane.width_at(s):
+                    road.vehicles.remove(v)
+            v = Vehicle(road, lane.position(s, 0.0), lane.heading_at(s), 0.0)
+            road.vehicles.append(v)
+            placed.append(v)
+            d += float(rng.uniform(*hz.gap))
+        return placed
+
+    def hazards_ego(self) -> np.ndarray:
+        """(K, 2) positions of the stalled vehicles' centres in the ego frame: metres ahead and to the right (CARLA
+        convention), in placement order; (0, 2) without hazards."""
+        if not self.hazard_vehicles:
+            return np.zeros((0, 2))
+        ego = self.hw.vehicle
+        d = np.array([v.position for v in self.hazard_vehicles], np.float64) - np.asarray(ego.position, np.float64)
+        c, s = math.cos(ego.heading), math.sin(ego.heading)
+        return np.c_[d[:, 0] * c + d[:, 1] * s, -d[:, 0] * s + d[:, 1] * c]
 
     def _register_new(self) -> None:
         for v in self.hw.road.vehicles:

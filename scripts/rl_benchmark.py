@@ -58,17 +58,19 @@ def schedule_for(condition: str, seed: int, steps: int):
 
 
 EPISODE_SECONDS = {"value": 20.0}  # FogDriveRL-v0's default; --episode-seconds shortens episodes for smoke runs
+ENVS = ("FogDriveRL-v0", "FogDriveRLHazard-v0")
+ENV_ID = {"value": ENVS[0]}  # --env
 
 
 def _make_env(fog: Any, seed: int):
-    seconds = EPISODE_SECONDS["value"]
+    seconds, env_id = EPISODE_SECONDS["value"], ENV_ID["value"]
 
     def make():
         import gymnasium as gym
 
         import fog_gym  # noqa: F401  (registers the env in the worker)
 
-        env = gym.make("FogDriveRL-v0", fog=fog, episode_seconds=seconds)
+        env = gym.make(env_id, fog=fog, episode_seconds=seconds)
         env.reset(seed=seed)
         return env
 
@@ -215,7 +217,7 @@ def aggregate(results: dict[str, dict[str, dict[int, dict[str, list[float]]]]]) 
 
 
 def render_matrix(table: dict[str, Any], meta: dict[str, Any]) -> str:
-    lines = [f"# FogDriveRL-v0 fog benchmark: train × test matrix", "",
+    lines = [f"# {meta.get('env', ENVS[0])} fog benchmark: train × test matrix", "",
              f"{meta['seeds']} training seed(s) × {meta['steps']} steps per condition, {meta['episodes']} evaluation "
              f"episodes per agent and test fog (seeds {EVAL_SEED}+). Cells: mean over training seeds ± 95 % CI across "
              "seeds (n/a for one seed) [episode-level SD].", ""]  # fmt: skip
@@ -305,7 +307,7 @@ def learning_curves(out: Path, conditions: list[str], seeds: list[int]) -> None:
     ax.set_xlabel("training steps")
     ax.set_ylabel("episode return (moving average of 10)")
     ax.legend()
-    ax.set_title("FogDriveRL-v0 learning curves")
+    ax.set_title(f"{ENV_ID['value']} learning curves")
     fig.tight_layout()
     fig.savefig(out / "curves.png")
     plt.close(fig)
@@ -314,6 +316,8 @@ def learning_curves(out: Path, conditions: list[str], seeds: list[int]) -> None:
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="rl_benchmark.py", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
+    p.add_argument("--env", choices=ENVS, default=ENVS[0],
+                   help="the task: FogDriveRL-v0 (default) or FogDriveRLHazard-v0 (stalled vehicles ahead)")
     p.add_argument("--conditions", nargs="+", choices=CONDITIONS, default=list(CONDITIONS),
                    help="training conditions (default: all)")
     p.add_argument("--seeds", type=int, default=1, help="training seeds per condition (default 1; a study: >= 3)")
@@ -338,7 +342,14 @@ def main(argv: list[str] | None = None) -> int:
     if not 0 < args.episode_seconds < 1e4:
         parser.error("--episode-seconds must be > 0")
     EPISODE_SECONDS["value"] = args.episode_seconds
+    ENV_ID["value"] = args.env
     args.out.mkdir(parents=True, exist_ok=True)
+    study = {"env": args.env, "steps": args.steps, "episode_seconds": args.episode_seconds}
+    marker = args.out / "study.json"
+    if marker.exists() and json.loads(marker.read_text()) != study:
+        parser.error(f"{args.out} holds a study of {marker.read_text().strip()}; this run asks for {json.dumps(study)}: "
+                     "use another --out")  # fmt: skip
+    marker.write_text(json.dumps(study))
     seeds = list(range(args.seeds))
     # seed-major: after each round of seeds every condition has the same number of finished agents, so an
     # interrupted study can already be evaluated with a smaller --seeds on the same --out
@@ -362,7 +373,7 @@ def main(argv: list[str] | None = None) -> int:
             os.replace(tmp, path)
         results.setdefault(cond, {}).setdefault(test, {})[seed] = json.loads(path.read_text())
     table = aggregate(results)
-    meta = {"seeds": args.seeds, "steps": args.steps, "episodes": args.episodes, "envs": args.envs,
+    meta = {"env": args.env, "seeds": args.seeds, "steps": args.steps, "episodes": args.episodes, "envs": args.envs,
             "conditions": args.conditions, "wall_s": time.perf_counter() - t0}  # fmt: skip
     (args.out / "matrix.json").write_text(json.dumps({"meta": meta, "table": table}, indent=1))
     (args.out / "matrix.md").write_text(render_matrix(table, meta) + "\n")
