@@ -50,8 +50,8 @@ class FogDriveEnv(gym.Env):
     :class:`RigConfig`), ``episode_seconds``, ``simulation_frequency``, ``keyframe_frequency``,
     ``highway_config`` (highway-env config overrides), ``traffic`` ("fast", the default traffic core, or
     "reference", highway-env's own Python path; same trajectories), ``hazards`` (a :class:`HazardConfig`: stalled
-    vehicles ahead of the ego at every reset; ``info["hazards"]`` then holds their (ahead, right) offsets from the
-    ego in metres), or ``config`` (a complete :class:`FogDriveConfig`).
+    vehicles ahead of the ego at every reset; ``info["hazards"]`` then holds, per stalled vehicle, its offset from the
+    ego in metres ahead and to the right, its length and width), or ``config`` (a complete :class:`FogDriveConfig`).
 
     Public attributes (what wrappers and tools may use): ``config`` (the validated :class:`FogDriveConfig`),
     ``episode_seed`` (set by ``reset``; every random stream of the episode derives from it), ``scene`` (the

@@ -154,8 +154,7 @@ class TrafficWorld:
         if hazards is not None and not isinstance(hazards, HazardConfig):
             raise ValueError(f"hazards must be a HazardConfig or None, got {type(hazards).__name__}")
         self.hazards = hazards
-        #: The stalled vehicles of the episode (``hazards``), nearest first.
-        self.hazard_vehicles: list[Any] = []
+        self._hazard_vehicles: list[Any] = []  # the episode's stalled vehicles (highway-env objects)
         self.town = town
         self.spec = TOWN_SPECS[town]
         self.idm_profile: dict[str, float] = dict(IDM_PROFILES[self.spec.idm])
@@ -188,7 +187,7 @@ class TrafficWorld:
         self._next_id = EGO_ID + 1
         ego = self.hw.vehicle
         self._assign(ego, is_ego=True)
-        self.hazard_vehicles = self._place_hazards(stream(seed, "hazards")) if self.hazards is not None else []
+        self._hazard_vehicles = self._place_hazards(stream(seed, "hazards")) if self.hazards is not None else []
         self._register_new()
         self.start_position = np.array(ego.position, dtype=np.float64)
 
@@ -249,14 +248,17 @@ class TrafficWorld:
         return placed
 
     def hazards_ego(self) -> np.ndarray:
-        """(K, 2) positions of the stalled vehicles' centres in the ego frame: metres ahead and to the right (CARLA
-        convention), in placement order; (0, 2) without hazards."""
-        if not self.hazard_vehicles:
-            return np.zeros((0, 2))
+        """The stalled vehicles in placement order (nearest first at the reset), (K, 4): their centres' offsets from
+        the ego's centre in its frame (metres ahead, metres to the right, CARLA convention), length and width;
+        (0, 4) without hazards."""
+        if not self._hazard_vehicles:
+            return np.zeros((0, 4))
         ego = self.hw.vehicle
-        d = np.array([v.position for v in self.hazard_vehicles], np.float64) - np.asarray(ego.position, np.float64)
+        vs = self._hazard_vehicles
+        d = np.array([v.position for v in vs], np.float64) - np.asarray(ego.position, np.float64)
         c, s = math.cos(ego.heading), math.sin(ego.heading)
-        return np.c_[d[:, 0] * c + d[:, 1] * s, -d[:, 0] * s + d[:, 1] * c]
+        size = np.array([(v.LENGTH, v.WIDTH) for v in vs], np.float64)
+        return np.c_[d[:, 0] * c + d[:, 1] * s, -d[:, 0] * s + d[:, 1] * c, size]
 
     def _register_new(self) -> None:
         for v in self.hw.road.vehicles:

@@ -1,0 +1,153 @@
+"""FogDriveRLHazard-v0: stalled vehicles ahead of the ego (HazardConfig), the forward-looking bird's-eye image and
+the speed reward; the calibration script's scripted drivers."""
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import fog_gym
+from fog_gym.config import FogDriveConfig, HazardConfig
+from fog_gym.rl import HAZARD_BEV_AHEAD
+from fog_gym.world import TrafficWorld
+
+HW = {"lanes_count": 3, "vehicles_count": 10}
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.floats(-50, 300, allow_nan=False), st.floats(-50, 300, allow_nan=False))
+def test_hazard_ranges_are_valid_exactly_when_positive_and_ordered(lo, hi):
+    if 0 < lo <= hi:
+        assert HazardConfig(first=(lo, hi)).first == (lo, hi)
+    else:
+        with pytest.raises(ValueError, match="first must be"):
+            HazardConfig(first=(lo, hi))
+
+
+@pytest.mark.parametrize("kwargs, match", [({"gap": (10.0,)}, "gap must be"), ({"span": 0.0}, "span must be > 0"),
+                                           ({"clearance": -1.0}, "clearance must be >= 0"),
+                                           ({"first": (float("nan"), 5.0)}, "finite")])  # fmt: skip
+def test_bad_hazard_configs_are_refused(kwargs, match):
+    with pytest.raises(ValueError, match=match):
+        HazardConfig(**kwargs)
+
+
+def test_env_and_world_refuse_a_hazards_value_that_is_not_a_config():
+    with pytest.raises(ValueError, match="hazards must be a HazardConfig"):
+        FogDriveConfig(hazards={"first": (1, 2)})
+    with pytest.raises(ValueError, match="hazards must be a HazardConfig"):
+        TrafficWorld("highway", hazards=3)
+
+
+def test_stalled_vehicles_lie_ahead_at_the_configured_spacing_and_stay_put():
+    hz = HazardConfig(first=(60.0, 120.0), gap=(70.0, 140.0), span=700.0, clearance=25.0)
+    world = TrafficWorld("highway", keyframe_frequency=5, highway_config=HW, hazards=hz)
+    world.reset(seed=3)
+    h0 = world.hazards_ego()
+    ahead = h0[:, 0]
+    assert 60.0 <= ahead[0] <= 120.0 and np.all(np.diff(ahead) >= 70.0) and np.all(np.diff(ahead) <= 140.0)
+    assert ahead[-1] <= 700.0 and ahead[-1] + 140.0 > 700.0 - 1e-9  # the span is filled
+    assert set(np.round(h0[:, 1] - np.round(h0[:, 1] / 4.0) * 4.0, 6)) == {0.0}  # on lane centres (4 m lanes)
+    state = world.vehicle_state()
+    x, y, _ = world.ego_pose
+    # no other vehicle within the clearance of a stalled one in its lane
+    for a, r, *_ in h0:
+        hx, hy = x + a, y + r
+        d = np.hypot(state.centers[:, 0] - hx, state.centers[:, 1] - hy)
+        same_lane = np.abs(state.centers[:, 1] - hy) < 2.0
+        assert np.sum((d < 25.0) & same_lane) == 1  # itself
+    start = world.hazards_ego()[:, :2] + np.array([x, y])
+    for _ in range(10):
+        world.step(1)
+    x1, y1, _ = world.ego_pose
+    assert np.allclose(world.hazards_ego()[:, :2] + np.array([x1, y1]), start, atol=1e-9)  # stopped
+
+
+def test_hazard_placement_is_seeded():
+    hz = HazardConfig()
+    a, b = (TrafficWorld("highway", highway_config=HW, hazards=hz) for _ in range(2))
+    a.reset(seed=11)
+    b.reset(seed=11)
+    assert np.array_equal(a.hazards_ego(), b.hazards_ego())
+    b.reset(seed=12)
+    assert not np.array_equal(a.hazards_ego()[:, :2], b.hazards_ego()[:, :2])
+
+
+def test_hazard_preset_rewards_forward_speed_and_ends_on_a_collision():
+    env = gym.make("FogDriveRLHazard-v0")
+    obs, info = env.reset(seed=2_000_000)  # a stalled vehicle lies in the ego's lane (checked below)
+    assert env.observation_space.contains(obs)
+    h = info["hazards"]
+    assert h.shape[1] == 4 and np.any(np.abs(h[:, 1]) < 0.5)
+    rewards, infos = [], []
+    for _ in range(100):
+        obs, r, term, trunc, info = env.step(1)  # idle: hold the lane at 25 m/s
+        rewards.append(r)
+        infos.append(info)
+        if term or trunc:
+            break
+    assert term and info["crashed"]
+    assert rewards[0] == pytest.approx(infos[0]["speed"] / 30.0)  # forward speed / 30 (straight road)
+    assert rewards[-1] == pytest.approx(infos[-1]["speed"] / 30.0 - 1.0)  # the collision costs 1
+
+
+def test_fogdriverl_keeps_its_meaning():
+    env = gym.make("FogDriveRL-v0")
+    _, info = env.reset(seed=0)
+    assert "hazards" not in info and env.unwrapped.config.hazards is None
+    _, r, *_ = env.step(1)
+    assert 0.0 <= r <= 1.0  # highway-env's normalised reward
+
+
+def test_forward_bird_eye_image_puts_a_point_where_documented():
+    from fog_gym.wrappers import LidarBEV
+
+    class Points(gym.Env):
+        observation_space = gym.spaces.Dict({"LIDAR_TOP": gym.spaces.Box(-1e3, 1e3, (4, 4), np.float32)})
+        action_space = gym.spaces.Discrete(1)
+
+        def reset(self, *, seed=None, options=None):
+            # one point 45.2 m ahead, 3.7 m left, 1.5 m above the road (the sensor is 2 m up)
+            return {"LIDAR_TOP": np.array([[45.2, -3.7, -0.5, 1.0]], np.float32)}, {}
+
+    env = LidarBEV(Points(), size=64, metres=64.0, ahead=HAZARD_BEV_AHEAD)
+    obs, _ = env.reset()
+    rows, cols = np.nonzero(obs["LIDAR_BEV"][0])
+    assert (rows.tolist(), cols.tolist()) == ([int(np.floor(32 + 24 - 45.2))], [int(np.floor(-3.7 + 32))])  # (10, 28)
+    with pytest.raises(ValueError, match="ahead must be"):
+        LidarBEV(Points(), metres=64.0, ahead=32.0)
+
+
+def _load_script(name):
+    import importlib.util
+    from pathlib import Path
+
+    path = Path(__file__).resolve().parent.parent / "scripts" / f"{name}.py"
+    spec = importlib.util.spec_from_file_location(name, path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def test_calibration_helpers_doctests():
+    import doctest
+
+    mod = _load_script("rl_hazard_check")
+    assert doctest.testmod(mod).failed == 0
+
+
+def test_seeing_further_earns_more_and_a_blind_driver_crashes():
+    mod = _load_script("rl_hazard_check")
+    blind = mod.run_driver("blind", 25.0, 2, 2_000_000)
+    near, far = (mod.run_driver("sighted", d, 2, 2_000_000) for d in (15.0, 35.0))
+    assert blind["collision"] == 1.0 and far["collision"] == 0.0
+    assert far["return"] > near["return"] > 0.0
+
+
+def test_calibration_refuses_bad_settings_before_work(capsys):
+    mod = _load_script("rl_hazard_check")
+    for argv in (["--episodes", "1"], ["--sights", "80"], ["--speeds", "-5"]):
+        with pytest.raises(SystemExit):
+            mod.main(argv)
+    assert "must" in capsys.readouterr().err
