@@ -74,8 +74,8 @@ def make_fogdrive_rl_hazard(fog: Any = "clear", hazards: Any = None, highway_con
     - **Actions**: highway-env's ``DiscreteMetaAction`` (lane left, idle, lane right, faster, slower) with target
       speeds 0, 5, …, 30 m/s; the ego starts at 25 m/s.
     - **Reward** per step: forward speed / 30 m/s (0–1), −1 on a collision; no normalisation, no lane term.
-    - **Termination**: a collision (with a stalled or a moving vehicle) or leaving the road; truncation after
-      20 s (100 steps at 5 Hz).
+    - **Termination**: a collision (with a stalled or a moving vehicle); truncation after 20 s (100 steps at
+      5 Hz). A lane change off the road's edge does nothing (highway-env's meta-actions).
 
     So a blind agent must crawl (or crash), and one that sees a stalled vehicle in time can change lanes at speed:
     how far the sensors see through the fog sets what the agent can earn. ``hazards`` (a ``HazardConfig``) and

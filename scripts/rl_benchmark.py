@@ -325,6 +325,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--episodes", type=int, default=8, help="evaluation episodes per agent and test fog (default 8; a study: >= 32)")
     p.add_argument("--envs", type=int, default=os.cpu_count() or 1, help="subprocess envs (default: the CPU count)")
     p.add_argument("--device", default="auto", help="PPO device: auto (GPU when present), cpu or cuda")
+    p.add_argument("--torch-threads", type=int, default=None,
+                   help="torch threads for PPO on the CPU (default: 1 with subprocess envs, else torch's own)")
     p.add_argument("--checkpoint", type=int, default=10_000, help="checkpoint every N steps (default 10000)")
     p.add_argument("--episode-seconds", type=float, default=20.0,
                    help="episode length in seconds (default 20, FogDriveRL-v0's; shorter only for smoke runs)")
@@ -341,8 +343,16 @@ def main(argv: list[str] | None = None) -> int:
         parser.error("--seeds, --episodes, --envs and --checkpoint must be >= 1 and --steps >= 64")
     if not 0 < args.episode_seconds < 1e4:
         parser.error("--episode-seconds must be > 0")
+    if args.torch_threads is not None and args.torch_threads < 1:
+        parser.error("--torch-threads must be >= 1")
     EPISODE_SECONDS["value"] = args.episode_seconds
     ENV_ID["value"] = args.env
+    threads = args.torch_threads or (1 if args.envs > 1 else None)
+    if threads is not None:
+        import torch
+
+        if args.device == "cpu" or not torch.cuda.is_available():
+            torch.set_num_threads(threads)  # the env workers need the cores; more threads only spin against them
     args.out.mkdir(parents=True, exist_ok=True)
     study = {"env": args.env, "steps": args.steps, "episode_seconds": args.episode_seconds}
     marker = args.out / "study.json"

@@ -11,6 +11,7 @@ import fog_gym
 from fog_gym.config import FogDriveConfig, HazardConfig
 from fog_gym.rl import HAZARD_BEV_AHEAD
 from fog_gym.world import TrafficWorld
+from tests.helpers import load_module
 
 HW = {"lanes_count": 3, "vehicles_count": 10}
 
@@ -120,14 +121,7 @@ def test_forward_bird_eye_image_puts_a_point_where_documented():
 
 
 def _load_script(name):
-    import importlib.util
-    from pathlib import Path
-
-    path = Path(__file__).resolve().parent.parent / "scripts" / f"{name}.py"
-    spec = importlib.util.spec_from_file_location(name, path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load_module(f"scripts/{name}.py")
 
 
 def test_calibration_helpers_doctests():

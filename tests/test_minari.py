@@ -10,6 +10,7 @@ import pytest
 
 import fog_gym
 from fog_gym.minari import collect
+from tests.helpers import load_module
 
 minari = pytest.importorskip("minari")  # the minari extra is part of the dev extra: never skipped in CI
 
@@ -111,14 +112,7 @@ def test_cli_minari_records_a_random_policy_dataset(datasets_path):
 
 
 def _example():
-    import importlib.util
-    from pathlib import Path
-
-    path = Path(__file__).resolve().parent.parent / "examples" / "bc_minari.py"
-    spec = importlib.util.spec_from_file_location("bc_minari", path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_module("examples/bc_minari.py")
 
 
 class _Scene:

@@ -7,6 +7,7 @@ import pytest
 
 import fog_gym
 from fog_gym.curriculum import MixedSampler, StepSchedule
+from tests.helpers import load_module
 
 
 def test_preset_spaces_match_observations():
@@ -130,14 +131,7 @@ def test_vec_curriculum_applies_each_level_from_the_very_next_episode_in_subproc
 
 
 def _load_script(name):
-    import importlib.util
-    from pathlib import Path
-
-    path = Path(__file__).resolve().parent.parent / "scripts" / f"{name}.py"
-    spec = importlib.util.spec_from_file_location(name, path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load_module(f"scripts/{name}.py")
 
 
 def test_rl_benchmark_smoke_resumes_and_reports_cis_across_seeds(tmp_path):
@@ -175,3 +169,16 @@ def test_rl_benchmark_ci_is_student_t_across_seeds():
                                                       "distance": [100, 120]}}}})  # fmt: skip
     assert table["clear"]["dense"]["return"] == {"mean": 2.0, "ci95": None, "seeds": 1, "episode_std": pytest.approx(1.4142, 1e-4),
                                                  "episodes": 2}  # fmt: skip
+
+
+def test_rl_benchmark_refuses_a_study_folder_of_another_task_before_work(tmp_path, capsys):
+    import json
+
+    bench = _load_script("rl_benchmark")
+    (tmp_path / "study.json").write_text(json.dumps({"env": "FogDriveRL-v0", "steps": 64, "episode_seconds": 0.6}))
+    with pytest.raises(SystemExit):
+        bench.main(["--env", "FogDriveRLHazard-v0", "--steps", "64", "--episode-seconds", "0.6", "--out", str(tmp_path)])
+    assert "holds a study of" in capsys.readouterr().err
+    assert not (tmp_path / "models").exists()
+    with pytest.raises(SystemExit):
+        bench.main(["--torch-threads", "0", "--out", str(tmp_path / "b")])
