@@ -8,7 +8,8 @@
    its lane (±2 m), the largest distance at which at least ``--min-cells`` occupied cells of the observation fall
    inside its footprint (±1 m margin), i.e. how far the observation lets an agent see a stalled vehicle.
 
-Prints Markdown tables and writes them with the raw numbers to ``--out`` (``hazard_check.md`` / ``.json``).
+Prints Markdown tables and writes them, the raw numbers and a figure to ``--out`` (``hazard_check.md`` / ``.json`` /
+``.png``).
 
 Run: python scripts/rl_hazard_check.py --help
 """
@@ -178,6 +179,35 @@ def sight_distances(level: str, episodes: int, seed0: int, min_cells: int) -> li
     return out
 
 
+def figure(results: dict[str, Any], path: Path) -> None:
+    """Left: return of the blind and sighted drivers; right: sight distance of the bird's-eye image per fog."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, (a, b) = plt.subplots(1, 2, figsize=(11, 3.8), dpi=120)
+    names = list(results["drivers"])
+    ret = [results["drivers"][n]["return"] for n in names]
+    sd = [results["drivers"][n]["return_sd"] for n in names]
+    col = [results["drivers"][n]["collision"] for n in names]
+    labels = [f"blind\n{n.split()[1]} m/s" if n.startswith("blind") else f"sees\n{n.split()[1]} m" for n in names]
+    bars = a.bar(range(len(names)), ret, yerr=sd, color=["#999" if n.startswith("blind") else "#2a7" for n in names])
+    for bar, c in zip(bars, col):
+        a.text(bar.get_x() + bar.get_width() / 2, 1, f"{c:.0%}", ha="center", va="bottom", fontsize=7, color="w")
+    a.set_xticks(range(len(names)), labels, fontsize=7)
+    a.set_ylabel("episode return (bar label: collision rate)")
+    a.set_title("scripted drivers, clear air")
+    levels = list(results["sight"])
+    b.boxplot([results["sight"][k] or [0.0] for k in levels], tick_labels=levels)
+    b.set_ylabel("distance at which a stalled vehicle shows [m]")
+    b.set_title("LiDAR bird's-eye image: sight per fog level")
+    fig.suptitle("FogDriveRLHazard-v0: what seeing is worth, and how far the observation sees", fontsize=10)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="rl_hazard_check.py", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
@@ -227,8 +257,9 @@ def main(argv: list[str] | None = None) -> int:
         tmp = args.out / f".{name}.tmp"
         tmp.write_text(data)
         os.replace(tmp, args.out / name)
+    figure(results, args.out / "hazard_check.png")
     print(text)
-    print(f"\n{time.perf_counter() - t0:.0f} s; wrote {args.out / 'hazard_check.md'}")
+    print(f"\n{time.perf_counter() - t0:.0f} s; wrote {args.out / 'hazard_check.md'}, .json and .png")
     return 0
 
 
