@@ -83,7 +83,7 @@ def make_fogdrive_rl_hazard(fog: Any = "clear", hazards: Any = None, highway_con
 
     >>> import gymnasium as gym, fog_gym
     >>> env = gym.make("FogDriveRLHazard-v0", fog="dense")
-    >>> env.action_space.n, sorted(env.observation_space.spaces)
+    >>> int(env.action_space.n), sorted(env.observation_space.spaces)
     (5, ['CAM_FRONT', 'LIDAR_BEV'])
     """
     from fog_gym.config import HazardConfig
