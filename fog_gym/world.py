@@ -131,7 +131,8 @@ class TrafficWorld:
 
     The world's surface — what the env, wrappers, audit and benchmarks use — is :meth:`reset`, :meth:`step`,
     :meth:`vehicle_state`, :meth:`lane_geometry`, :attr:`ego_pose`, :attr:`ego_speed`, :attr:`ego_crashed`,
-    :attr:`tick`, :attr:`time`, :attr:`vehicle_count`, :attr:`accelerated`, :attr:`idm_profile`, ``action_space``,
+    :attr:`tick`, :attr:`time`, :attr:`vehicle_count`, :attr:`accelerated`, :attr:`idm_profile`, :meth:`hazards_ego`,
+    ``hazards``, ``action_space``,
     ``town``, ``spec``, ``traffic`` and ``start_position``. ``hw`` (the highway-env environment) is for this module
     and :mod:`fog_gym.traffic` only (``tests/test_world.py`` checks that nothing else reads it).
     """
@@ -239,7 +240,7 @@ class TrafficWorld:
                 break
             for v in list(road.vehicles):
                 lon, lat = lane.local_coordinates(v.position)
-                if v is not ego and abs(lon - s) < hz.clearance and abs(lat) < lane.width_at(s):
+                if v is not ego and v not in placed and abs(lon - s) < hz.clearance and abs(lat) < lane.width_at(s):
                     road.vehicles.remove(v)
             v = Vehicle(road, lane.position(s, 0.0), lane.heading_at(s), 0.0)
             road.vehicles.append(v)

@@ -145,3 +145,14 @@ def test_calibration_refuses_bad_settings_before_work(capsys):
         with pytest.raises(SystemExit):
             mod.main(argv)
     assert "must" in capsys.readouterr().err
+
+
+def test_close_hazards_never_clear_each_other_away():
+    hz = HazardConfig(first=(30.0, 30.0), gap=(10.0, 10.0), span=100.0, clearance=25.0)
+    world = TrafficWorld("highway", highway_config=HW, hazards=hz)
+    world.reset(seed=5)
+    h = world.hazards_ego()
+    assert np.allclose(h[:, 0] - h[0, 0], np.arange(8) * 10.0)  # 30, 40, …, 100 m ahead
+    state = world.vehicle_state()
+    stalled = np.linalg.norm(state.velocities, axis=1) == 0.0
+    assert stalled.sum() == len(h) == 8  # every placed vehicle is on the road
