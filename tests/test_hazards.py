@@ -156,3 +156,15 @@ def test_close_hazards_never_clear_each_other_away():
     state = world.vehicle_state()
     stalled = np.linalg.norm(state.velocities, axis=1) == 0.0
     assert stalled.sum() == len(h) == 8  # every placed vehicle is on the road
+
+
+def test_fogdriverl_reward_is_highway_envs_normalised_as_documented():
+    env = gym.make("FogDriveRL-v0")
+    env.reset(seed=1)
+    for _ in range(6):
+        _, r, term, _, info = env.step(4)  # slower: down to 20 m/s
+        assert not term
+        parts = info["rewards"]
+        # (−1·collision + 0.1·right lane + 0.4·speed over 20–30 m/s) mapped from [−1, 0.5] to [0, 1]
+        assert r == pytest.approx((1.0 + 0.1 * parts["right_lane_reward"] + 0.4 * parts["high_speed_reward"]) / 1.5)
+    assert info["speed"] == pytest.approx(20.0, abs=1.0) and 0.66 <= r <= 0.74  # surviving at 20 m/s earns ≈ 0.7
