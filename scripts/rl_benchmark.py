@@ -10,7 +10,8 @@ Per cell the matrix gives the mean over training seeds of each agent's mean over
 episodes, with a 95 % Student-t interval across training seeds (``n/a`` for one seed) and, in brackets, the
 episode-level standard deviation; metrics: collision rate, return, mean speed [m/s], distance driven [m].
 Evaluation seeds (10⁶ + k) are disjoint from training seeds. Outputs under ``--out``: ``matrix.md``,
-``matrix.json``, ``heatmap.png`` (collision rate and return), ``curves.png`` (learning curve per condition),
+``matrix.json``, ``heatmap.png`` (collision rate and return), ``curves.png`` (every condition's learning curve)
+and ``curves/<condition>.png`` (each training seed's),
 TensorBoard logs in ``tb/``, models in ``models/``.
 
 Resumable: training checkpoints (model + schedule state) every ``--checkpoint`` steps and evaluation results per
@@ -280,32 +281,50 @@ def figures(table: dict[str, Any], out: Path) -> None:
     plt.close(fig)
 
 
+def _episode_curves(out: Path, cond: str, seed: int) -> tuple[np.ndarray, np.ndarray] | None:
+    """(cumulative steps, trailing moving average of the episode returns over ≥ 10 episodes) of one agent from its
+    VecMonitor logs."""
+    files = sorted((out / "monitor").glob(f"{cond}_s{seed}_*.monitor.csv"))
+    rows = [np.loadtxt(f, delimiter=",", skiprows=2, ndmin=2) for f in files if f.stat().st_size > 0]
+    rows = [r for r in rows if r.size]
+    if not rows:
+        return None
+    data = np.concatenate(rows)  # r, l, t per episode
+    k = min(max(10, len(data) // 40), len(data))  # about 40 windows over the run, at least 10 episodes each
+    return np.cumsum(data[:, 1])[k - 1 :], np.convolve(data[:, 0], np.ones(k) / k, mode="valid")
+
+
 def learning_curves(out: Path, conditions: list[str], seeds: list[int]) -> None:
-    """Episode return vs timesteps per condition (mean over seeds of a moving average; VecMonitor logs)."""
+    """``curves.png`` (every condition: mean over seeds of the moving-average return) and ``curves/<condition>.png``
+    (each training seed and their mean), episode return against training steps (VecMonitor logs)."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    (out / "curves").mkdir(exist_ok=True)
     fig, ax = plt.subplots(figsize=(7, 4), dpi=120)
     for cond in conditions:
-        grid = np.linspace(0, 1, 50)
-        curves = []
-        for seed in seeds:
-            files = sorted((out / "monitor").glob(f"{cond}_s{seed}_*.monitor.csv"))
-            rows = [np.loadtxt(f, delimiter=",", skiprows=2, ndmin=2) for f in files]
-            rows = [r for r in rows if r.size]
-            if not rows:
-                continue
-            data = np.concatenate(rows)  # r, l, t per episode
-            steps = np.cumsum(data[:, 1])
-            ret = np.convolve(data[:, 0], np.ones(min(10, len(data))) / min(10, len(data)), mode="same")
-            curves.append((steps / steps[-1], ret, steps[-1]))
-        if curves:
-            mean = np.mean([np.interp(grid, s, r) for s, r, _ in curves], axis=0)
-            ax.plot(grid * curves[0][2], mean, label=cond)
+        curves = [c for c in (_episode_curves(out, cond, seed) for seed in seeds) if c is not None]
+        if not curves:
+            continue
+        end = min(c[0][-1] for c in curves)
+        grid = np.linspace(0, end, 50)
+        mean = np.mean([np.interp(grid, steps, ret) for steps, ret in curves], axis=0)
+        ax.plot(grid, mean, label=cond)
+        f2, a2 = plt.subplots(figsize=(6, 3.5), dpi=120)
+        for seed, (steps, ret) in zip(seeds, curves):
+            a2.plot(steps, ret, lw=0.8, alpha=0.6, label=f"seed {seed}")
+        a2.plot(grid, mean, color="k", lw=2, label="mean")
+        a2.set_xlabel("training steps")
+        a2.set_ylabel("episode return (moving average)")
+        a2.set_title(f"{ENV_ID['value']}: trained {cond}")
+        a2.legend(fontsize=7)
+        f2.tight_layout()
+        f2.savefig(out / "curves" / f"{cond}.png")
+        plt.close(f2)
     ax.set_xlabel("training steps")
-    ax.set_ylabel("episode return (moving average of 10)")
+    ax.set_ylabel("episode return (moving average)")
     ax.legend()
     ax.set_title(f"{ENV_ID['value']} learning curves")
     fig.tight_layout()

@@ -149,6 +149,7 @@ def test_rl_benchmark_smoke_resumes_and_reports_cis_across_seeds(tmp_path):
     text = (tmp_path / "matrix.md").read_text()
     assert "distance driven [m]" in text and "Separated from the clear-trained agent?" in text
     assert (tmp_path / "heatmap.png").exists() and (tmp_path / "curves.png").exists()
+    assert sorted(p.name for p in (tmp_path / "curves").iterdir()) == ["clear.png", "curriculum.png"]
     # killed after a checkpoint: the model is gone, the checkpoint stays -> training continues from it
     (tmp_path / "models" / "curriculum_s1.zip").unlink()
     evals = sorted((tmp_path / "eval").glob("*.json"))
