@@ -183,3 +183,15 @@ def test_rl_benchmark_refuses_a_study_folder_of_another_task_before_work(tmp_pat
     assert not (tmp_path / "models").exists()
     with pytest.raises(SystemExit):
         bench.main(["--torch-threads", "0", "--out", str(tmp_path / "b")])
+
+
+def test_rl_benchmark_spreads_the_curricula_over_each_tasks_expected_episodes(monkeypatch):
+    bench = _load_script("rl_benchmark")
+    for env, per_level in (("FogDriveRL-v0", 100), ("FogDriveRLHazard-v0", 333)):
+        monkeypatch.setitem(bench.ENV_ID, "value", env)
+        _, step = bench.schedule_for("curriculum", 0, 50_000)
+        _, cont = bench.schedule_for("continuous", 0, 50_000)
+        assert step.episodes_per_level == per_level  # dense fog from 60 % of the expected episodes on
+        assert cont.episodes == per_level * 4  # the slide ends at 80 %
+    monkeypatch.setitem(bench.EPISODE_SECONDS, "value", 0.6)  # smoke runs: 3-step episodes
+    assert bench.schedule_for("curriculum", 0, 64)[1].episodes_per_level == 4
