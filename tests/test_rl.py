@@ -38,6 +38,7 @@ def test_sb3_check_env_and_short_ppo_run(tmp_path):
     from fog_gym.rl import curriculum_callback
 
     check_env(gym.make("FogDriveRL-v0"))
+    check_env(gym.make("FogDriveRLHazard-v0", fog="dense"))
     # "fog_gym:" makes gym.make import fog_gym in the worker processes (SB3 starts them with forkserver)
     venv = SubprocVecEnv([lambda: gym.make("fog_gym:FogDriveRL-v0", fog="clear", episode_seconds=2.0)] * 2)
     model = PPO("MultiInputPolicy", venv, n_steps=32, batch_size=32, n_epochs=1, seed=0)
