@@ -245,23 +245,70 @@ def render_matrix(table: dict[str, Any], meta: dict[str, Any]) -> str:
     return "\n".join(lines)
 
 
+def _verdict(a: dict[str, Any], b: dict[str, Any]) -> str:
+    if a["ci95"] is None or b["ci95"] is None:
+        return "not testable (one seed)"
+    separated = a["mean"] + a["ci95"] < b["mean"] - b["ci95"] or b["mean"] + b["ci95"] < a["mean"] - a["ci95"]
+    return "separated" if separated else "CIs overlap"
+
+
 def significance(table: dict[str, Any]) -> list[str]:
-    """Plain statements: is each condition's dense-fog collision rate separated from clear-trained's (CIs)?"""
-    out = ["## Separated from the clear-trained agent? (collision rate, 95 % CIs across seeds)", ""]
+    """Plain statements from the 95 % CIs across training seeds (separated = the intervals do not overlap):
+    the fog effect (each condition's agents tested clear against tested dense) and each condition against the
+    clear-trained agents, tested clear and tested dense, on collision rate and return.
+
+    >>> cell = lambda m, ci: {"collision": {"mean": m, "ci95": ci}, "return": {"mean": 10 * m, "ci95": 10 * ci}}
+    >>> t = {"clear": {"clear": cell(0.2, 0.05), "dense": cell(0.8, 0.1)}}
+    >>> significance(t)[4]
+    '- clear: collision rate 20% clear vs 80% dense — separated; return 2.0 vs 8.0 — separated'
+    """
+    out = ["## Separated? (95 % CIs across training seeds that do not overlap)", "",
+           "Fog effect (the same agents tested in clear air and in dense fog):", ""]  # fmt: skip
+    conds = [c for c in CONDITIONS if c in table]
+    for cond in conds:
+        a, b = table[cond]["clear"], table[cond]["dense"]
+        out.append(f"- {cond}: collision rate {a['collision']['mean']:.0%} clear vs {b['collision']['mean']:.0%} dense "
+                   f"— {_verdict(a['collision'], b['collision'])}; return {a['return']['mean']:.1f} vs "
+                   f"{b['return']['mean']:.1f} — {_verdict(a['return'], b['return'])}")  # fmt: skip
     if "clear" not in table:
-        return out + ["(no clear-trained agent)"]
+        return out + ["", "(no clear-trained agent)"]
+    out += ["", "Against the clear-trained agents:", ""]
     for test in ("clear", "dense"):
-        ref = table["clear"][test]["collision"]
-        for cond in [c for c in CONDITIONS if c in table and c != "clear"]:
-            c = table[cond][test]["collision"]
-            if ref["ci95"] is None or c["ci95"] is None:
-                verdict = "not testable (one seed)"
-            else:
-                lo, hi = c["mean"] - c["ci95"], c["mean"] + c["ci95"]
-                rlo, rhi = ref["mean"] - ref["ci95"], ref["mean"] + ref["ci95"]
-                verdict = "separated" if hi < rlo or lo > rhi else "CIs overlap"
-            out.append(f"- tested {test}: {cond} {c['mean']:.0%} vs clear {ref['mean']:.0%} — {verdict}")
+        ref = table["clear"][test]
+        for cond in [c for c in conds if c != "clear"]:
+            c = table[cond][test]
+            out.append(f"- tested {test}: {cond} collision rate {c['collision']['mean']:.0%} vs clear "
+                       f"{ref['collision']['mean']:.0%} — {_verdict(c['collision'], ref['collision'])}; return "
+                       f"{c['return']['mean']:.1f} vs {ref['return']['mean']:.1f} — {_verdict(c['return'], ref['return'])}")  # fmt: skip
     return out
+
+
+def wall_times(out: Path, conditions: list[str], seeds: list[int]) -> dict[str, dict[str, float | None]]:
+    """Training wall time and steps of each agent from its VecMonitor logs (summed over resumed parts; each part's
+    time runs from its start to its last finished episode), and evaluation wall time where the cells recorded it."""
+    times: dict[str, dict[str, float]] = {}
+    for cond in conditions:
+        for seed in seeds:
+            name, wall, steps = f"{cond}_s{seed}", 0.0, 0.0
+            for f in sorted((out / "monitor").glob(f"{name}_*.monitor.csv")):
+                rows = _monitor_rows(f)
+                if rows.size:
+                    wall += float(rows[-1, 2])
+                    steps += float(rows[:, 1].sum())
+            evals = [json.loads(p.read_text()).get("wall_s") for p in (out / "eval").glob(f"{name}_*.json")]
+            known = [e for e in evals if e is not None]  # cells evaluated before timing was recorded have none
+            times[name] = {"train_s": wall, "steps": steps, "eval_s": float(sum(known)) if known else None}
+    return times
+
+
+def render_wall_times(times: dict[str, dict[str, float | None]]) -> list[str]:
+    lines = ["## Wall time", "", "| agent | training [min] | steps/s | evaluation [min] |", "|---|---|---|---|"]
+    for name, t in times.items():
+        rate = t["steps"] / t["train_s"] if t["train_s"] > 0 else float("nan")
+        ev = "—" if t["eval_s"] is None else f"{t['eval_s'] / 60:.1f}"
+        lines.append(f"| {name} | {t['train_s'] / 60:.1f} | {rate:.0f} | {ev} |")
+    total = sum(t["train_s"] for t in times.values())
+    return lines + ["", f"Training in all: {total / 3600:.2f} h of wall time (from the monitor logs)."]
 
 
 def figures(table: dict[str, Any], out: Path) -> None:
@@ -289,12 +336,17 @@ def figures(table: dict[str, Any], out: Path) -> None:
     plt.close(fig)
 
 
+def _monitor_rows(path: Path) -> np.ndarray:
+    """(episodes, 3) array of return, length, time of a VecMonitor CSV (empty when no episode finished)."""
+    lines = path.read_text().splitlines()[2:] if path.stat().st_size else []
+    return np.array([[float(v) for v in line.split(",")[:3]] for line in lines if line.strip()]).reshape(-1, 3)
+
+
 def _episode_curves(out: Path, cond: str, seed: int) -> tuple[np.ndarray, np.ndarray] | None:
     """(cumulative steps, trailing moving average of the episode returns over ≥ 10 episodes) of one agent from its
     VecMonitor logs."""
     files = sorted((out / "monitor").glob(f"{cond}_s{seed}_*.monitor.csv"))
-    rows = [np.loadtxt(f, delimiter=",", skiprows=2, ndmin=2) for f in files if f.stat().st_size > 0]
-    rows = [r for r in rows if r.size]
+    rows = [r for r in (_monitor_rows(f) for f in files) if r.size]
     if not rows:
         return None
     data = np.concatenate(rows)  # r, l, t per episode
@@ -404,7 +456,9 @@ def main(argv: list[str] | None = None) -> int:
     for cond, seed, test in tqdm(cells, desc="evaluating", unit="cell"):
         path = evals / f"{cond}_s{seed}_{test}_{args.episodes}.json"
         if not path.exists():
+            t_eval = time.perf_counter()
             r = evaluate(args.out / "models" / f"{cond}_s{seed}.zip", test, args.episodes, args.envs, args.device)
+            r["wall_s"] = time.perf_counter() - t_eval
             tmp = path.with_name(f".{path.name}.tmp")
             tmp.write_text(json.dumps(r))
             os.replace(tmp, path)
@@ -412,8 +466,9 @@ def main(argv: list[str] | None = None) -> int:
     table = aggregate(results)
     meta = {"env": args.env, "seeds": args.seeds, "steps": args.steps, "episodes": args.episodes, "envs": args.envs,
             "conditions": args.conditions, "wall_s": time.perf_counter() - t0}  # fmt: skip
-    (args.out / "matrix.json").write_text(json.dumps({"meta": meta, "table": table}, indent=1))
-    (args.out / "matrix.md").write_text(render_matrix(table, meta) + "\n")
+    times = wall_times(args.out, args.conditions, seeds)
+    (args.out / "matrix.json").write_text(json.dumps({"meta": meta, "table": table, "wall_times": times}, indent=1))
+    (args.out / "matrix.md").write_text(render_matrix(table, meta) + "\n\n" + "\n".join(render_wall_times(times)) + "\n")
     figures(table, args.out)
     learning_curves(args.out, args.conditions, seeds)
     print((args.out / "matrix.md").read_text())

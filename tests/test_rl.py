@@ -148,7 +148,13 @@ def test_rl_benchmark_smoke_resumes_and_reports_cis_across_seeds(tmp_path):
     assert cell["seeds"] == 2 and cell["episodes"] == 4 and cell["ci95"] is not None
     assert {"clear", "light", "moderate", "dense"} == set(data["table"]["clear"])
     text = (tmp_path / "matrix.md").read_text()
-    assert "distance driven [m]" in text and "Separated from the clear-trained agent?" in text
+    assert "distance driven [m]" in text and "Fog effect" in text and "Against the clear-trained agents" in text
+    # wall times: every agent's training steps come from its monitor logs (finished episodes: at most the budget
+    # plus the steps of one episode per env), every evaluation cell recorded its time
+    times = data["wall_times"]
+    assert set(times) == {"clear_s0", "clear_s1", "curriculum_s0", "curriculum_s1"}
+    assert all(0 < t["steps"] <= 64 + 3 and t["train_s"] > 0 and t["eval_s"] > 0 for t in times.values())
+    assert "## Wall time" in text and "| curriculum_s1 |" in text
     assert (tmp_path / "heatmap.png").exists() and (tmp_path / "curves.png").exists()
     assert sorted(p.name for p in (tmp_path / "curves").iterdir()) == ["clear.png", "curriculum.png"]
     # killed after a checkpoint: the model is gone, the checkpoint stays -> training continues from it
@@ -161,6 +167,10 @@ def test_rl_benchmark_smoke_resumes_and_reports_cis_across_seeds(tmp_path):
     assert bench.main(argv) == 0
     assert PPO.load(tmp_path / "models" / "curriculum_s1.zip").num_timesteps >= 64
     assert sorted((tmp_path / "eval").glob("*.json")) == evals
+    # the resumed agent's wall time and steps add up over both monitor parts (the second may hold no episode)
+    resumed = json.loads((tmp_path / "matrix.json").read_text())["wall_times"]["curriculum_s1"]
+    assert len(list((tmp_path / "monitor").glob("curriculum_s1_*.monitor.csv"))) == 2
+    assert resumed["train_s"] >= times["curriculum_s1"]["train_s"] and resumed["steps"] >= times["curriculum_s1"]["steps"]
 
 
 def test_rl_benchmark_ci_is_student_t_across_seeds():
@@ -171,6 +181,21 @@ def test_rl_benchmark_ci_is_student_t_across_seeds():
                                                       "distance": [100, 120]}}}})  # fmt: skip
     assert table["clear"]["dense"]["return"] == {"mean": 2.0, "ci95": None, "seeds": 1, "episode_std": pytest.approx(1.4142, 1e-4),
                                                  "episodes": 2}  # fmt: skip
+
+
+def test_rl_benchmark_significance_compares_ci_intervals():
+    bench = _load_script("rl_benchmark")
+    def cell(m, ci):
+        return {"collision": {"mean": m, "ci95": ci}, "return": {"mean": 50 * (1 - m), "ci95": ci and 50 * ci}}
+
+    table = {"clear": {"clear": cell(0.2, 0.05), "dense": cell(0.3, 0.1)},
+             "dense": {"clear": cell(0.5, 0.1), "dense": cell(0.35, 0.1)},
+             "light": {"clear": cell(0.2, None), "dense": cell(0.2, None)}}  # fmt: skip
+    lines = bench.significance(table)
+    assert "- clear: collision rate 20% clear vs 30% dense — CIs overlap; return 40.0 vs 35.0 — CIs overlap" in lines
+    assert any(line.startswith("- tested clear: dense collision rate 50% vs clear 20% — separated") for line in lines)
+    assert any(line.startswith("- tested dense: dense collision rate 35% vs clear 30% — CIs overlap") for line in lines)
+    assert any(line.startswith("- light:") and "not testable (one seed)" in line for line in lines)
 
 
 def test_rl_benchmark_refuses_a_study_folder_of_another_task_before_work(tmp_path, capsys):
