@@ -10,7 +10,8 @@ Per cell the matrix gives the mean over training seeds of each agent's mean over
 episodes, with a 95 % Student-t interval across training seeds (``n/a`` for one seed) and, in brackets, the
 episode-level standard deviation; metrics: collision rate, return, mean speed [m/s], distance driven [m].
 Evaluation seeds (10⁶ + k) are disjoint from training seeds. Outputs under ``--out``: ``matrix.md``,
-``matrix.json``, ``heatmap.png`` (collision rate and return), ``curves.png`` (every condition's learning curve)
+``matrix.json``, ``heatmap.png`` (collision rate and return), ``fog_effect.png`` (both against the test fog,
+with the CIs as error bars), ``curves.png`` (every condition's learning curve)
 and ``curves/<condition>.png`` (each training seed's),
 TensorBoard logs in ``tb/``, models in ``models/``.
 
@@ -334,6 +335,25 @@ def figures(table: dict[str, Any], out: Path) -> None:
     fig.tight_layout()
     fig.savefig(out / "heatmap.png")
     plt.close(fig)
+    # the same means against the test fog, with the 95 % CIs across training seeds as error bars
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4), dpi=120)
+    x = np.arange(len(TEST_LEVELS))
+    for ax, (metric, label, _) in zip(axes, METRICS[:2]):
+        scale = 100.0 if metric == "collision" else 1.0
+        for k, cond in enumerate(conds):
+            cells = [table[cond][t][metric] for t in TEST_LEVELS]
+            err = [0.0 if c["ci95"] is None else c["ci95"] * scale for c in cells]
+            ax.errorbar(x + (k - (len(conds) - 1) / 2) * 0.06, [c["mean"] * scale for c in cells], yerr=err,
+                        marker="o", ms=4, capsize=3, label=cond)  # fmt: skip
+        ax.set_xticks(x, TEST_LEVELS)
+        ax.set_xlabel("tested on")
+        ax.set_ylabel(label + (" [%]" if metric == "collision" else ""))
+        ax.set_title(f"{label}: mean over training seeds ± 95 % CI")
+    axes[0].legend(fontsize=7)
+    fig.suptitle(f"{ENV_ID['value']}", fontsize=9)
+    fig.tight_layout()
+    fig.savefig(out / "fog_effect.png")
+    plt.close(fig)
 
 
 def _monitor_rows(path: Path) -> np.ndarray:
@@ -472,7 +492,7 @@ def main(argv: list[str] | None = None) -> int:
     figures(table, args.out)
     learning_curves(args.out, args.conditions, seeds)
     print((args.out / "matrix.md").read_text())
-    print(f"wrote {args.out / 'matrix.md'}, heatmap.png, curves.png in {(time.perf_counter() - t0) / 60:.1f} min")
+    print(f"wrote {args.out / 'matrix.md'}, heatmap.png, fog_effect.png, curves.png in {(time.perf_counter() - t0) / 60:.1f} min")
     return 0
 
 

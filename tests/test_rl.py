@@ -155,7 +155,7 @@ def test_rl_benchmark_smoke_resumes_and_reports_cis_across_seeds(tmp_path):
     assert set(times) == {"clear_s0", "clear_s1", "curriculum_s0", "curriculum_s1"}
     assert all(0 < t["steps"] <= 64 + 3 and t["train_s"] > 0 and t["eval_s"] > 0 for t in times.values())
     assert "## Wall time" in text and "| curriculum_s1 |" in text
-    assert (tmp_path / "heatmap.png").exists() and (tmp_path / "curves.png").exists()
+    assert all((tmp_path / f).exists() for f in ("heatmap.png", "fog_effect.png", "curves.png"))
     assert sorted(p.name for p in (tmp_path / "curves").iterdir()) == ["clear.png", "curriculum.png"]
     # killed after a checkpoint: the model is gone, the checkpoint stays -> training continues from it
     (tmp_path / "models" / "curriculum_s1.zip").unlink()
