@@ -100,6 +100,29 @@ def probe(model_path: Path, fog: str, episodes: int, near: float, seed0: int = P
             "collision": float(np.mean(crashes)), "speed": float(np.mean(speeds)), "episodes": episodes}  # fmt: skip
 
 
+def summary(results: dict[str, dict[str, Any]]) -> list[str]:
+    """Per training condition (agents named ``<condition>_s<seed>``) and fog: the mean over its agents.
+
+    >>> r = {"clear_s0": {"dense": {"evasive_near": 0.5, "evasive_far": 0.1, "passed": 1.0, "collision": 1.0}},
+    ...      "clear_s1": {"dense": {"evasive_near": 0.3, "evasive_far": 0.1, "passed": 2.0, "collision": 0.5}}}
+    >>> summary(r)[-1]
+    '| clear | dense | 2 | 40% / 10% | 1.50 | 75% |'
+    """
+    groups: dict[str, list[dict[str, Any]]] = {}
+    for name, fogs in results.items():
+        groups.setdefault(name.rsplit("_s", 1)[0], []).append(fogs)
+    lines = ["", "### Mean over each condition's agents", "",
+             "| trained on | fog | agents | evasive near / elsewhere | passed per episode | collisions |",
+             "|---|---|---|---|---|---|"]  # fmt: skip
+    for cond, agents in groups.items():
+        for fog in agents[0]:
+            rows = [a[fog] for a in agents if fog in a]
+            m = {k: float(np.nanmean([r[k] for r in rows])) for k in ("evasive_near", "evasive_far", "passed", "collision")}
+            lines.append(f"| {cond} | {fog} | {len(rows)} | {m['evasive_near']:.0%} / {m['evasive_far']:.0%} | "
+                         f"{m['passed']:.2f} | {m['collision']:.0%} |")  # fmt: skip
+    return lines
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="rl_agent_probe.py", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
@@ -134,6 +157,7 @@ def main(argv: list[str] | None = None) -> int:
         for fog, r in fogs.items():
             lines.append(f"| {name} | {fog} | {r['evasive_near']:.0%} / {r['evasive_far']:.0%} | {r['steps_near']} | "
                          f"{r['passed']:.2f} | {r['return']:.1f} | {r['collision']:.0%} | {r['speed']:.1f} |")  # fmt: skip
+    lines += summary(results)
     text = "\n".join(lines)
     args.out.mkdir(parents=True, exist_ok=True)
     for name, data in (("probe.md", text + "\n"), ("probe.json", json.dumps(results, indent=1))):
