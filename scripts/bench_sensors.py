@@ -10,13 +10,15 @@
    alternation with the plain calls. Their cost must not grow with such boxes, so the ratio should stay near 1.
 2. **Ground truth** (``env.ground_truth()``) for the four 1280×960 cameras, both visibility rules, same traffic.
 3. **Night vs day cameras**: ``CameraRig.render`` of the full rig by day and by night on the same scenes,
-   timed in alternation (``--night-figure PNG`` draws the bar chart).
+   timed in alternation (``--night-figure PNG`` draws the bar chart); ``--night-phases`` adds a night frame's
+   process CPU time by phase against the day and the *raster floor* (the night scene drawn unlit).
 
 Usage::
 
     python scripts/bench_sensors.py                  # 20 timed steps each
     python scripts/bench_sensors.py --quick          # 3
     python scripts/bench_sensors.py --night-only --night-figure docs/images/night_bench.png
+    python scripts/bench_sensors.py --night-only --night-phases --repeats 10
 """
 
 from __future__ import annotations
@@ -292,6 +294,76 @@ def bench_night(town: str, repeats: int) -> dict[str, Any]:
             "label": "full rig: 4 × 1280×960"}
 
 
+def cpu_timed(fn: Callable[..., Any], *args: Any, **kwargs: Any) -> tuple[Any, float]:
+    """Call ``fn`` and return ``(result, process CPU milliseconds)``: every thread's time, so steady under load."""
+    t0 = time.process_time()
+    out = fn(*args, **kwargs)
+    return out, (time.process_time() - t0) * 1e3
+
+
+def bench_night_phases(town: str, repeats: int) -> dict[str, Any]:
+    """Process CPU time of a full-rig night frame by phase, against the day frame and against the *raster floor*
+    (the same night scene drawn unlit: the rasteriser's own cost with no lighting, exposure or encoding).
+
+    The night frame is what ``CameraRig.render`` does for a rig of one resolution: ``night_lights`` (lamp heads,
+    lights in reach, the ground light window with the low beams), then ``render_night`` (light set-up, exposure,
+    lit render, lamp heads). Alternating order, same scenes."""
+    from fog_gym.env import FogDriveEnv
+    from fog_gym.render.lights import render_night as lit
+    from fog_gym.render.raster import render
+    from fog_gym.scenery import SURFACE_TAGS
+
+    env = FogDriveEnv(town=town, time_of_day="day", labels=None)
+    cams = env.cameras
+    if len(cams._groups) != 1:
+        raise ValueError("the phase breakdown times a rig whose cameras share one resolution")
+    (width, height), group = cams._groups[0]
+    env.reset(seed=0)
+    samples: dict[str, list[float]] = {}
+    for k in tqdm(range(repeats + WARMUP_STEPS), desc="night phases", file=sys.stderr):
+        env.step(env.idle_action)
+        scene = env.scene
+        twin = night_twin(scene)
+        light = twin.lighting
+        mats = np.array([cams.world_to_camera(twin, c.name) for c in group])
+        ks = np.array([[q[0, 0], q[1, 1], q[0, 2], q[1, 2]] for q in (cams.intrinsics[c.name] for c in group)])
+        prims_day, prims = cams.primitives(scene), cams.primitives(twin)
+        frame: dict[str, float] = {}
+
+        def night() -> None:
+            (heads, lights, ground), frame["lights and ground maps"] = cpu_timed(cams.night_lights, twin)
+            lit(mats[:, :3, :3], mats[:, :3, 3], ks, width, height, cams.far, prims, twin.static.tiled,
+                light.albedo_lut(), SURFACE_TAGS, light.sky_horizon, light.sky_zenith, lights, ground, heads,
+                timings=frame)  # fmt: skip
+
+        def floor() -> None:
+            render(mats[:, :3, :3], mats[:, :3, 3], ks, width, height, cams.far, prims, twin.static.tiled,
+                   light.albedo_lut(), SURFACE_TAGS, light.sky_horizon, light.sky_zenith, np.array([0.0, 0.0, -1.0]),
+                   1.0, 0.0)  # fmt: skip
+
+        runs = [("day", lambda: cams.render(scene, prims_day)), ("night", night), ("raster floor", floor)]
+        for name, fn in runs if k % 2 == 0 else runs[::-1]:
+            _, ms = cpu_timed(fn)
+            if k >= WARMUP_STEPS:
+                samples.setdefault(name, []).append(ms)
+        if k >= WARMUP_STEPS:
+            for phase, ms in frame.items():
+                samples.setdefault(phase, []).append(ms)
+    env.close()
+    return {name: summarize(v) for name, v in samples.items()}
+
+
+def render_night_phases(res: dict[str, Any], repeats: int) -> list[str]:
+    day = res["day"]["median"]
+    rows = [[name, f"{res[name]['median']:.1f}", f"{res[name]['median'] / day:.2f}"]
+            for name in ("day", "raster floor", "night", "lights and ground maps", "light set-up", "exposure",
+                         "lit render", "lamp heads")]  # fmt: skip
+    return [f"### Night frame by phase (full rig, process CPU ms, medians of {repeats} frames)", "",
+            markdown_table(["", "CPU ms", "× day"], rows), "",
+            "raster floor: the night scene drawn unlit (no lighting, exposure or encoding); the night's phases add up "
+            "to its total."]  # fmt: skip
+
+
 def render_night(res: dict[str, Any], repeats: int) -> list[str]:
     return [
         f"### Night vs day camera rendering ({res['label']}, `CameraRig.render`, {repeats} frames, alternating)",
@@ -333,6 +405,8 @@ def build_parser(prog: str = "bench_sensors.py") -> argparse.ArgumentParser:
     parser.add_argument("--town", default="highway", help="town of the night vs day comparison (default highway)")
     parser.add_argument("--night-only", action="store_true",
                         help="only time the full rig's cameras by night against by day (same scenes)")
+    parser.add_argument("--night-phases", action="store_true",
+                        help="also break a night frame's CPU time down by phase, against the day and the raster floor")
     parser.add_argument("--night-figure", type=Path, default=None, metavar="PNG",
                         help="write the night vs day camera bar chart to PNG")
     return parser
@@ -347,12 +421,17 @@ def main(argv: list[str] | None = None, prog: str = "bench_sensors.py") -> int:
         results["point_sensors"] = bench_point_sensors(repeats)
         results["labels"] = bench_labels(repeats)
     results["night"] = night = bench_night(args.town, repeats)
+    if args.night_phases:
+        results["night_phases"] = bench_night_phases(args.town, repeats)
     if args.night_figure is not None:
         night_figure(night, args.night_figure)
     finish_meta(meta, t0)
     sections = [] if args.night_only else [render_point_sensors(results["point_sensors"], repeats),
                                            render_labels(results["labels"], repeats)]  # fmt: skip
-    print("\n\n".join("\n".join(s) for s in [*sections, render_night(night, repeats)]) + f"\n\n{meta_line(meta)}")
+    sections.append(render_night(night, repeats))
+    if args.night_phases:
+        sections.append(render_night_phases(results["night_phases"], repeats))
+    print("\n\n".join("\n".join(s) for s in sections) + f"\n\n{meta_line(meta)}")
     write_json(args.json, results)
     return 0
 

@@ -278,3 +278,22 @@ def test_fused_night_render_matches_the_two_pass_reference():
     assert (diff <= 2).mean() > 0.99 and fused["rgb"].mean() > 20
     # the exposure measured on the small render is close to the one of the full-size image
     assert L.GAIN_MIN <= gains[0] <= L.GAIN_MAX
+
+
+def test_timing_a_night_render_leaves_its_image_unchanged_and_names_every_phase():
+    rig = front_rig(96, 72)
+    scene = make_scene([(5, 0, (14.0, 3.5), (4.5, 1.9, 1.5), 0.2)], night=True, props=pole_props([12.0, 50.0]))
+    prims = rig.primitives(scene)
+    heads, lights, ground = rig.night_lights(scene)
+    T = rig.world_to_camera(scene, "CAM_FRONT")[None]
+    K = rig.intrinsics["CAM_FRONT"]
+    light = scene.lighting
+    common = (T[:, :3, :3], T[:, :3, 3], np.array([[K[0, 0], K[1, 1], K[0, 2], K[1, 2]]]), 96, 72, rig.far, prims,
+              scene.static.tiled, light.albedo_lut(), np.array([10, 1, 2, 24], np.uint8), light.sky_horizon,
+              light.sky_zenith, lights, ground, heads)  # fmt: skip
+    plain, g0 = L.render_night(*common)
+    phases: dict[str, float] = {}
+    timed, g1 = L.render_night(*common, timings=phases)
+    assert np.array_equal(g0, g1) and all(np.array_equal(plain[k], timed[k]) for k in plain)
+    assert list(phases) == ["light set-up", "exposure", "lit render", "lamp heads"]
+    assert all(v >= 0.0 for v in phases.values())

@@ -40,6 +40,7 @@ Example (one lamp 7 m above a grey floor point, straight down):
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Mapping
 from typing import Any, NamedTuple
 
@@ -585,9 +586,12 @@ def render_night(
     cam_rot: np.ndarray, cam_trans: np.ndarray, cam_k: np.ndarray, width: int, height: int, far: float,
     prims: Primitives | Mapping[str, Any], surface, albedo_lut: np.ndarray, surface_tag: np.ndarray,
     sky_horizon: np.ndarray, sky_zenith: np.ndarray, lights: Lights, ground: tuple[GroundLightMap, GroundLightMap],
-    heads: np.ndarray, ambient: float = NIGHT_AMBIENT,
+    heads: np.ndarray, ambient: float = NIGHT_AMBIENT, timings: dict[str, float] | None = None,
 ) -> tuple[dict[str, np.ndarray], np.ndarray]:
     """Render night frames in one lit pass; returns (buffers as :func:`~fog_gym.render.raster.render`, gains).
+
+    ``timings``, when given, receives the process CPU time [ms] of each phase: ``"light set-up"`` (lights per
+    primitive, face irradiance grids), ``"exposure"`` (step 1), ``"lit render"`` (step 2), ``"lamp heads"`` (step 3).
 
     1. the exposure: an albedo render :data:`EXPOSURE_DOWNSCALE`× smaller, lit by :func:`shade_night`'s
        kernel, gives the histogram and so the gain of each camera;
@@ -598,6 +602,14 @@ def render_night(
     """
     from fog_gym.render.raster import render
 
+    clock = [time.process_time()]
+
+    def lap(phase: str) -> None:
+        if timings is not None:
+            now = time.process_time()
+            timings[phase] = timings.get(phase, 0.0) + (now - clock[0]) * 1e3
+            clock[0] = now
+
     n_cam = len(cam_rot)
     prims = Primitives.coerce(prims)
     prim_l, prim_n = _prim_lights(prims.centers, prims.halves, lights.pos, lights.radius, MAX_PRIM_LIGHTS)
@@ -605,6 +617,7 @@ def render_night(
                                         prim_n, *_light_args(lights), FACE_CELL, FACE_MAX_CELLS)  # fmt: skip
     cossin = np.ascontiguousarray(np.c_[np.cos(prims.yaws), np.sin(prims.yaws)])
     smap, wmap = ground
+    lap("light set-up")
     # 1. exposure on a small render
     lw, lh = max(8, width // EXPOSURE_DOWNSCALE), max(8, height // EXPOSURE_DOWNSCALE)
     scale = np.array([lw / width, lh / height, lw / width, lh / height])
@@ -623,12 +636,14 @@ def render_night(
         LOG_MIN, LOG_MAX,
     )  # fmt: skip
     gains = gains_from_histograms(hist.sum(axis=1))
+    lap("exposure")
     # 2. the lit full-size render
     night = {"gains": gains, "knee": KNEE, "ambient": ambient, "emissive_gain": EMISSIVE_GAIN, "sky_gain": SKY_GAIN,
              "window": wmap, "static": smap, "centers": prims.centers, "halves": prims.halves,
              "cossin": cossin, "g_off": g_off, "g_dims": g_dims, "g_data": g_data}  # fmt: skip
     out = render(cam_rot, cam_trans, cam_k, width, height, far, prims, surface, albedo_lut, surface_tag,
                  sky_horizon, sky_zenith, sun, 1.0, 0.0, night=night)  # fmt: skip
+    lap("lit render")
     # 3. lamp heads
     heads = np.ascontiguousarray(np.reshape(heads, (-1, 3)), np.float64)
     rot, trans, ks = (np.ascontiguousarray(a, np.float64) for a in (cam_rot, cam_trans, cam_k))
@@ -636,4 +651,5 @@ def render_night(
         color = np.round(tone(LAMP_COLOR * LAMP_HEAD_RADIANCE * gains[c]) * 255).astype(np.uint8)
         _draw_heads(rot[c : c + 1], trans[c : c + 1], ks[c : c + 1], out["depth"][c : c + 1], out["rgb"][c : c + 1],
                     heads, float(LAMP_HEAD_RADIUS), color)  # fmt: skip
+    lap("lamp heads")
     return out, gains
