@@ -286,7 +286,8 @@ def significance(table: dict[str, Any]) -> list[str]:
 
 def wall_times(out: Path, conditions: list[str], seeds: list[int]) -> dict[str, dict[str, float | None]]:
     """Training wall time and steps of each agent from its VecMonitor logs (summed over resumed parts; each part's
-    time runs from its start to its last finished episode), and evaluation wall time where the cells recorded it."""
+    time runs from its start to its last finished episode), and its evaluation wall time when every one of its
+    cells recorded it (None otherwise)."""
     times: dict[str, dict[str, float]] = {}
     for cond in conditions:
         for seed in seeds:
@@ -297,8 +298,9 @@ def wall_times(out: Path, conditions: list[str], seeds: list[int]) -> dict[str, 
                     wall += float(rows[-1, 2])
                     steps += float(rows[:, 1].sum())
             evals = [json.loads(p.read_text()).get("wall_s") for p in (out / "eval").glob(f"{name}_*.json")]
-            known = [e for e in evals if e is not None]  # cells evaluated before timing was recorded have none
-            times[name] = {"train_s": wall, "steps": steps, "eval_s": float(sum(known)) if known else None}
+            # cells evaluated before timing was recorded have none: then the agent's evaluation time is unknown
+            timed = bool(evals) and all(e is not None for e in evals)
+            times[name] = {"train_s": wall, "steps": steps, "eval_s": float(sum(evals)) if timed else None}
     return times
 
 
@@ -348,6 +350,8 @@ def figures(table: dict[str, Any], out: Path) -> None:
         ax.set_xticks(x, TEST_LEVELS)
         ax.set_xlabel("tested on")
         ax.set_ylabel(label + (" [%]" if metric == "collision" else ""))
+        if metric == "collision":  # a t interval over few seeds can reach past 0 and 100 %
+            ax.set_ylim(-5, 105)
         ax.set_title(f"{label}: mean over training seeds ± 95 % CI")
     axes[0].legend(fontsize=7)
     fig.suptitle(f"{ENV_ID['value']}", fontsize=9)
