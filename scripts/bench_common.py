@@ -165,6 +165,15 @@ def meta_line(meta: dict[str, Any]) -> str:
             f"{meta['platform']} · load average at start {meta['loadavg_start']}, at end {meta.get('loadavg_end')}")  # fmt: skip
 
 
+def write_report(out: Path, stem: str, text: str, results: Any) -> None:
+    """Write ``<stem>.md`` (``text``) and ``<stem>.json`` (``results``) into ``out``, each atomically."""
+    out.mkdir(parents=True, exist_ok=True)
+    for name, data in ((f"{stem}.md", text + "\n"), (f"{stem}.json", json.dumps(results, indent=1))):
+        tmp = out / f".{name}.tmp"
+        tmp.write_text(data)
+        os.replace(tmp, out / name)
+
+
 def write_json(path: Path | None, results: dict[str, Any]) -> None:
     if path is not None:
         path.parent.mkdir(parents=True, exist_ok=True)

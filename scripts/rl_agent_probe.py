@@ -18,14 +18,15 @@ Run: python scripts/rl_agent_probe.py --help
 from __future__ import annotations
 
 import argparse
-import json
-import os
 import sys
 import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_common import write_report  # noqa: E402
 
 LEVELS = ("clear", "light", "moderate", "dense")
 LANE_LEFT, IDLE, LANE_RIGHT, FASTER, SLOWER = range(5)
@@ -159,11 +160,7 @@ def main(argv: list[str] | None = None) -> int:
                          f"{r['passed']:.2f} | {r['return']:.1f} | {r['collision']:.0%} | {r['speed']:.1f} |")  # fmt: skip
     lines += summary(results)
     text = "\n".join(lines)
-    args.out.mkdir(parents=True, exist_ok=True)
-    for name, data in (("probe.md", text + "\n"), ("probe.json", json.dumps(results, indent=1))):
-        tmp = args.out / f".{name}.tmp"
-        tmp.write_text(data)
-        os.replace(tmp, args.out / name)
+    write_report(args.out, "probe", text, results)
     print(text)
     print(f"\n{time.perf_counter() - t0:.0f} s; wrote {args.out / 'probe.md'} and probe.json")
     return 0

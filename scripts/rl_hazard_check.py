@@ -17,14 +17,15 @@ Run: python scripts/rl_hazard_check.py --help
 from __future__ import annotations
 
 import argparse
-import json
-import os
 import sys
 import time
 from pathlib import Path
 from typing import Any
 
 import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_common import write_report  # noqa: E402
 
 LEVELS = ("clear", "light", "moderate", "dense")
 LANE_LEFT, IDLE, LANE_RIGHT, FASTER, SLOWER = range(5)
@@ -252,11 +253,7 @@ def main(argv: list[str] | None = None) -> int:
         a = np.array(d) if d else np.zeros(1)
         lines.append(f"| {level} | {len(d)} | {np.median(a):.0f} | {np.percentile(a, 10):.0f} | {np.mean(a == 0):.0%} |")
     text = "\n".join(lines)
-    args.out.mkdir(parents=True, exist_ok=True)
-    for name, data in (("hazard_check.md", text + "\n"), ("hazard_check.json", json.dumps(results, indent=1))):
-        tmp = args.out / f".{name}.tmp"
-        tmp.write_text(data)
-        os.replace(tmp, args.out / name)
+    write_report(args.out, "hazard_check", text, results)
     figure(results, args.out / "hazard_check.png")
     print(text)
     print(f"\n{time.perf_counter() - t0:.0f} s; wrote {args.out / 'hazard_check.md'}, .json and .png")

@@ -257,9 +257,10 @@ def test_fog_wrapper_at_night_keeps_koschmieder_and_adds_glow():
     env.close()
 
 
-def test_fused_night_render_matches_the_two_pass_reference():
-    """render_night lights pixels as they are drawn; shade_night lights an albedo render afterwards: same image."""
-    rig = front_rig(160, 120)
+def _night_call(width, height):
+    """A lit night scene (a car, two lamp poles) on the front camera: (render arguments up to the lights, lights,
+    ground maps, lamp heads, camera rotation, translation, intrinsics, rig, primitives)."""
+    rig = front_rig(width, height)
     scene = make_scene([(5, 0, (14.0, 3.5), (4.5, 1.9, 1.5), 0.2)], night=True, props=pole_props([12.0, 50.0]))
     prims = rig.primitives(scene)
     heads, lights, ground = rig.night_lights(scene)
@@ -267,8 +268,14 @@ def test_fused_night_render_matches_the_two_pass_reference():
     K = rig.intrinsics["CAM_FRONT"]
     ks = np.array([[K[0, 0], K[1, 1], K[0, 2], K[1, 2]]])
     light = scene.lighting
-    common = (T[:, :3, :3], T[:, :3, 3], ks, 160, 120, rig.far, prims, scene.static.tiled, light.albedo_lut(),
+    common = (T[:, :3, :3], T[:, :3, 3], ks, width, height, rig.far, prims, scene.static.tiled, light.albedo_lut(),
               np.array([10, 1, 2, 24], np.uint8), light.sky_horizon, light.sky_zenith)  # fmt: skip
+    return common, lights, ground, heads, T, ks, rig, prims
+
+
+def test_fused_night_render_matches_the_two_pass_reference():
+    """render_night lights pixels as they are drawn; shade_night lights an albedo render afterwards: same image."""
+    common, lights, ground, heads, T, ks, rig, prims = _night_call(160, 120)
     fused, gains = L.render_night(*common, lights, ground, heads)
     ref = render(*common, np.array([0.0, 0, -1]), 1.0, 0.0, face_ids=True)
     L.shade_night(T[:, :3, :3], T[:, :3, 3], ks, rig.far, ref, prims, lights, ground, heads, gains=gains)
@@ -281,16 +288,8 @@ def test_fused_night_render_matches_the_two_pass_reference():
 
 
 def test_timing_a_night_render_leaves_its_image_unchanged_and_names_every_phase():
-    rig = front_rig(96, 72)
-    scene = make_scene([(5, 0, (14.0, 3.5), (4.5, 1.9, 1.5), 0.2)], night=True, props=pole_props([12.0, 50.0]))
-    prims = rig.primitives(scene)
-    heads, lights, ground = rig.night_lights(scene)
-    T = rig.world_to_camera(scene, "CAM_FRONT")[None]
-    K = rig.intrinsics["CAM_FRONT"]
-    light = scene.lighting
-    common = (T[:, :3, :3], T[:, :3, 3], np.array([[K[0, 0], K[1, 1], K[0, 2], K[1, 2]]]), 96, 72, rig.far, prims,
-              scene.static.tiled, light.albedo_lut(), np.array([10, 1, 2, 24], np.uint8), light.sky_horizon,
-              light.sky_zenith, lights, ground, heads)  # fmt: skip
+    args, lights, ground, heads, *_ = _night_call(96, 72)
+    common = (*args, lights, ground, heads)
     plain, g0 = L.render_night(*common)
     phases: dict[str, float] = {}
     timed, g1 = L.render_night(*common, timings=phases)
