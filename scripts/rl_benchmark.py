@@ -284,10 +284,10 @@ def significance(table: dict[str, Any]) -> list[str]:
     return out
 
 
-def wall_times(out: Path, conditions: list[str], seeds: list[int]) -> dict[str, dict[str, float | None]]:
+def wall_times(out: Path, conditions: list[str], seeds: list[int], episodes: int) -> dict[str, dict[str, float | None]]:
     """Training wall time and steps of each agent from its VecMonitor logs (summed over resumed parts; each part's
     time runs from its start to its last finished episode), and its evaluation wall time when every one of its
-    cells recorded it (None otherwise)."""
+    cells of ``episodes`` episodes recorded it (None otherwise)."""
     times: dict[str, dict[str, float]] = {}
     for cond in conditions:
         for seed in seeds:
@@ -297,7 +297,7 @@ def wall_times(out: Path, conditions: list[str], seeds: list[int]) -> dict[str, 
                 if rows.size:
                     wall += float(rows[-1, 2])
                     steps += float(rows[:, 1].sum())
-            evals = [json.loads(p.read_text()).get("wall_s") for p in (out / "eval").glob(f"{name}_*.json")]
+            evals = [json.loads(p.read_text()).get("wall_s") for p in (out / "eval").glob(f"{name}_*_{episodes}.json")]
             # cells evaluated before timing was recorded have none: then the agent's evaluation time is unknown
             timed = bool(evals) and all(e is not None for e in evals)
             times[name] = {"train_s": wall, "steps": steps, "eval_s": float(sum(evals)) if timed else None}
@@ -490,7 +490,7 @@ def main(argv: list[str] | None = None) -> int:
     table = aggregate(results)
     meta = {"env": args.env, "seeds": args.seeds, "steps": args.steps, "episodes": args.episodes, "envs": args.envs,
             "conditions": args.conditions, "wall_s": time.perf_counter() - t0}  # fmt: skip
-    times = wall_times(args.out, args.conditions, seeds)
+    times = wall_times(args.out, args.conditions, seeds, args.episodes)
     (args.out / "matrix.json").write_text(json.dumps({"meta": meta, "table": table, "wall_times": times}, indent=1))
     (args.out / "matrix.md").write_text(render_matrix(table, meta) + "\n\n" + "\n".join(render_wall_times(times)) + "\n")
     figures(table, args.out)
