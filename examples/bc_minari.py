@@ -2,7 +2,7 @@
 
 1. Record ``--episodes`` episodes of ``FogDriveRL-v0`` (``--fog``) driven by a privileged rule-based driver (it
    reads the true vehicle positions: keep right, overtake on the left when blocked, slow down when boxed in) into
-   a Minari dataset with :func:`fog_gym.minari.collect`.
+   a Minari dataset with :func:`fog_gym.rl.minari.collect`.
 2. Load it back with ``minari.load_dataset`` and train a small CNN on the observations (front camera + LiDAR
    bird's-eye view) to predict the driver's action (cross-entropy).
 3. Evaluate the cloned policy, the driver and a random policy for ``--eval-episodes`` episodes at each of
@@ -175,7 +175,7 @@ def main(argv: list[str] | None = None) -> dict:
             p.error(f"--{name.replace('_', '-')} must be >= 1")
     import minari
 
-    from fog_gym.minari import collect
+    from fog_gym.rl.minari import collect
 
     dataset_id = args.dataset_id or f"fog-gym/highway-{args.fog}-rule-v0"
     env = gym.make("FogDriveRL-v0", fog=args.fog, episode_seconds=args.episode_seconds)

@@ -43,7 +43,7 @@ def main(argv: list[str] | None = None) -> dict:
                    help="a few-minute budget: generate 10 short scenes if --root is empty, 2 epochs, rows Light and Mixed-L")
     args = p.parse_args(argv)
 
-    from fog_gym.detect3d.experiment import Exp1Config, run_experiment1
+    from fog_gym.experiments.detection3d.experiment import Exp1Config, run_experiment1
 
     if args.smoke:
         args.generate = args.generate or (0 if (args.root / "index").exists() else 10)

@@ -53,7 +53,7 @@ def main(argv: list[str] | None = None) -> dict:
     args = p.parse_args(argv)
 
     from fog_gym.cli import _resolution
-    from fog_gym.detect2d.experiment import Exp2Config, run_experiment2
+    from fog_gym.experiments.defog.experiment import Exp2Config, run_experiment2
 
     def size(text: str, name: str) -> tuple[int, int]:
         try:

@@ -41,7 +41,7 @@ def make_vec_env(n_envs: int, fog, schedule=None, seed: int = 0):
 def train(condition: str, steps: int, out: Path, n_envs: int = 2, seed: int = 0) -> Path:
     from stable_baselines3 import PPO
 
-    from fog_gym.curriculum import MixedSampler, StepSchedule
+    from fog_gym.fog.schedules import MixedSampler, StepSchedule
 
     fog, schedule = {"clear": ("clear", None), "light": ("light", None), "dense": ("dense", None),
                      "mixed": ("clear", MixedSampler(seed=seed)),

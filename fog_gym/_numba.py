@@ -1,15 +1,84 @@
-"""Numba set-up shared by every module with parallel kernels; import it before defining a kernel.
+"""Numba set-up shared by every module with kernels: the threading layer, and a one-line notice when the kernels
+must be compiled.
 
 GNU OpenMP, numba's usual pick, aborts a process that forks after a parallel kernel ran; Gymnasium's
 AsyncVectorEnv and SB3's SubprocVecEnv fork. The workqueue layer is fork-safe (but not for concurrent kernel
-launches from several Python threads). ``NUMBA_THREADING_LAYER`` still overrides.
+launches from several Python threads). ``NUMBA_THREADING_LAYER`` still overrides. Import this module before
+defining a kernel.
+
+Compilation takes about a minute on a laptop CPU and happens once (first run, or after an upgrade): kernels are
+cached next to their modules. :func:`cold_kernels` reads numba's cache indexes from disk (it imports no kernel
+module) and :func:`announce_compilation` prints the notice once per process when some are missing or stale.
+
+Example:
+    >>> isinstance(cold_kernels(), list)
+    True
 """
 
 from __future__ import annotations
 
 import os
+import pickle
+import sys
+from pathlib import Path
 
 import numba
 
 if "NUMBA_THREADING_LAYER" not in os.environ:
     numba.config.THREADING_LAYER = "workqueue"
+
+#: The main kernels (module file relative to the package, function name), the ones every env compiles first.
+MAIN_KERNELS = (("render/raster.py", "_raster_bands"), ("sensors/raycast.py", "_cast"), ("fog/camera.py", "_koschmieder"),
+                ("fog/lidar.py", "_hahner"), ("labels/boxes.py", "_project_boxes"), ("sensors/lidar.py", "_lidar_points"))  # fmt: skip
+_announced = False
+
+
+def _source_stamp(source: Path):
+    """The freshness stamp numba keeps in its cache index for a source file (its own function: the format differs
+    between numba versions)."""
+    from types import SimpleNamespace
+
+    from numba.core.caching import _SourceFileBackedLocatorMixin
+
+    return _SourceFileBackedLocatorMixin.get_source_stamp(SimpleNamespace(_py_file=str(source)))
+
+
+def _cached(source: Path, function: str) -> bool:
+    """Whether numba's on-disk cache of ``function`` in ``source`` exists and matches the source file's stamp."""
+    tag = f"py{sys.version_info.major}{sys.version_info.minor}"
+    try:
+        want = _source_stamp(source)
+    except Exception:  # noqa: BLE001 - a numba without this internal: say nothing rather than guess
+        return True
+    cache = source.parent / "__pycache__"
+    if numba.config.CACHE_DIR:  # NUMBA_CACHE_DIR: numba keeps every cache under it, one folder per source folder
+        from numba.core.caching import _CacheLocator
+
+        cache = Path(numba.config.CACHE_DIR) / _CacheLocator.get_suitable_cache_subpath(str(source))
+    for index in cache.glob(f"{source.stem}.{function}-*.{tag}.nbi"):
+        try:
+            with open(index, "rb") as f:
+                if pickle.load(f) != numba.__version__:
+                    continue
+                stamp, overloads = pickle.loads(f.read())
+        except Exception:  # noqa: BLE001 - an unreadable index counts as missing
+            continue
+        if stamp == want and overloads:
+            return True
+    return False
+
+
+def cold_kernels() -> list[str]:
+    """Names of the main kernels whose on-disk cache is missing or stale (empty when all are cached)."""
+    root = Path(__file__).resolve().parent
+    return [fn for rel, fn in MAIN_KERNELS if (root / rel).exists() and not _cached(root / rel, fn)]
+
+
+def announce_compilation() -> None:
+    """Print the notice to stderr once per process if some kernel must be compiled."""
+    global _announced
+    if _announced:
+        return
+    _announced = True
+    if cold_kernels():
+        print("fog-gym: compiling kernels (first run only, about a minute)…", file=sys.stderr, flush=True)

@@ -13,7 +13,7 @@ import sys
 import time
 from pathlib import Path
 
-from fog_gym.config import TIMES_OF_DAY, TOWNS
+from fog_gym.world.towns import TIMES_OF_DAY, TOWNS
 from fog_gym.fog import FOG_PRESETS
 
 
@@ -132,9 +132,9 @@ def run_demo(args: argparse.Namespace) -> list[Path]:
 
     import fog_gym  # noqa: F401
     from fog_gym.encoding import colorize_depth, colorize_semantic
-    from fog_gym.points import unpack_points
+    from fog_gym.dataset.packing import unpack_points
     from fog_gym.fog import parse_fog
-    from fog_gym.viz import contact_sheet, exposure_preview, lidar_panels
+    from fog_gym.viz.draw import contact_sheet, exposure_preview, lidar_panels
 
     if args.steps < 0:
         raise _fail("demo", "--steps must be >= 0")
@@ -233,7 +233,7 @@ def _add_minari_parser(sub) -> None:
         description="Record --episodes episodes of FogDriveRL-v0 (random actions) in the given fog and town into the "
         "Minari dataset --dataset-id (under MINARI_DATASETS_PATH, default ~/.minari/datasets), losslessly, with "
         "fog level, town, time of day and fog-gym version in its metadata. For a trained policy use "
-        "fog_gym.minari.collect from Python. Needs the minari extra.",
+        "fog_gym.rl.minari.collect from Python. Needs the minari extra.",
     )  # fmt: skip
     mi.add_argument("--dataset-id", required=True, help="Minari id, e.g. fog-gym/highway-dense-random-v0")
     mi.add_argument("--episodes", type=int, default=10, help="episodes to record (default 10)")
@@ -247,7 +247,7 @@ def _add_minari_parser(sub) -> None:
 
 
 def _view(args: argparse.Namespace) -> int:
-    from fog_gym import viewer
+    from fog_gym.viz import viewer
 
     if args.save is not None and args.save.suffix != ".rrd":
         raise _fail("view", f"--save must name an .rrd file, got {args.save}")
@@ -269,7 +269,7 @@ def _minari(args: argparse.Namespace) -> int:
     import gymnasium as gym
 
     from fog_gym.fog import parse_fog
-    from fog_gym.minari import collect
+    from fog_gym.rl.minari import collect
 
     fog: str | float = args.fog
     try:
@@ -354,7 +354,7 @@ def _stats(args: argparse.Namespace) -> int:
 
 
 def _audit(args: argparse.Namespace) -> int:
-    from fog_gym.audit import figure, report, run_audit
+    from fog_gym.experiments.audit import figure, report, run_audit
 
     if args.frames < 1:
         raise _fail("audit", "--frames must be >= 1")

@@ -24,7 +24,8 @@ from typing import Any
 
 import numpy as np
 
-from fog_gym.config import TOWNS
+from fog_gym.world.towns import TOWNS
+from fog_gym.fog import FOG_PRESETS
 from fog_gym.dataset.layout import DATA_ROOT, MODALITIES, SAMPLE_PERIOD_US, scene_folder_name, scene_id
 from fog_gym.dataset.manifest import MANIFEST_FILE, differences, make_manifest, read_manifest, write_manifest
 from fog_gym.dataset.writer import SceneWriter, build_index
@@ -92,7 +93,7 @@ def generate_scene(root: str | Path, spec: SceneSpec | dict[str, Any]) -> str:
     The ego drives with highway-env's IDLE meta-action (keep lane and speed); an episode that ends early
     (collision) gives a shorter scene.
     """
-    from fog_gym.env import FogDriveEnv
+    from fog_gym.envs.fogdrive import FogDriveEnv
     from fog_gym.wrappers.fog import FogWrapper
 
     spec = spec if isinstance(spec, SceneSpec) else SceneSpec(**{**spec, "resolution": tuple(spec["resolution"])})
@@ -134,7 +135,7 @@ def plan_manifest(plan: list[SceneSpec]) -> dict[str, Any]:
         raise ValueError("the plan has no scenes")
     towns = list(dict.fromkeys(s.town for s in plan))
     first = plan[0]
-    return make_manifest(len(plan), first.resolution, first.seconds, first.base_seed, towns,
+    return make_manifest(len(plan), first.resolution, first.seconds, first.base_seed, towns, fog_levels=FOG_PRESETS,
                          channels=MODALITIES[first.modality])  # fmt: skip
 
 

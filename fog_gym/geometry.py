@@ -1,4 +1,4 @@
-"""Frames, rotations, intrinsics and projection (pure numpy, imports nothing from the environment).
+"""Frames, sensor poses, rotations, intrinsics and projection (pure numpy, imports nothing from the environment).
 
 Frames (docs/design.md §2):
 
@@ -19,13 +19,60 @@ Example:
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
+
+from fog_gym.checks import finite
 
 #: Maps sensor-local CARLA axes (x fwd, y right, z up) to camera axes (x right, y down, z fwd).
 SENSOR_TO_CAMERA = np.array(
     [[0.0, 1.0, 0.0, 0.0], [0.0, 0.0, -1.0, 0.0], [1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0]]
 )
+
+
+@dataclass(frozen=True)
+class Pose:
+    """A sensor pose relative to the ego origin (ground under the vehicle centre), CARLA convention.
+
+    Location in metres (+x forward, +y right, +z up), rotation in degrees (pitch, roll, yaw).
+
+    >>> Pose(1.8, 0.0, 1.2).location
+    (1.8, 0.0, 1.2)
+    """
+
+    x: float = 0.0
+    y: float = 0.0
+    z: float = 0.0
+    pitch: float = 0.0
+    roll: float = 0.0
+    yaw: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in ("x", "y", "z", "pitch", "roll", "yaw"):
+            object.__setattr__(self, name, finite(f"pose.{name}", getattr(self, name)))
+
+    @property
+    def location(self) -> tuple[float, float, float]:
+        return (self.x, self.y, self.z)
+
+    @property
+    def rotation(self) -> tuple[float, float, float]:
+        return (self.pitch, self.roll, self.yaw)
+
+    @classmethod
+    def coerce(cls, value: Pose | Sequence[float] | Mapping[str, float]) -> Pose:
+        """Accept a Pose, a mapping of its fields, or a 3- or 6-sequence (x, y, z[, pitch, roll, yaw])."""
+        if isinstance(value, Pose):
+            return value
+        if isinstance(value, Mapping):
+            return cls(**value)
+        values = list(value)
+        if len(values) not in (3, 6):
+            raise ValueError(f"pose must have 3 or 6 numbers (x, y, z[, pitch, roll, yaw]), got {value!r}")
+        return cls(*values)
 
 
 def rotation_matrix(pitch_deg: float, roll_deg: float, yaw_deg: float) -> np.ndarray:
@@ -133,3 +180,23 @@ def box_corners(centers: np.ndarray, sizes: np.ndarray, yaws: np.ndarray) -> np.
     x = local[..., 0] * c - local[..., 1] * s
     y = local[..., 0] * s + local[..., 1] * c
     return np.stack([x, y, local[..., 2]], axis=-1) + centers[:, None, :]
+
+
+def sensor_to_world(pose: Pose, ego_pose: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> np.ndarray:
+    """4×4 sensor→world transform of a sensor mounted at ``pose`` on an ego at ``(x, y, yaw_rad)`` (ground origin).
+
+    >>> sensor_to_world(Pose(0, 0, 2), (10.0, 5.0, 0.0))[:3, 3].tolist()
+    [10.0, 5.0, 2.0]
+    """
+    pose = Pose.coerce(pose)
+    return yaw_transform(*ego_pose) @ transform_matrix(pose.location, pose.rotation)
+
+
+@njit(cache=True)
+def polygon_area(poly, n):
+    """Area of the first ``n`` vertices of ``poly`` (shoelace; either orientation)."""
+    s = 0.0
+    for k in range(n):
+        k1 = (k + 1) % n
+        s += poly[k, 0] * poly[k1, 1] - poly[k1, 0] * poly[k, 1]
+    return abs(s) / 2.0

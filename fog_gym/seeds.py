@@ -16,11 +16,11 @@ from __future__ import annotations
 import numpy as np
 
 SALTS: dict[str, int] = {
-    "world": 0xF06,  # vehicle classes, sizes and colours (fog_gym.world)
-    "scenery": 0x5CE,  # static props and lighting of an episode (fog_gym.env)
-    "sensors": 0x11DA,  # sensor noise (fog_gym.env)
+    "world": 0xF06,  # vehicle classes, sizes and colours (fog_gym.world.traffic_world)
+    "scenery": 0x5CE,  # static props and lighting of an episode (fog_gym.envs.fogdrive)
+    "sensors": 0x11DA,  # sensor noise (fog_gym.envs.fogdrive)
     "fog": 0xF06,  # LiDAR fog noise per level (fog_gym.wrappers.fog)
-    "hazards": 0x4A2,  # stalled vehicles: distances and lanes (fog_gym.world, HazardConfig)
+    "hazards": 0x4A2,  # stalled vehicles: distances and lanes (fog_gym.world.traffic_world, HazardConfig)
 }
 
 

@@ -31,7 +31,7 @@ import bench_fog  # noqa: E402
 import bench_sensors  # noqa: E402
 from bench_common import add_common_arguments, finish_meta, repeats_of, run_meta, write_json  # noqa: E402
 
-from fog_gym.config import TOWNS  # noqa: E402
+from fog_gym.world.towns import TOWNS  # noqa: E402
 
 
 def build_parser(prog: str = "bench.py") -> argparse.ArgumentParser:

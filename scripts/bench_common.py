@@ -141,7 +141,7 @@ def run_meta(**extra: Any) -> dict[str, Any]:
 
     import numba
 
-    import fog_gym.env  # noqa: F401  (import everything up front: module imports are not env construction)
+    import fog_gym.envs.fogdrive  # noqa: F401  (import everything up front: module imports are not env construction)
 
     return {
         **extra, "cpu_count": os.cpu_count(), "numba": numba.__version__, "numba_threads": numba.get_num_threads(),

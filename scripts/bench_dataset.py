@@ -36,7 +36,7 @@ def bench_recording(repeats: int) -> dict[str, Any]:
     from fog_gym.generate import generate, plan_scenes
     from fog_gym.dataset.writer import SceneWriter, encode_png
     from fog_gym.encoding import encode_depth, semantic_to_carla_rgb
-    from fog_gym.env import FogDriveEnv
+    from fog_gym.envs.fogdrive import FogDriveEnv
     from fog_gym.wrappers import FogWrapper
 
     env = FogWrapper(FogDriveEnv(town="highway"), ["light", "moderate", "dense"])

@@ -23,9 +23,9 @@ asserts a timing. It prints Markdown tables to stdout; progress bars go to stder
 
    Below those come the steps per second, the reset time (median of 3) with the static-world build
    (``env.build_static_world``) inside it, and the construction time. Last is the ratio of the full step to a
-   bare highway-env step of the same scenario (``fog_gym.world.highway_env_config``). The bare step is timed in
+   bare highway-env step of the same scenario (``fog_gym.world.towns.highway_env_config``). The bare step is timed in
    alternation with ``env.step``, so both see the same machine load.
-2. **Bare highway-env baseline**. The first scenario is the town's (``fog_gym.world.highway_env_config``: the
+2. **Bare highway-env baseline**. The first scenario is the town's (``fog_gym.world.towns.highway_env_config``: the
    same scenario class, config and frequencies as ``TrafficWorld``), reset with the seed that
    ``FogDriveEnv.reset(seed=0)`` gives its world (``FogDriveEnv.episode_seed_for(0)``), so it starts from the same
    traffic. The
@@ -73,7 +73,7 @@ from bench_common import (  # noqa: E402
     idle_action, markdown_table, repeats_of, run_meta, sensor_tick, summarize, timed, write_json,
 )  # fmt: skip
 
-from fog_gym.config import TOWNS  # noqa: E402
+from fog_gym.world.towns import TOWNS  # noqa: E402
 
 RESET_REPEATS = 3
 PROFILE_STEPS = 10
@@ -92,8 +92,8 @@ RIGS: dict[str, dict[str, Any]] = {
 
 def build_scene(env: Any) -> tuple[Any, dict[str, float]]:
     """``env.build_scene()`` (what ``step`` does before it renders), with its sub-stages timed separately."""
-    from fog_gym.scene import vehicle_primitives
-    from fog_gym.world import EGO_ID
+    from fog_gym.world.scene import vehicle_primitives
+    from fog_gym.world.traffic_world import EGO_ID
 
     t0 = time.perf_counter_ns()
     state = env.world.vehicle_state()
@@ -107,7 +107,7 @@ def build_scene(env: Any) -> tuple[Any, dict[str, float]]:
 
 def solo_rigs(env: Any) -> dict[str, Any]:
     """Make one single-camera ``CameraRig`` for each camera of the env's rig (same far plane)."""
-    from fog_gym.config import RigConfig
+    from fog_gym.sensors.rig import RigConfig
     from fog_gym.sensors import CameraRig
 
     return {c.name: CameraRig(RigConfig((c,)), far=env.config.far_distance) for c in env.config.rig.cameras}
@@ -187,7 +187,7 @@ def measure_env_step(env: Any, action: Any, bare: Any, repeats: int, desc: str) 
     start from the same traffic, and each timed ``env.step`` is followed by one timed ``bare.step``. The two
     series therefore see the same machine load, and their ratio holds up when the load drifts.
     """
-    from fog_gym.env import FogDriveEnv
+    from fog_gym.envs.fogdrive import FogDriveEnv
 
     env.reset(seed=0)
     bare.reset(seed=FogDriveEnv.episode_seed_for(0))
@@ -207,7 +207,7 @@ def measure_env_step(env: Any, action: Any, bare: Any, repeats: int, desc: str) 
 
 
 def bench_rig(town: str, rig_key: str, repeats: int) -> dict[str, Any]:
-    from fog_gym.env import FogDriveEnv
+    from fog_gym.envs.fogdrive import FogDriveEnv
 
     env, ms_init = timed(FogDriveEnv, town=town, **RIGS[rig_key]["kwargs"])
     label = RIGS[rig_key]["label"] + point_sensor_label(env)
@@ -231,12 +231,12 @@ def bench_rig(town: str, rig_key: str, repeats: int) -> dict[str, Any]:
 
 
 def bare_highway_env(town: str, **overrides: Any) -> Any:
-    """The town's highway-env scenario with fog-gym's config and frequencies (``fog_gym.world.highway_env_config``),
+    """The town's highway-env scenario with fog-gym's config and frequencies (``fog_gym.world.towns.highway_env_config``),
     with the observation kept."""
     import highway_env.envs as hw_envs
 
-    from fog_gym.config import FogDriveConfig
-    from fog_gym.world import TOWN_SPECS, highway_env_config
+    from fog_gym.envs.config import FogDriveConfig
+    from fog_gym.world.towns import TOWN_SPECS, highway_env_config
 
     defaults = FogDriveConfig()
     config = highway_env_config(town, defaults.simulation_frequency, defaults.keyframe_frequency, overrides)
@@ -301,8 +301,8 @@ def profile_bare(bare_env: Any, steps: int) -> dict[str, Any]:
 
 def bench_baselines(town: str, repeats: int, profile_steps: int) -> dict[str, Any]:
     """Bare highway-env for the town's config and for a dense highway (50 vehicles). Both are timed and profiled."""
-    from fog_gym.env import FogDriveEnv
-    from fog_gym.world import TOWN_SPECS, apply_idm_profile
+    from fog_gym.envs.fogdrive import FogDriveEnv
+    from fog_gym.world.towns import TOWN_SPECS, apply_idm_profile
 
     out: dict[str, Any] = {}
     configs = {
@@ -333,7 +333,7 @@ def bench_rl(repeats: int) -> dict[str, Any]:
     import gymnasium as gym
 
     import fog_gym  # noqa: F401
-    from fog_gym.rl import RL_TRAFFIC
+    from fog_gym.envs.presets import RL_TRAFFIC
 
     n = max(40, repeats * 5)
 

@@ -35,9 +35,9 @@ LEVELS = ("light", "moderate", "dense")
 def bench_fog(repeats: int) -> dict[str, Any]:
     """Fog stages on one real full-rig frame: camera fog per 1280×960 image, LiDAR fog per 100 k points, and the
     full paired frame (4 cameras × 3 levels + 3 LiDAR levels) as ``FogWrapper`` computes it."""
-    from fog_gym.env import FogDriveEnv
+    from fog_gym.envs.fogdrive import FogDriveEnv
     from fog_gym.fog import atmospheric_light, fog_image, fog_images, fog_lidar, parse_fog
-    from fog_gym.points import unpack_points
+    from fog_gym.dataset.packing import unpack_points
     from fog_gym.wrappers import FogWrapper
 
     env = FogWrapper(FogDriveEnv(town="highway"), list(LEVELS))

@@ -53,7 +53,7 @@ def far_boxes(template: Any, ego_xy: np.ndarray, rng: np.random.Generator, n: in
     Their nearest points lie beyond 300 m from the ego (a car box reaches under 3 m from its centre), out of the
     LiDARs' 120 m and of the radar's rays (under 303 m from the bumper). Static world (``insts`` 0), car tag.
     """
-    from fog_gym.primitives import Primitives
+    from fog_gym.world.primitives import Primitives
 
     r = rng.uniform(*FAR_RADIUS, n)
     a = rng.uniform(0.0, 2.0 * np.pi, n)
@@ -94,8 +94,8 @@ def point_sensor_calls(env: Any, scene: Any, prims: dict[str, np.ndarray], solos
 
 
 def rays_per_tick(env: Any) -> dict[str, int]:
-    from fog_gym.lidar import lidar_directions
-    from fog_gym.points import LIDAR, RADAR, SEMANTIC_LIDAR
+    from fog_gym.sensors.lidar import lidar_directions
+    from fog_gym.dataset.packing import LIDAR, RADAR, SEMANTIC_LIDAR
 
     rig, f = env.config.rig, env.point_sensors.simulation_frequency
     out = {}
@@ -114,7 +114,7 @@ def bench_point_sensors(repeats: int) -> dict[str, Any]:
     After the warm-up, each repeat steps the env (untimed), then times every call on the plain primitives and on
     the primitives plus ``FAR_BOXES`` far boxes, the two in alternating order so both see the same load.
     """
-    from fog_gym.env import FogDriveEnv
+    from fog_gym.envs.fogdrive import FogDriveEnv
 
     # packed traffic (5 lanes, density 12) so that ~50 vehicles are within the LiDAR's 120 m, as the target asks
     env = FogDriveEnv(town="highway", cameras=[], highway_config=POINT_SENSOR_TRAFFIC)
@@ -173,7 +173,7 @@ def bench_point_sensors(repeats: int) -> dict[str, Any]:
 
 
 def concat_prims(*groups: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
-    from fog_gym.primitives import Primitives
+    from fog_gym.world.primitives import Primitives
 
     return Primitives.concat(*groups)
 
@@ -224,7 +224,7 @@ def render_point_sensors(ps: dict[str, Any], repeats: int) -> list[str]:
 
 def bench_labels(repeats: int) -> dict[str, Any]:
     """Ground truth for all four 1280×960 cameras (``env.ground_truth()``), both visibility rules, packed traffic."""
-    from fog_gym.env import FogDriveEnv
+    from fog_gym.envs.fogdrive import FogDriveEnv
 
     out: dict[str, Any] = {}
     for rule in ("lidar", "camera"):
@@ -261,7 +261,7 @@ def night_twin(scene: Any) -> Any:
     """The same instant at night: same geometry, night lighting and lamp colours (street lamps, beams, exposure)."""
     import dataclasses
 
-    from fog_gym.scene import Lighting, vehicle_primitives
+    from fog_gym.world.scene import Lighting, vehicle_primitives
 
     light = Lighting.for_time_of_day("night", np.random.default_rng(0))
     return dataclasses.replace(scene, lighting=light,
@@ -270,7 +270,7 @@ def night_twin(scene: Any) -> Any:
 
 def bench_night(town: str, repeats: int) -> dict[str, Any]:
     """``CameraRig.render`` of the full rig by day and by night on the same scenes, timed in alternation."""
-    from fog_gym.env import FogDriveEnv
+    from fog_gym.envs.fogdrive import FogDriveEnv
 
     env = FogDriveEnv(town=town, time_of_day="day", labels=None)
     action = env.idle_action
@@ -308,10 +308,11 @@ def bench_night_phases(town: str, repeats: int) -> dict[str, Any]:
     The night frame is what ``CameraRig.render`` does for a rig of one resolution: ``night_lights`` (lamp heads,
     lights in reach, the ground light window with the low beams), then ``render_night`` (light set-up, exposure,
     lit render, lamp heads). Alternating order, same scenes."""
-    from fog_gym.env import FogDriveEnv
+    from fog_gym.envs.fogdrive import FogDriveEnv
     from fog_gym.render.lights import render_night as lit
     from fog_gym.render.raster import render
-    from fog_gym.scenery import SURFACE_TAGS
+    from fog_gym.render.surface import albedo_lut, tiled_surface
+    from fog_gym.world.scenery import SURFACE_TAGS
 
     env = FogDriveEnv(town=town, time_of_day="day", labels=None)
     cams = env.cameras
@@ -332,13 +333,13 @@ def bench_night_phases(town: str, repeats: int) -> dict[str, Any]:
 
         def night() -> None:
             (heads, lights, ground), frame["lights and ground maps"] = cpu_timed(cams.night_lights, twin)
-            lit(mats[:, :3, :3], mats[:, :3, 3], ks, width, height, cams.far, prims, twin.static.tiled,
-                light.albedo_lut(), SURFACE_TAGS, light.sky_horizon, light.sky_zenith, lights, ground, heads,
+            lit(mats[:, :3, :3], mats[:, :3, 3], ks, width, height, cams.far, prims, tiled_surface(twin.static),
+                albedo_lut(), SURFACE_TAGS, light.sky_horizon, light.sky_zenith, lights, ground, heads,
                 timings=frame)  # fmt: skip
 
         def floor() -> None:
-            render(mats[:, :3, :3], mats[:, :3, 3], ks, width, height, cams.far, prims, twin.static.tiled,
-                   light.albedo_lut(), SURFACE_TAGS, light.sky_horizon, light.sky_zenith, np.array([0.0, 0.0, -1.0]),
+            render(mats[:, :3, :3], mats[:, :3, 3], ks, width, height, cams.far, prims, tiled_surface(twin.static),
+                   albedo_lut(), SURFACE_TAGS, light.sky_horizon, light.sky_zenith, np.array([0.0, 0.0, -1.0]),
                    1.0, 0.0)  # fmt: skip
 
         runs = [("day", lambda: cams.render(scene, prims_day)), ("night", night), ("raster floor", floor)]

@@ -56,7 +56,7 @@ def _ms_cpu(fn: Any, *args: Any) -> tuple[Any, float, float]:
 
 
 def bench_scaling(counts: list[int], repeats: int) -> dict[int, dict[str, float]]:
-    from fog_gym.world import TrafficWorld
+    from fog_gym.world.traffic_world import TrafficWorld
 
     out = {}
     for n in tqdm(counts, desc="vehicle counts", file=sys.stderr):
@@ -85,7 +85,7 @@ def bench_plain(repeats: int) -> dict[str, float]:
     import gymnasium as gym
     import highway_env  # noqa: F401
 
-    from fog_gym.traffic import accelerate
+    from fog_gym.world.traffic import accelerate
 
     envs = {"reference": gym.make("highway-v0"), "fast": accelerate(gym.make("highway-v0"))}
     for e in envs.values():
@@ -111,7 +111,7 @@ def _steps_per_second(envs: dict[str, Any], repeats: int, desc: str) -> dict[str
 
 
 def bench_rl(repeats: int) -> dict[str, float]:
-    from fog_gym.rl import make_fogdrive_rl
+    from fog_gym.envs.presets import make_fogdrive_rl
 
     envs = {m: make_fogdrive_rl(traffic=m) for m in ("reference", "fast")}
     for e in envs.values():
@@ -124,7 +124,7 @@ def bench_rl(repeats: int) -> dict[str, float]:
 
 
 def profile_fast(steps: int, top: int = 8) -> list[tuple[str, float]]:
-    from fog_gym.world import TrafficWorld
+    from fog_gym.world.traffic_world import TrafficWorld
 
     w = TrafficWorld("highway", traffic="fast", highway_config={"vehicles_count": 50})
     w.reset(seed=0)
@@ -146,7 +146,7 @@ def profile_fast(steps: int, top: int = 8) -> list[tuple[str, float]]:
 def bench_recorder(repeats: int) -> dict[str, Any]:
     from fog_gym.dataset.writer import SceneWriter, default_workers, encode_png
     from fog_gym.encoding import encode_depth, semantic_to_carla_rgb
-    from fog_gym.env import FogDriveEnv
+    from fog_gym.envs.fogdrive import FogDriveEnv
     from fog_gym.wrappers import FogWrapper
 
     env = FogWrapper(FogDriveEnv(town="highway"), ["light", "moderate", "dense"])
@@ -173,8 +173,8 @@ def bench_recorder(repeats: int) -> dict[str, Any]:
 
 
 def run_identity(steps: int) -> list[str]:
-    from fog_gym.config import TOWNS
-    from fog_gym.traffic_identity import PLAIN_SCENARIOS, compare_plain, compare_town
+    from fog_gym.world.towns import TOWNS
+    from tests.world.traffic_identity import PLAIN_SCENARIOS, compare_plain, compare_town
 
     done = []
     jobs = [("plain", e, c) for e, c in PLAIN_SCENARIOS] + [("town", t, None) for t in TOWNS]

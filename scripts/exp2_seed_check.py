@@ -30,7 +30,7 @@ def main(argv: list[str] | None = None) -> None:
     import torch
 
     from fog_gym.dataset.access import FogDrive
-    from fog_gym.detect2d.experiment import LEVELS, Exp2Config, ImageSet, _device, _eval_set, detect, frames, train_detector
+    from fog_gym.experiments.defog.experiment import LEVELS, Exp2Config, ImageSet, _device, _eval_set, detect, frames, train_detector
     from fog_gym.metrics.detection2d import evaluate_coco
 
     run = json.loads(results_path.read_text())

@@ -13,7 +13,7 @@ import cv2
 import numpy as np
 from tqdm import tqdm
 
-from fog_gym.config import TOWNS
+from fog_gym.world.towns import TOWNS
 
 LEVELS = ("light", "moderate", "dense")
 
@@ -47,7 +47,7 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--resolution", type=int, nargs=2, default=(480, 360), metavar=("W", "H"))
     p.add_argument("--out", type=Path, default=Path("docs/images/night_fog_levels.png"))
     a = p.parse_args(argv)
-    from fog_gym.viz import night_fog_levels
+    from fog_gym.viz.draw import night_fog_levels
 
     frames = {tod: front_levels(a.town, tod, a.seed, a.steps, tuple(a.resolution))
               for tod in tqdm(("day", "night"), desc="rendering")}  # fmt: skip

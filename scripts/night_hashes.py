@@ -18,7 +18,8 @@ CASES = [(town, tod, seed) for town in ("highway", "roundabout", "intersection")
 
 def frame_hashes(town: str, time_of_day: str, seed: int, steps: int = 2) -> dict[str, str]:
     from fog_gym import FogDriveEnv
-    from fog_gym.config import FogDriveConfig, RigConfig
+    from fog_gym.envs.config import FogDriveConfig
+    from fog_gym.sensors.rig import RigConfig
 
     env = FogDriveEnv(config=FogDriveConfig(town=town, time_of_day=time_of_day, rig=RigConfig.fogdrive(resolution=(160, 120))))
     obs, _ = env.reset(seed=seed)

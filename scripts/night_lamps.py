@@ -15,9 +15,9 @@ import numpy as np
 
 
 def town_lamps(town: str, seed: int) -> dict[str, float]:
-    from fog_gym import env as fog_env
-    from fog_gym.scenery import STYLES, lamp_heads, lit_edge_length
-    from fog_gym.world import TOWN_SPECS
+    from fog_gym.envs import fogdrive as fog_env
+    from fog_gym.world.scenery import STYLES, lamp_heads, lit_edge_length
+    from fog_gym.world.towns import TOWN_SPECS
 
     env = fog_env.FogDriveEnv(town=town, time_of_day="night", resolution=(64, 48), cameras=["CAM_FRONT"], labels=None)
     env.reset(seed=seed)
@@ -32,7 +32,7 @@ def town_lamps(town: str, seed: int) -> dict[str, float]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    from fog_gym.config import TOWNS
+    from fog_gym.world.towns import TOWNS
 
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--seed", type=int, default=0)

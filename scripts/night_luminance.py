@@ -14,13 +14,13 @@ import sys
 import numpy as np
 from tqdm import tqdm
 
-from fog_gym.config import TOWNS
+from fog_gym.world.towns import TOWNS
 
 ROAD_TAGS = (1, 24)
 
 
 def front_luminance(town: str, time_of_day: str, seed: int, steps: int, resolution=(320, 240)) -> dict[str, float]:
-    from fog_gym.env import FogDriveEnv
+    from fog_gym.envs.fogdrive import FogDriveEnv
 
     env = FogDriveEnv(town=town, time_of_day=time_of_day, resolution=resolution, cameras=["CAM_FRONT"], labels=None)
     env.reset(seed=seed)

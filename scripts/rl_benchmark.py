@@ -3,7 +3,7 @@ parallel vector envs, and report a train × test matrix with confidence interval
 
 Conditions: clear, light, dense (fixed fog), mixed (a seeded level per episode), curriculum (clear → 160 → 100 →
 50 m in steps), success (advance when 80 % of the last 10 episodes were crash-free) and continuous (visibility
-sliding from clear to 50 m linearly in α). Schedules are applied by ``fog_gym.sb3.VecFogCurriculum`` at the very
+sliding from clear to 50 m linearly in α). Schedules are applied by ``fog_gym.rl.sb3.VecFogCurriculum`` at the very
 next episode of each sub-env. PPO runs on the GPU when one is present (``--device auto``).
 
 Per cell the matrix gives the mean over training seeds of each agent's mean over ``--episodes`` evaluation
@@ -54,7 +54,7 @@ EPISODE_STEPS = {"FogDriveRL-v0": 100, "FogDriveRLHazard-v0": 30}
 def schedule_for(condition: str, seed: int, steps: int):
     """``(initial fog, schedule or None)`` of a training condition. The step curriculum reaches dense fog after
     60 % of the run's expected episodes, the continuous one after 80 % (see :data:`EPISODE_STEPS`)."""
-    from fog_gym.curriculum import ContinuousSchedule, MixedSampler, StepSchedule, SuccessSchedule
+    from fog_gym.fog.schedules import ContinuousSchedule, MixedSampler, StepSchedule, SuccessSchedule
 
     length = min(EPISODE_STEPS[ENV_ID["value"]], max(1, round(EPISODE_SECONDS["value"] * 5)))  # 5 Hz policy
     episodes = max(4, steps // length)
@@ -108,7 +108,7 @@ def train(condition: str, seed: int, steps: int, out: Path, n_envs: int, device:
     from stable_baselines3.common.callbacks import BaseCallback
     from stable_baselines3.common.vec_env import VecMonitor
 
-    from fog_gym.sb3 import VecFogCurriculum
+    from fog_gym.rl.sb3 import VecFogCurriculum
 
     name = f"{condition}_s{seed}"
     final = out / "models" / f"{name}.zip"
@@ -120,11 +120,9 @@ def train(condition: str, seed: int, steps: int, out: Path, n_envs: int, device:
     fog, schedule = schedule_for(condition, seed, steps)
     venv = vec_env(n_envs, fog, 1000 * seed)
     state_path = ckpt_dir / "schedule.pkl"
-    if schedule is not None:  # resumed: the schedule (and its success history) continues from the checkpoint
+    if schedule is not None:  # resumed: the curriculum (schedule, success history, counters) continues from the checkpoint
         state = pickle.loads(state_path.read_bytes()) if state_path.exists() else None
-        venv = VecFogCurriculum(venv, state["schedule"] if state else schedule)
-        if state:
-            venv.episodes, venv._started = state["episodes"], state["started"]
+        venv = VecFogCurriculum(venv, state["curriculum"] if state else schedule)
     monitor_file = out / "monitor" / f"{name}_{len(list((out / 'monitor').glob(name + '_*')))}"
     env = VecMonitor(venv, filename=str(monitor_file))
     model_path = ckpt_dir / "model.zip"
@@ -141,7 +139,7 @@ def train(condition: str, seed: int, steps: int, out: Path, n_envs: int, device:
                 self.model.save(ckpt_dir / ".model.tmp.zip")
                 os.replace(ckpt_dir / ".model.tmp.zip", model_path)
                 if schedule is not None:
-                    _atomic_save({"schedule": venv.schedule, "episodes": venv.episodes, "started": venv._started}, state_path)
+                    _atomic_save({"curriculum": venv.curriculum}, state_path)
             return True
 
     remaining = steps - model.num_timesteps

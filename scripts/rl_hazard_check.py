@@ -150,7 +150,7 @@ def sight_distances(level: str, episodes: int, seed0: int, min_cells: int) -> li
     import gymnasium as gym
 
     import fog_gym  # noqa: F401
-    from fog_gym.rl import HAZARD_BEV_AHEAD
+    from fog_gym.envs.presets import HAZARD_BEV_AHEAD
 
     env = gym.make("FogDriveRLHazard-v0", fog=level)
     base = env.unwrapped

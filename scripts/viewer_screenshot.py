@@ -1,6 +1,6 @@
 """Screenshot of the Rerun viewer on a live foggy episode, taken without a display (the README's picture).
 
-Logs ``--steps`` keyframes with :func:`fog_gym.viewer.view_live`, opens the ``.rrd`` in Rerun's headless viewer,
+Logs ``--steps`` keyframes with :func:`fog_gym.viz.viewer.view_live`, opens the ``.rrd`` in Rerun's headless viewer,
 moves to the last sample and saves a PNG. Needs the ``viz`` extra and a Vulkan driver; on a machine without a GPU,
 Mesa's software one works (Debian/Ubuntu: ``apt install mesa-vulkan-drivers``).
 
@@ -32,7 +32,7 @@ def main(argv: list[str] | None = None) -> int:
 
     from rerun.experimental import ViewerClient
 
-    from fog_gym.viewer import view_live
+    from fog_gym.viz.viewer import view_live
 
     w, h = (int(v) for v in args.resolution.lower().split("x"))
     rrd = Path(tempfile.mkdtemp()) / "episode.rrd"

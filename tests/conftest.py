@@ -11,7 +11,7 @@ import fog_gym  # noqa: E402,F401  (registers FogDrive-v0)
 @pytest.fixture(scope="session")
 def small_env():
     """A small-resolution highway env, reset with seed 0 (shared; tests must not step it)."""
-    from fog_gym.env import FogDriveEnv
+    from fog_gym.envs.fogdrive import FogDriveEnv
 
     env = FogDriveEnv(town="highway", resolution=(160, 120))
     env.reset(seed=0)
@@ -27,7 +27,8 @@ def first_idle(action_space):
 def _restore_sensor_and_fog_registries():
     """A test (or README example) that registers a sensor class or a fog model leaves the registries as it found
     them (a dataset's channel layout comes from its rig, nothing global to restore)."""
-    from fog_gym import fog_models, sensors
+    from fog_gym import sensors
+    from fog_gym.fog import models as fog_models
 
     saved = (dict(sensors.REGISTRY), dict(fog_models.MODELS))
     yield

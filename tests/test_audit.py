@@ -1,6 +1,6 @@
 import numpy as np
 
-from fog_gym.audit import audit_frame
+from fog_gym.experiments.audit import audit_frame
 from fog_gym.cli import main
 
 

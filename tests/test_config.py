@@ -4,7 +4,10 @@ import gymnasium as gym
 import pytest
 
 import fog_gym
-from fog_gym.config import CameraConfig, FogDriveConfig, Pose, RigConfig
+from fog_gym.sensors.camera import CameraConfig
+from fog_gym.envs.config import FogDriveConfig
+from fog_gym.geometry import Pose
+from fog_gym.sensors.rig import RigConfig
 
 
 def test_towns_in_fogdrive_order():
@@ -47,7 +50,7 @@ def test_bad_env_arguments_fail_at_construction(kwargs, message):
 
 
 def test_bad_render_mode():
-    from fog_gym.env import FogDriveEnv
+    from fog_gym.envs.fogdrive import FogDriveEnv
 
     with pytest.raises(ValueError, match="render_mode must be one of"):
         FogDriveEnv(render_mode="human", resolution=(8, 8))
@@ -90,8 +93,9 @@ from dataclasses import replace  # noqa: E402
 from hypothesis import given, settings  # noqa: E402
 from hypothesis import strategies as st  # noqa: E402
 
-from fog_gym.config import FOGDRIVE_CAMERA_POSES  # noqa: E402
-from fog_gym.lidar import LidarConfig, RadarConfig, SemanticLidarConfig  # noqa: E402
+from fog_gym.sensors.camera import FOGDRIVE_CAMERA_POSES  # noqa: E402
+from fog_gym.sensors.lidar import LidarConfig, SemanticLidarConfig  # noqa: E402
+from fog_gym.sensors.radar import RadarConfig
 
 
 def _fogdrive_sequence(w=1280, h=960):

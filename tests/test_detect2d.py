@@ -6,7 +6,7 @@ import pytest
 torch = pytest.importorskip("torch")
 pytest.importorskip("pycocotools")
 
-from fog_gym.detect2d import CLASSES, CenterNet2D, decode, loss_fn, make_targets  # noqa: E402
+from fog_gym.experiments.defog.model import CLASSES, CenterNet2D, decode, loss_fn, make_targets  # noqa: E402
 from fog_gym.metrics.detection2d import evaluate_coco  # noqa: E402
 
 

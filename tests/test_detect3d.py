@@ -12,11 +12,11 @@ from fog_gym.dataset import FogDrive  # noqa: E402
 from fog_gym.generate import generate, plan_scenes  # noqa: E402
 from fog_gym.dataset.layout import MODALITIES  # noqa: E402
 from fog_gym.dataset.validate import validate  # noqa: E402
-from fog_gym.detect3d.bev import BEVGrid, class_from_height, decode_cells, make_targets, point_features  # noqa: E402
-from fog_gym.detect3d.data import SweepDataset, collate  # noqa: E402
-from fog_gym.detect3d.experiment import Exp1Config, run_experiment1  # noqa: E402
-from fog_gym.detect3d.model import BEVCenterNet, decode, detection_loss  # noqa: E402
-from fog_gym.detect3d.protocol import TEST_COLUMNS, evaluation_subsets, training_subsets  # noqa: E402
+from fog_gym.experiments.detection3d.bev import BEVGrid, class_from_height, decode_cells, make_targets, point_features  # noqa: E402
+from fog_gym.experiments.detection3d.data import SweepDataset, collate  # noqa: E402
+from fog_gym.experiments.detection3d.experiment import Exp1Config, run_experiment1  # noqa: E402
+from fog_gym.experiments.detection3d.model import BEVCenterNet, decode, detection_loss  # noqa: E402
+from fog_gym.experiments.detection3d.protocol import TEST_COLUMNS, evaluation_subsets, training_subsets  # noqa: E402
 from fog_gym.metrics.detection3d import evaluate  # noqa: E402
 
 GRID = BEVGrid()
@@ -28,7 +28,7 @@ def _boxes(rng, n):
 
 
 def test_class_from_height_recovers_every_vehicles_class():
-    from fog_gym.env import FogDriveEnv
+    from fog_gym.envs.fogdrive import FogDriveEnv
 
     env = FogDriveEnv(town="highway", resolution=(32, 24), highway_config={"vehicles_count": 60})
     seen = 0

@@ -6,9 +6,9 @@ import pytest
 from gymnasium.utils.env_checker import check_env
 
 import fog_gym
-from fog_gym.env import FogDriveEnv
-from fog_gym.scenery import SURFACE_TAGS
-from fog_gym.world import CLASS_SPECS, EGO_ID, EGO_SIZE
+from fog_gym.envs.fogdrive import FogDriveEnv
+from fog_gym.world.scenery import SURFACE_TAGS
+from fog_gym.world.traffic_world import CLASS_SPECS, EGO_ID, EGO_SIZE
 
 from .conftest import first_idle
 

@@ -11,17 +11,8 @@ import pytest
 pytest.importorskip("torch")
 
 from fog_gym.dataset.access import FogDrive  # noqa: E402
-from fog_gym.detect2d.experiment import (  # noqa: E402
-    DEHAZERS,
-    LEVELS,
-    Exp2Config,
-    OracleDehazer,
-    choose_scenes,
-    frames,
-    intrinsic,
-    load_boxes,
-    load_image,
-    run_experiment2,
+from fog_gym.experiments.defog.experiment import (  # noqa: E402
+    DEHAZERS, LEVELS, Exp2Config, OracleDehazer, choose_scenes, frames, intrinsic, load_boxes, load_image, run_experiment2,
 )
 from fog_gym.fog import parse_fog, ray_length_factor  # noqa: E402
 from fog_gym.generate import generate, plan_scenes  # noqa: E402
@@ -119,7 +110,7 @@ def test_scene_choice_is_a_seeded_uniform_subset():
 
 
 def test_colour_jitter_keeps_geometry_and_grey_and_is_seeded():
-    from fog_gym.detect2d.experiment import augment_hsv
+    from fog_gym.experiments.defog.experiment import augment_hsv
 
     rng = np.random.default_rng(3)
     img = rng.integers(0, 256, (24, 32, 3), dtype=np.uint8)

@@ -8,10 +8,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 import fog_gym
-from fog_gym.fog import (
-    alpha_from_visibility, atmospheric_light, fog_image, fog_lidar, lidar_crossover_range, parse_fog,
-    ray_length_factor, soft_response_table,
-)  # fmt: skip
+from fog_gym.fog import alpha_from_visibility, atmospheric_light, fog_image, fog_lidar, lidar_crossover_range, parse_fog, ray_length_factor, soft_response_table  # fmt: skip
 
 CROSSOVER = {"light": 91.3, "moderate": 62.5, "dense": 35.6}
 

@@ -6,8 +6,8 @@ import numpy as np
 
 import fog_gym
 from fog_gym.fog import fog_images, fog_lidar, parse_fog
-from fog_gym.fog_models import MODELS, FogContext, Hahner, Koschmieder, model_for, register_model
-from fog_gym.points import pack_points, unpack_points
+from fog_gym.fog.models import MODELS, FogContext, Hahner, Koschmieder, model_for, register_model
+from fog_gym.dataset.packing import pack_points, unpack_points
 from fog_gym.wrappers import FogWrapper
 
 LEVELS = [parse_fog("light"), parse_fog("dense")]

@@ -7,10 +7,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-import fog_gym
-from fog_gym.config import FogDriveConfig, HazardConfig
-from fog_gym.rl import HAZARD_BEV_AHEAD
-from fog_gym.world import TrafficWorld
+from fog_gym.envs.config import FogDriveConfig
+from fog_gym.world.hazards import HazardConfig
+from fog_gym.envs.presets import HAZARD_BEV_AHEAD
+from fog_gym.world.traffic_world import TrafficWorld
 from tests.helpers import load_module
 
 HW = {"lanes_count": 3, "vehicles_count": 10}

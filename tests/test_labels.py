@@ -5,10 +5,10 @@ import numpy as np
 import pytest
 
 from fog_gym import geometry as g
-from fog_gym.config import RigConfig
-from fog_gym.labels import CameraView, LabelConfig, annotate, boxes_2d, boxes_3d
-from fog_gym.lidar import sensor_to_world
-from fog_gym.scenery import Props
+from fog_gym.sensors.rig import RigConfig
+from fog_gym.labels.boxes import CameraView, LabelConfig, annotate, boxes_2d, boxes_3d
+from fog_gym.geometry import sensor_to_world
+from fog_gym.world.scenery import Props
 from fog_gym.sensors import CameraRig, PointSensors
 
 from .test_render import make_scene

@@ -1,26 +1,21 @@
-"""LiDAR, semantic LiDAR and radar on hand-built scenes with known answers (fog_gym.lidar, fog_gym.render.raycast)."""
+"""LiDAR, semantic LiDAR and radar on hand-built scenes with known answers (fog_gym.sensors.lidar, fog_gym.sensors.raycast)."""
 
 import math
 
 import numpy as np
 
-from fog_gym.primitives import Primitives
+from fog_gym.world.primitives import Primitives
 import pytest
 
-from fog_gym.config import Pose
+from fog_gym.geometry import Pose
 from fog_gym.geometry import transform_points, yaw_transform
-from fog_gym.lidar import (
-    LidarConfig,
-    RadarConfig,
-    lidar_directions,
-    sensor_to_world,
-    simulate_lidar,
-    simulate_radar,
-    simulate_semantic_lidar,
-)
-from fog_gym.render.raycast import GROUND, MISS, cast_rays
-from fog_gym.scenery import SURFACE_TAGS, SurfaceMap
-from fog_gym.world import VehicleState
+from fog_gym.sensors.lidar import LidarConfig, lidar_directions, simulate_lidar
+from fog_gym.sensors.radar import RadarConfig, simulate_radar
+from fog_gym.geometry import sensor_to_world
+from fog_gym.sensors.semantic_lidar import simulate_semantic_lidar
+from fog_gym.sensors.raycast import GROUND, MISS, cast_rays
+from fog_gym.world.scenery import SURFACE_TAGS, SurfaceMap
+from fog_gym.world.traffic_world import VehicleState
 
 ROAD = SurfaceMap(np.ones((400, 400), np.uint8), (-200.0, -200.0), 1.0)
 NO_DROP = dict(dropoff_general_rate=0.0, dropoff_zero_intensity=0.0)

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 import fog_gym
-from fog_gym.minari import collect
+from fog_gym.rl.minari import collect
 from tests.helpers import load_module
 
 minari = pytest.importorskip("minari")  # the minari extra is part of the dev extra: never skipped in CI

@@ -12,10 +12,10 @@ from hypothesis import strategies as st
 from fog_gym.fog import add_glow, glow_sigma_px, night_airlight
 from fog_gym.render import lights as L
 from fog_gym.render.raster import render
-from fog_gym.scene import headlights
-from fog_gym.scenery import (
-    POLE_TAG, SIDEWALK_WIDTH, STYLES, LaneGeometry, Props, build_surface, lamp_heads, lit_edge_length, place_props,
-)  # fmt: skip
+from fog_gym.render.lights import headlights
+from fog_gym.render.surface import albedo_lut, ground_lut, tiled_surface
+from tests.render.reference_night import shade_night
+from fog_gym.world.scenery import POLE_TAG, SIDEWALK_WIDTH, STYLES, LaneGeometry, Props, build_surface, lamp_heads, lit_edge_length, place_props  # fmt: skip
 from tests.test_render import front_rig, make_scene
 
 UP = np.array([0.0, 0.0, 1.0])
@@ -96,7 +96,7 @@ def test_every_style_hangs_lamps_8_to_10_m_high_and_25_to_40_m_apart_as_real_roa
 
 
 def test_a_style_refuses_a_pole_of_no_height():
-    from fog_gym.scenery import SceneryStyle
+    from fog_gym.world.scenery import SceneryStyle
 
     with pytest.raises(ValueError, match="pole_height"):
         SceneryStyle(pole_height=0.0)
@@ -162,7 +162,7 @@ def test_day_render_does_not_depend_on_the_lighting_pass():
     K = rig.intrinsics["CAM_FRONT"]
     ks = np.array([[K[0, 0], K[1, 1], K[0, 2], K[1, 2]]])
     light = scene.lighting
-    args = (T[:, :3, :3], T[:, :3, 3], ks, 160, 120, rig.far, prims, scene.static.tiled, light.surface_lut(),
+    args = (T[:, :3, :3], T[:, :3, 3], ks, 160, 120, rig.far, prims, tiled_surface(scene.static), ground_lut(light),
             np.array([10, 1, 2, 24], np.uint8), light.sky_horizon, light.sky_zenith, light.sun_dir, light.ambient,
             light.sun_intensity)  # fmt: skip
     plain, with_ids = render(*args), render(*args, face_ids=True)
@@ -176,7 +176,7 @@ def test_day_render_does_not_depend_on_the_lighting_pass():
 
 
 def test_same_seed_same_night_image_and_geometry_unchanged_by_lights():
-    from fog_gym.env import FogDriveEnv
+    from fog_gym.envs.fogdrive import FogDriveEnv
 
     def run(tod):
         env = FogDriveEnv(town="highway", time_of_day=tod, resolution=(96, 72), cameras=["CAM_FRONT"], labels=None)
@@ -208,7 +208,7 @@ def test_ground_light_map_matches_the_point_evaluation():
 
 def test_shade_night_names_missing_buffers():
     with pytest.raises(ValueError, match="face_ids=True"):
-        L.shade_night(np.eye(3)[None], np.zeros((1, 3)), np.ones((1, 4)), 100.0,
+        shade_night(np.eye(3)[None], np.zeros((1, 3)), np.ones((1, 4)), 100.0,
                       {"rgb": np.zeros((1, 2, 2, 3), np.uint8), "depth": np.zeros((1, 2, 2), np.float32)}, {},
                       L.street_lamp_lights(np.zeros((0, 3))), (L.GroundLightMap.empty(),) * 2, np.zeros((0, 3)))
 
@@ -240,7 +240,7 @@ def test_glow_grows_in_width_and_strength_with_alpha():
 
 
 def test_fog_wrapper_at_night_keeps_koschmieder_and_adds_glow():
-    from fog_gym.env import FogDriveEnv
+    from fog_gym.envs.fogdrive import FogDriveEnv
     from wrappers.fog import FogWrapper
 
     base = FogDriveEnv(town="highway", time_of_day="night", resolution=(96, 72), cameras=["CAM_FRONT"], labels=None)
@@ -268,7 +268,7 @@ def _night_call(width, height):
     K = rig.intrinsics["CAM_FRONT"]
     ks = np.array([[K[0, 0], K[1, 1], K[0, 2], K[1, 2]]])
     light = scene.lighting
-    common = (T[:, :3, :3], T[:, :3, 3], ks, width, height, rig.far, prims, scene.static.tiled, light.albedo_lut(),
+    common = (T[:, :3, :3], T[:, :3, 3], ks, width, height, rig.far, prims, tiled_surface(scene.static), albedo_lut(),
               np.array([10, 1, 2, 24], np.uint8), light.sky_horizon, light.sky_zenith)  # fmt: skip
     return common, lights, ground, heads, T, ks, rig, prims
 
@@ -278,7 +278,7 @@ def test_fused_night_render_matches_the_two_pass_reference():
     common, lights, ground, heads, T, ks, rig, prims = _night_call(160, 120)
     fused, gains = L.render_night(*common, lights, ground, heads)
     ref = render(*common, np.array([0.0, 0, -1]), 1.0, 0.0, face_ids=True)
-    L.shade_night(T[:, :3, :3], T[:, :3, 3], ks, rig.far, ref, prims, lights, ground, heads, gains=gains)
+    shade_night(T[:, :3, :3], T[:, :3, 3], ks, rig.far, ref, prims, lights, ground, heads, gains=gains)
     for k in ("depth", "sem", "inst"):
         assert np.array_equal(fused[k], ref[k])
     diff = np.abs(fused["rgb"].astype(int) - ref["rgb"].astype(int)).max(axis=-1)

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from fog_gym.primitives import LAYOUT, Primitives
+from fog_gym.world.primitives import LAYOUT, Primitives
 
 
 def _boxes(n: int, seed: int = 0) -> Primitives:

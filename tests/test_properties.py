@@ -14,8 +14,8 @@ from hypothesis.extra.numpy import arrays
 from fog_gym import geometry
 from fog_gym.cli import _resolution, build_parser
 from fog_gym.fog import alpha_from_visibility, fog_image, fog_lidar, parse_fog
-from fog_gym.labels import boxes_2d
-from fog_gym.points import COLUMNS, pack_points, unpack_points
+from fog_gym.labels.boxes import boxes_2d
+from fog_gym.dataset.packing import COLUMNS, pack_points, unpack_points
 
 FAST = settings(max_examples=60, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 visibilities = st.floats(min_value=1e-3, max_value=1e7, allow_nan=False, allow_infinity=False)
@@ -81,7 +81,7 @@ boxes = st.tuples(
 @FAST
 @given(st.lists(boxes, min_size=0, max_size=8), st.sampled_from(["CAM_FRONT", "CAM_LEFT", "CAM_BACK"]))
 def test_box_projection_never_leaves_the_image_or_makes_nan(box_list, camera):
-    from fog_gym.config import RigConfig
+    from fog_gym.sensors.rig import RigConfig
 
     cam = {c.name: c for c in RigConfig.fogdrive(resolution=(64, 48)).cameras}[camera]
     arr = np.array(box_list, np.float64).reshape(-1, 7)

@@ -4,11 +4,14 @@ import numpy as np
 import pytest
 
 from fog_gym import geometry as g
-from fog_gym.config import CameraConfig, Pose, RigConfig
-from fog_gym.scene import Lighting, Scene, StaticWorld, vehicle_primitives
-from fog_gym.scenery import Props, SurfaceMap
+from fog_gym.sensors.camera import CameraConfig
+from fog_gym.geometry import Pose
+from fog_gym.sensors.rig import RigConfig
+from fog_gym.world.scene import Lighting, Scene, StaticWorld, vehicle_primitives
+from fog_gym.world.scenery import Props, SurfaceMap
+from fog_gym.render.surface import ground_lut, tiled_surface
 from fog_gym.sensors import CameraRig
-from fog_gym.world import VehicleState
+from fog_gym.world.traffic_world import VehicleState
 
 W, H = 320, 240
 
@@ -44,7 +47,7 @@ def render_boxes(rig, scene, prims):
     K = rig.intrinsics["CAM_FRONT"]
     light = scene.lighting
     return render(M[None, :3, :3], M[None, :3, 3], np.array([[K[0, 0], K[1, 1], K[0, 2], K[1, 2]]]), W, H, 1000.0,
-                  prims, scene.static.tiled, light.surface_lut(), np.array([10, 1, 2, 24], np.uint8),
+                  prims, tiled_surface(scene.static), ground_lut(light), np.array([10, 1, 2, 24], np.uint8),
                   light.sky_horizon, light.sky_zenith, light.sun_dir, light.ambient, light.sun_intensity)  # fmt: skip
 
 

@@ -5,8 +5,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-import fog_gym
-from fog_gym.curriculum import MixedSampler, StepSchedule
+from fog_gym.fog.schedules import MixedSampler, StepSchedule
 from tests.helpers import load_module
 
 
@@ -35,7 +34,7 @@ def test_sb3_check_env_and_short_ppo_run(tmp_path):
     from stable_baselines3.common.env_checker import check_env
     from stable_baselines3.common.vec_env import SubprocVecEnv
 
-    from fog_gym.rl import curriculum_callback
+    from fog_gym.rl.sb3 import curriculum_callback
 
     check_env(gym.make("FogDriveRL-v0"))
     check_env(gym.make("FogDriveRLHazard-v0", fog="dense"))
@@ -107,8 +106,8 @@ def test_vec_curriculum_applies_each_level_from_the_very_next_episode_in_subproc
     pytest.importorskip("stable_baselines3")
     from stable_baselines3.common.vec_env import SubprocVecEnv
 
-    from fog_gym.curriculum import StepSchedule
-    from fog_gym.sb3 import VecFogCurriculum
+    from fog_gym.fog.schedules import StepSchedule
+    from fog_gym.rl.sb3 import VecFogCurriculum
 
     schedule = StepSchedule(episodes_per_level=1)  # episode k of the run gets level k: clear, 160, 100, 50, 50, …
     venv = VecFogCurriculum(SubprocVecEnv([_short_rl_env(0), _short_rl_env(1)]), schedule)

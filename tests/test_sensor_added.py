@@ -10,14 +10,15 @@ import numpy as np
 import pytest
 
 import fog_gym
-from fog_gym.config import CameraConfig, RigConfig
+from fog_gym.sensors.camera import CameraConfig
+from fog_gym.sensors.rig import RigConfig
 from fog_gym.dataset import FogDrive
 from fog_gym.dataset.decode import load_channel
 from fog_gym.dataset.torch import load_sample
 from fog_gym.dataset.layout import FOGDRIVE_CHANNELS, LAYOUT_FILE
 from fog_gym.dataset.validate import validate
-from fog_gym.lidar import RadarConfig
-from fog_gym.pose import Pose
+from fog_gym.sensors.radar import RadarConfig
+from fog_gym.geometry import Pose
 from fog_gym.sensors import REGISTRY, RadarSensor, register, rig_layout
 from fog_gym.wrappers import FogWrapper, RecordFogDrive
 

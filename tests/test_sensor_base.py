@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import pytest
 
-from fog_gym.config import RigConfig
+from fog_gym.sensors.rig import RigConfig
 from fog_gym.dataset.layout import FOGDRIVE_CHANNELS, ChannelSpec, check_layout
-from fog_gym.lidar import LidarConfig, RadarConfig
+from fog_gym.sensors.lidar import LidarConfig
+from fog_gym.sensors.radar import RadarConfig
 from fog_gym.sensors import (CameraSensor, LidarSensor, RadarSensor, SemanticLidarSensor, Sensor, register, rig_layout,
                              rig_sensors)  # fmt: skip
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 import fog_gym
-from fog_gym.config import RigConfig
+from fog_gym.sensors.rig import RigConfig
 from fog_gym.dataset.layout import FOG_LEVELS, FOGDRIVE_CHANNELS
 from fog_gym.sensors import CameraSensor
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import fog_gym
 from fog_gym.dataset.layout import FOGDRIVE_CHANNELS
-from fog_gym.lidar import RadarConfig
+from fog_gym.sensors.radar import RadarConfig
 from fog_gym.sensors import RadarSensor, sensor_class
 
 

@@ -6,7 +6,7 @@ import numpy as np
 
 import fog_gym
 from fog_gym.dataset.layout import FOGDRIVE_CHANNELS
-from fog_gym.lidar import LidarConfig
+from fog_gym.sensors.lidar import LidarConfig
 from fog_gym.sensors import SemanticLidarSensor
 
 

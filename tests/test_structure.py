@@ -15,9 +15,10 @@ ROOT = Path(__file__).resolve().parents[1]
 #: The dataset format layer: reads and writes the FogDrive layout, knows nothing of how the data was made.
 FORMAT_LAYER = ("fog_gym.dataset",)
 #: Pure physics and geometry: numpy in, numpy out.
-PURE = ("fog_gym._numba", "fog_gym.pose", "fog_gym.primitives", "fog_gym.geometry", "fog_gym.fog", "fog_gym.polygon", "fog_gym.encoding", "fog_gym.seeds")
+PURE = ("fog_gym._numba", "fog_gym.checks", "fog_gym.geometry", "fog_gym.world.primitives", "fog_gym.fog.physics",
+        "fog_gym.fog.camera", "fog_gym.fog.lidar", "fog_gym.fog.schedules", "fog_gym.encoding", "fog_gym.seeds")  # fmt: skip
 #: What builds or runs an environment (the format layer and the pure modules may import none of it).
-ENVIRONMENT = ("fog_gym.env", "fog_gym.world", "fog_gym.traffic", "fog_gym.wrappers", "fog_gym.make", "fog_gym.rl",
+ENVIRONMENT = ("fog_gym.envs", "fog_gym.world.traffic_world", "fog_gym.world.traffic", "fog_gym.wrappers", "fog_gym.rl",
                "fog_gym.generate")  # fmt: skip
 
 
@@ -122,7 +123,7 @@ def test_the_cycle_finder_finds_a_known_cycle_and_nothing_in_a_chain():
 
 
 def test_the_graph_sees_lazy_imports_and_the_wrappers_folder(graph):
-    assert "fog_gym.wrappers.fog" in graph["fog_gym.make"]  # imported inside make_fogdrive
+    assert "fog_gym.wrappers.fog" in graph["fog_gym.envs.presets"]  # imported inside make_fogdrive
     assert "fog_gym.wrappers.record" in graph and "fog_gym.dataset.writer" in graph["fog_gym.wrappers.record"]
 
 
@@ -148,7 +149,7 @@ def test_pure_physics_and_geometry_import_only_pure_modules(graph):
 
 
 def test_env_and_wrappers_do_not_import_each_other(graph):
-    env_to_wrappers = [d for d in graph["fog_gym.env"] if _under(d, ("fog_gym.wrappers",))]
+    env_to_wrappers = [d for d in graph["fog_gym.envs.fogdrive"] if _under(d, ("fog_gym.wrappers",))]
     wrappers_to_env = [(m, d) for m, deps in graph.items() if _under(m, ("fog_gym.wrappers",))
-                       for d in deps if d in ("fog_gym.env", "fog_gym.make", "fog_gym.rl")]  # fmt: skip
+                       for d in deps if d in ("fog_gym.envs.fogdrive", "fog_gym.envs.presets", "fog_gym.envs.presets")]  # fmt: skip
     assert env_to_wrappers == [] and wrappers_to_env == []

@@ -1,4 +1,4 @@
-"""fog_gym.traffic.vehicles restates highway-env's per-vehicle hot paths bit for bit."""
+"""fog_gym.world.traffic.vehicles restates highway-env's per-vehicle hot paths bit for bit."""
 
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ import highway_env  # noqa: F401  (registers the envs)
 import numpy as np
 import pytest
 
-from fog_gym.traffic import accelerate
-from fog_gym.traffic.vehicles import RoadFast, act_eligible, step_kind
+from fog_gym.world.traffic import accelerate
+from fog_gym.world.traffic.vehicles import RoadFast, act_eligible, step_kind
 
 
 def _road(env_id: str, seed: int = 0):
@@ -89,7 +89,7 @@ def test_vehicles_with_their_own_methods_keep_them():
 
 @pytest.mark.parametrize("env_id", ["highway-v0", "roundabout-v0", "merge-v0"])
 def test_batched_idm_controls_equal_the_scalar_restatement_of_idm_act(env_id):
-    from fog_gym.traffic.core import lane_cache
+    from fog_gym.world.traffic.core import lane_cache
 
     env = accelerate(gym.make(env_id))
     env.reset(seed=2)
@@ -119,7 +119,7 @@ def test_batched_idm_controls_equal_the_scalar_restatement_of_idm_act(env_id):
 def test_pairs_found_clearly_apart_have_no_collision_in_highway_env():
     from highway_env.vehicle.kinematics import Vehicle
 
-    from fog_gym.traffic.core import clearly_apart
+    from fog_gym.world.traffic.core import clearly_apart
 
     rng = np.random.default_rng(9)
     vehicles = []

@@ -11,7 +11,7 @@ from hypothesis import strategies as st
 from fog_gym import geometry
 from fog_gym.dataset import FogDrive
 from fog_gym.generate import generate, plan_scenes
-from fog_gym.viewer import box_params, fog_channels, radar_to_xyz, read_rrd, view_dataset, view_live
+from fog_gym.viz.viewer import box_params, fog_channels, radar_to_xyz, read_rrd, view_dataset, view_live
 
 pytest.importorskip("rerun")  # the viz extra is part of the dev extra: never skipped in CI
 from rerun.chunk import RrdReader  # noqa: E402

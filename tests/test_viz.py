@@ -6,8 +6,9 @@ import sys
 
 import numpy as np
 
-from fog_gym.scenery import MARKING
-from fog_gym.viz import _BEV_COLORS, birds_eye_view, exposure_preview
+from fog_gym.world.scenery import MARKING
+from fog_gym.render.birds_eye import _BEV_COLORS, birds_eye_view
+from fog_gym.viz.draw import exposure_preview
 
 
 def test_bev_shows_every_marking_a_fine_scan_crosses(small_env):
@@ -41,7 +42,7 @@ def test_exposure_preview_brightens_dark_images_and_leaves_bright_ones():
 
 
 def test_cold_kernel_cache_prints_one_notice(tmp_path):
-    code = ("import fog_gym._kernels as k; assert k.cold_kernels(); k.announce_compilation(); "
+    code = ("import fog_gym._numba as k; assert k.cold_kernels(); k.announce_compilation(); "
             "k.announce_compilation()")  # fmt: skip
     out = subprocess.run([sys.executable, "-c", code], env={**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)},
                          capture_output=True, text=True)  # fmt: skip

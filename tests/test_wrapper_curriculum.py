@@ -6,7 +6,7 @@ import gymnasium as gym
 import numpy as np
 import pytest
 
-from fog_gym.curriculum import ContinuousSchedule, StepSchedule, SuccessSchedule
+from fog_gym.fog.schedules import ContinuousSchedule, StepSchedule, SuccessSchedule
 from fog_gym.wrappers import FogCurriculum
 
 

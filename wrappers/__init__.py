@@ -19,11 +19,12 @@ _LAZY = {
     "FogCurriculum": "curriculum",
     "FogWrapper": "fog",
     "parse_fog_levels": "fog",
-    "LidarBEV": "observation",
-    "ResizeCameras": "observation",
-    "SelectKeys": "observation",
-    "StackFrames": "observation",
+    "LidarBEV": "lidar_bev",
+    "ResizeCameras": "resize_cameras",
+    "SelectKeys": "select_keys",
+    "StackFrames": "stack_frames",
     "RecordFogDrive": "record",
+    "VectorFogCurriculum": "vector_curriculum",
 }
 
 __all__ = sorted(_LAZY)

@@ -10,7 +10,7 @@ import gymnasium as gym
 import numpy as np
 
 from fog_gym.fog import FogLevel, atmospheric_light, night_airlight, parse_fog
-from fog_gym.fog_models import FogContext, model_for
+from fog_gym.fog.models import FogContext, model_for
 from fog_gym.seeds import stream
 
 FogSpec = str | float | int | FogLevel
@@ -34,7 +34,7 @@ def parse_fog_levels(fog: FogSpec | Sequence[FogSpec]) -> tuple[tuple[FogLevel, 
 class FogWrapper(gym.Wrapper):
     """Fog on camera RGB (Koschmieder) and LiDAR (Hahner et al.) at any visibility; ground truth untouched.
 
-    The fogged channels follow the rig: every sensor whose kind has a fog model (:mod:`fog_gym.fog_models`) —
+    The fogged channels follow the rig: every sensor whose kind has a fog model (:mod:`fog_gym.fog.models`) —
     every camera, added ones included, and every LiDAR.
 
     * **In place** (``fog`` a single level: "clear", "light" 160 m, "moderate" 100 m, "dense" 50 m, or metres):
@@ -80,7 +80,7 @@ class FogWrapper(gym.Wrapper):
         self._last: dict | None = None
         self.cameras = list(base.camera_names)
         # the fogged channels and their models, from the rig in rig order: each sensor's first channel (a camera's
-        # RGB, a LiDAR's points) gets the model of its kind (fog_gym.fog_models); kinds without one stay clean
+        # RGB, a LiDAR's points) gets the model of its kind (fog_gym.fog.models); kinds without one stay clean
         self.models = {}
         for sensor in base.sensors:
             model = model_for(sensor.kind)
@@ -101,6 +101,17 @@ class FogWrapper(gym.Wrapper):
     def fog(self) -> FogLevel | tuple[FogLevel, ...]:
         """The level in force (in place) or the levels (paired)."""
         return self.levels if self.paired else self.levels[0]
+
+    @property
+    def next_fog(self) -> FogLevel | None:
+        """The level :meth:`set_fog` asked for the next ``reset`` (None: keep the current one). Assigning a level
+        (or None for no change) is ``set_fog``; vector envs reach it per sub-env with ``set_attr("next_fog", [...])``."""
+        return self._pending
+
+    @next_fog.setter
+    def next_fog(self, fog: FogSpec | None) -> None:
+        if fog is not None:
+            self.set_fog(fog)
 
     def set_fog(self, fog: FogSpec) -> None:
         """Change the level from the next ``reset`` on (in-place mode). Reachable via ``env_method``."""
@@ -140,7 +151,7 @@ class FogWrapper(gym.Wrapper):
         base = self.env.unwrapped
         if frame is None or self.paired or self.levels[0].is_clear or self._last is None or base.scene is None:
             return frame
-        from fog_gym.viz import birds_eye_view, composite
+        from fog_gym.render.birds_eye import birds_eye_view, composite
 
         cam = "CAM_FRONT" if "CAM_FRONT" in self._last else (self.cameras[0] if self.cameras else None)
         return composite(None if cam is None else self._last[cam], birds_eye_view(base.scene))
@@ -168,7 +179,7 @@ class FogWrapper(gym.Wrapper):
         out: dict[str, dict[str, np.ndarray]] = {lv.name: {} for lv in levels}
         context = FogContext(base.intrinsics, self.airlight, self._rngs,
                              base.scene is not None and base.scene.lighting.night, self.lidar_noise)  # fmt: skip
-        for channel, model in self.models.items():  # the model of each sensor kind (fog_gym.fog_models)
+        for channel, model in self.models.items():  # the model of each sensor kind (fog_gym.fog.models)
             for name, fogged in model.apply(obs, channel, levels, context).items():
                 out[name][channel] = fogged
         return out

@@ -14,7 +14,10 @@ import hashlib
 import re
 from typing import NamedTuple
 
-from fog_gym.camera_config import CAMERA_NAMES as CAMERAS  # the FogDrive cameras, one definition (Table 2)
+#: FogDrive camera channel names (Table 3), in the order the rig lists them: the one definition.
+CAMERA_NAMES: tuple[str, ...] = ("CAM_FRONT", "CAM_BACK", "CAM_LEFT", "CAM_RIGHT")
+CAMERAS = CAMERA_NAMES
+
 FOG_LEVELS = ("LIGHT", "MODERATE", "DENSE")
 DATA_ROOT = "data_root"
 SPLITS = ("train", "val", "test")

@@ -5,7 +5,8 @@ visibility), the channel set and the fog-gym version. ``generate --resume`` refu
 (a resumed run must not mix resolutions or scene plans), and ``validate`` checks the files against it.
 
 Example:
-    >>> m = make_manifest(scenes=2, resolution=(64, 48), seconds=1.0, seed=0, towns=("highway",))
+    >>> m = make_manifest(scenes=2, resolution=(64, 48), seconds=1.0, seed=0, towns=("highway",),
+    ...                   fog_levels={"light": 160.0, "moderate": 100.0, "dense": 50.0})
     >>> differences(m, {**m, "resolution": [32, 24]})
     ['resolution: [64, 48] in the dataset, [32, 24] now']
 """
@@ -13,7 +14,7 @@ Example:
 from __future__ import annotations
 
 import json
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -27,10 +28,14 @@ SETTINGS = ("scenes", "resolution", "seconds", "seed", "towns", "fog_levels", "c
 
 
 def make_manifest(scenes: int, resolution: Sequence[int], seconds: float, seed: int, towns: Sequence[str],
-                  channels: Sequence[str] | None = None) -> dict[str, Any]:  # fmt: skip
-    """The manifest of a generation run (JSON-ready)."""
+                  fog_levels: Mapping[str, float], channels: Sequence[str] | None = None) -> dict[str, Any]:  # fmt: skip
+    """The manifest of a generation run (JSON-ready); ``fog_levels`` maps each FogDrive level name (light,
+    moderate, dense) to the visibility [m] the run fogs it with."""
     from fog_gym._version import __version__
-    from fog_gym.fog import FOG_PRESETS
+
+    missing = [lv.lower() for lv in FOG_LEVELS if lv.lower() not in fog_levels]
+    if missing:
+        raise ValueError(f"fog_levels must give a visibility for every FogDrive level, missing {missing}")
 
     return {
         "format": FORMAT,
@@ -40,7 +45,7 @@ def make_manifest(scenes: int, resolution: Sequence[int], seconds: float, seed: 
         "seconds": float(seconds),
         "seed": int(seed),
         "towns": list(towns),
-        "fog_levels": {lv.lower(): float(FOG_PRESETS[lv.lower()]) for lv in FOG_LEVELS},
+        "fog_levels": {lv.lower(): float(fog_levels[lv.lower()]) for lv in FOG_LEVELS},
         "channels": list(channels if channels is not None else FOGDRIVE_CHANNELS),
     }
 

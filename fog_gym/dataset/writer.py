@@ -138,7 +138,7 @@ class SceneWriter:
     def encode_jobs(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> dict[str, Callable[[], bytes]]:
         """One zero-argument encoder per channel of the writer, in write order (``BBOX_3D`` last); each returns
         the file's bytes."""
-        from fog_gym.points import unpack_points
+        from fog_gym.dataset.packing import unpack_points
 
         def png(key: str, convert: Callable[[np.ndarray], np.ndarray] | None = None) -> Callable[[], bytes]:
             return lambda: encode_png(obs[key] if convert is None else convert(obs[key]))

@@ -36,7 +36,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from fog_gym.polygon import polygon_area
+from fog_gym.geometry import polygon_area
 
 ATE_CAP_M = 2.0
 ASE_CAP = 1.0

@@ -3,8 +3,7 @@
 Pure functions over numpy arrays; nothing here imports the environment. :func:`render_night` draws a night
 frame in one raster pass that lights, exposes and encodes each pixel as it is drawn (the surface map and face
 colours hold albedo; the ground's irradiance comes from light maps, the faces' from small irradiance grids
-over each lit box face); :func:`shade_night` is the two-pass reference that lights an albedo render
-(``face_ids=True``) afterwards. Depth, semantics and instance ids are never touched.
+over each lit box face); the per-pixel kernels live in :mod:`fog_gym.render.shading`. Depth, semantics and instance ids are never touched.
 
 Light model (all in linear "albedo × irradiance" units, in which the day renderer's sun gives ≈ 0.45–1.05):
 
@@ -48,8 +47,9 @@ import numpy as np
 from numba import njit, prange
 
 import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
-from fog_gym.primitives import Primitives
-from fog_gym.render import raster
+from fog_gym.world.primitives import Primitives
+from fog_gym.world.scene import lamp_heights
+from fog_gym.render.shading import FACE_AXES, KNEE, face_irradiance, ground_irradiance, tone, tone_curve
 
 LAMP, HEADLIGHT = 0, 1
 #: Street lamp: luminous intensity in albedo·m² units, radius of influence [m], colour (warm white LED).
@@ -70,8 +70,6 @@ LOG_MIN, LOG_MAX, N_BINS = -12.0, 4.0, 128
 LOW_PERCENT, HIGH_PERCENT = 0.5, 0.98
 KEY = 0.18
 GAIN_MIN, GAIN_MAX = 1.0, 16.0
-#: Highlight shoulder of the encoding: linear up to ``KNEE``, then ``KNEE + (1 − KNEE)(1 − e^{−(x − KNEE)/(1 − KNEE)})``.
-KNEE = 0.6
 TILE = 32
 MAX_LIGHTS = 4096
 
@@ -123,6 +121,12 @@ def headlight_lights(centers: np.ndarray, sizes: np.ndarray, yaws: np.ndarray, l
     pos = centers + fwd * (sizes[:, :1] / 2 + 0.3)
     pos[:, 2] = lamp_z
     return _lights(pos, fwd, BEAM_COLOR, BEAM_INTENSITY, BEAM_RADIUS, HEADLIGHT, lamp_z)
+
+
+def headlights(state: Any) -> Lights:
+    """Low beams of every vehicle of a :class:`~fog_gym.world.traffic_world.VehicleState` (the ego included) at its
+    lamp height, pointing along its heading."""
+    return headlight_lights(state.centers, state.sizes, state.yaws, lamp_heights(state))
 
 
 def concat_lights(*groups: Lights) -> Lights:
@@ -252,7 +256,7 @@ def _prim_lights(centers, halves, lpos, lrad, max_per):
     return idx, cnt
 
 
-_FACE_AXES = raster.FACE_AXES
+_FACE_AXES = FACE_AXES
 _FACE_SIGN = np.array([1.0, -1.0, 1.0, -1.0, 1.0, -1.0])
 
 
@@ -358,22 +362,22 @@ def _shade_pass(
                     wx = R[0, 0] * xc + R[1, 0] * yc + R[2, 0] * zc
                     wy = R[0, 1] * xc + R[1, 1] * yc + R[2, 1] * zc
                     if f < 0:  # ground: light maps (window near the ego, bilinear, with the beams; lamps beyond it)
-                        e0, e1, e2 = raster._ground_irradiance(wx, wy, ambient, wmap, w_ox, w_oy, w_inv, smap, s_ox,
+                        e0, e1, e2 = ground_irradiance(wx, wy, ambient, wmap, w_ox, w_oy, w_inv, smap, s_ox,
                                                                s_oy, s_inv)
                     else:  # a face: bilinear in its irradiance grid
                         e0, e1, e2 = ambient, ambient, ambient
                         p = face_prim[c, f]
                         fs = face_side[c, f]
                         wz = R[0, 2] * xc + R[1, 2] * yc + R[2, 2] * zc
-                        f0, f1, f2 = raster.face_irradiance(p, fs, wx, wy, wz, centers, halves, yaws, g_off, g_dims, g_data)
+                        f0, f1, f2 = face_irradiance(p, fs, wx, wy, wz, centers, halves, yaws, g_off, g_dims, g_data)
                         e0 += f0
                         e1 += f1
                         e2 += f2
                     l0, l1, l2 = a0 * e0, a1 * e1, a2 * e2
             if encode:
-                rgb[c, i, j, 0] = np.uint8(_tone(l0 * g, knee) * 255.0 + 0.5)
-                rgb[c, i, j, 1] = np.uint8(_tone(l1 * g, knee) * 255.0 + 0.5)
-                rgb[c, i, j, 2] = np.uint8(_tone(l2 * g, knee) * 255.0 + 0.5)
+                rgb[c, i, j, 0] = np.uint8(tone_curve(l0 * g, knee) * 255.0 + 0.5)
+                rgb[c, i, j, 1] = np.uint8(tone_curve(l1 * g, knee) * 255.0 + 0.5)
+                rgb[c, i, j, 2] = np.uint8(tone_curve(l2 * g, knee) * 255.0 + 0.5)
             else:
                 y = 0.2126 * l0 + 0.7152 * l1 + 0.0722 * l2
                 b = 0
@@ -452,23 +456,6 @@ def gains_from_histograms(hist: np.ndarray) -> np.ndarray:
     return gains
 
 
-@njit(cache=True, inline="always")
-def _tone(x, knee):
-    if x <= knee:
-        return x
-    return knee + (1.0 - knee) * (1.0 - math.exp(-(x - knee) / (1.0 - knee)))
-
-
-def tone(x: np.ndarray | float) -> np.ndarray:
-    """The encoding's tone curve on exposed radiance (identity below :data:`KNEE`, a smooth shoulder to 1 above).
-
-    >>> tone(np.array([0.3, 0.6, 1.0, 100.0])).round(3).tolist()
-    [0.3, 0.6, 0.853, 1.0]
-    """
-    x = np.asarray(x, np.float64)
-    return np.where(x <= KNEE, x, KNEE + (1 - KNEE) * (1 - np.exp(-(np.maximum(x, KNEE) - KNEE) / (1 - KNEE))))
-
-
 class GroundLightMap(NamedTuple):
     """Ground irradiance (rows, cols, 3) float32 on a grid: cell (0, 0)'s corner at ``origin``, ``resolution`` m."""
 
@@ -523,59 +510,6 @@ FACE_CELL, FACE_MAX_CELLS = 1.0, 8
 MAX_PRIM_LIGHTS = 16
 #: The exposure histogram samples every ``EXPOSURE_STEP``-th pixel in each direction.
 EXPOSURE_STEP = 4
-
-
-def shade_night(
-    cam_rot: np.ndarray, cam_trans: np.ndarray, cam_k: np.ndarray, far: float, buffers: dict[str, np.ndarray],
-    prims: Primitives | Mapping[str, Any], lights: Lights, ground: tuple[GroundLightMap, GroundLightMap], heads: np.ndarray,
-    ambient: float = NIGHT_AMBIENT, gains: np.ndarray | None = None,
-) -> np.ndarray:
-    """Light, expose and encode in place the RGB of an albedo-mode render; returns the exposure gain per camera.
-
-    The reference (two-pass) form of :func:`render_night`; ``gains`` fixes the exposure instead of measuring it.
-
-    ``buffers`` is :func:`fog_gym.render.raster.render`'s output with ``face_ids=True`` (its ``rgb`` holding
-    albedo) for the primitives ``prims``; faces are lit per pixel by ``lights``, the ground by the light maps
-    ``ground`` = (whole-world lamp map, per-frame window with the beams); ``heads`` (N, 3) are lamp heads to draw.
-    The exposure comes from a histogram of every :data:`EXPOSURE_STEP`-th pixel's radiance (each direction).
-    Only ``buffers["rgb"]`` changes.
-    """
-    missing = [k for k in ("rgb", "depth", "face", "face_emissive", "face_prim", "face_side") if k not in buffers]
-    if missing:
-        raise ValueError(f"buffers lack {missing}: pass the output of render(..., face_ids=True)")
-    rgb = buffers["rgb"]
-    n_cam, height = rgb.shape[:2]
-    rot = np.ascontiguousarray(cam_rot, np.float64)
-    trans = np.ascontiguousarray(cam_trans, np.float64)
-    ks = np.ascontiguousarray(cam_k, np.float64)
-    prims = Primitives.coerce(prims)
-    prim_l, prim_n = _prim_lights(prims.centers, prims.halves, lights.pos, lights.radius, MAX_PRIM_LIGHTS)
-    g_off, g_dims, g_data = _face_grids(prims.centers, prims.halves, prims.yaws, prims.emissive, prim_l,
-                                        prim_n, *_light_args(lights), FACE_CELL, FACE_MAX_CELLS)  # fmt: skip
-    smap, wmap = ground
-
-    def run(step, gains, encode, hist):
-        _shade_pass(
-            rot, trans, ks, float(far), rgb, buffers["depth"], buffers["face"], buffers["face_emissive"],
-            buffers["face_prim"], buffers["face_side"], prims.centers, prims.halves,
-            np.ascontiguousarray(np.c_[np.cos(prims.yaws), np.sin(prims.yaws)]), g_off, g_dims, g_data,
-            smap.irradiance, smap.origin[0], smap.origin[1], 1.0 / smap.resolution,
-            wmap.irradiance, wmap.origin[0], wmap.origin[1], 1.0 / wmap.resolution,
-            float(ambient), float(EMISSIVE_GAIN), float(SKY_GAIN), step, gains, float(KNEE), encode, hist,
-            LOG_MIN, LOG_MAX,
-        )  # fmt: skip
-
-    if gains is None:
-        hist = np.zeros((n_cam, (height + EXPOSURE_STEP - 1) // EXPOSURE_STEP, N_BINS), np.int64)
-        run(EXPOSURE_STEP, np.ones(n_cam), False, hist)
-        gains = gains_from_histograms(hist.sum(axis=1))
-    run(1, gains, True, np.zeros((1, 1, 1), np.int64))
-    heads = np.ascontiguousarray(np.reshape(heads, (-1, 3)), np.float64)
-    for c in range(n_cam):
-        color = np.round(tone(LAMP_COLOR * LAMP_HEAD_RADIANCE * gains[c]) * 255).astype(np.uint8)
-        _draw_heads(rot[c : c + 1], trans[c : c + 1], ks[c : c + 1], buffers["depth"][c : c + 1], rgb[c : c + 1],
-                    heads, float(LAMP_HEAD_RADIUS), color)  # fmt: skip
-    return gains
 
 
 #: The exposure of :func:`render_night` is measured on a render this many times smaller in each direction.

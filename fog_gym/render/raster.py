@@ -20,13 +20,16 @@ Pixel ``(i, j)`` is sampled at its centre ``(j + 0.5, i + 0.5)``.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from typing import Any, NamedTuple
+from typing import Any
 
 import numpy as np
 from numba import njit, prange
 
 import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
-from fog_gym.primitives import Primitives
+from fog_gym.render.shading import (FACE_AXES, FACE_STEP, TONE_STEPS, encode_tone, face_sample, fix_irradiance, grid_axis,
+                                    grid_bilinear, light_ground, night_ground_row, night_tone_table, tone_at)  # fmt: skip
+from fog_gym.render.surface import TiledSurface, surface_cell
+from fog_gym.world.primitives import Primitives
 
 # Box faces: corner indices (geometry.BOX_CORNER_SIGNS order) and local outward normals.
 _FACE_CORNERS = np.array(
@@ -210,261 +213,12 @@ def _setup_faces(
 
 
 @njit(cache=True, inline="always")
-def _hash_noise(ix, iy):
-    h = (ix * 73856093) ^ (iy * 19349663)
-    h = (h ^ (h >> 13)) * 1274126177
-    return (h >> 7) & 15
-
-
-@njit(cache=True, inline="always")
-def _surface_cell(fxw, fyw, surface, s_rows, s_cols, tiles_x):
-    """Surface class at surface-grid coordinates (fxw, fyw) (0 off the map) and its colour-table row."""
-    cls = 0
-    gx = 0
-    gy = 0
-    if fxw >= 0.0 and fyw >= 0.0 and fxw < s_cols and fyw < s_rows:
-        gx = int(fxw)
-        gy = int(fyw)
-        cls = surface[(((gy >> 3) * tiles_x + (gx >> 3)) << 6) + ((gy & 7) << 3) + (gx & 7)]
-    return cls, cls * 16 + _hash_noise(gx, gy)
-
-
-@njit(cache=True, inline="always")
 def _ground_pixel(out_rgb, out_sem, c, i, j, fxw, fyw, surface, s_rows, s_cols, tiles_x, surf_lut, surf_tag):
-    cls, k = _surface_cell(fxw, fyw, surface, s_rows, s_cols, tiles_x)
+    cls, k = surface_cell(fxw, fyw, surface, s_rows, s_cols, tiles_x)
     out_rgb[c, i, j, 0] = surf_lut[k, 0]
     out_rgb[c, i, j, 1] = surf_lut[k, 1]
     out_rgb[c, i, j, 2] = surf_lut[k, 2]
     out_sem[c, i, j] = surf_tag[cls]
-
-
-# -- night: lighting fused into the raster (fog_gym.render.lights builds the inputs) --------------------------
-# box face axes: for face f, (normal axis, first in-plane axis, second in-plane axis) in the primitive's frame
-FACE_AXES = np.array([[0, 1, 2], [0, 1, 2], [1, 0, 2], [1, 0, 2], [2, 0, 1], [2, 0, 1]], np.int64)
-
-
-@njit(cache=True, inline="always")
-def _enc(x, knee):
-    """Exposed linear radiance → uint8 through the tone curve (linear to ``knee``, a smooth shoulder above)."""
-    if x > knee:
-        x = knee + (1.0 - knee) * (1.0 - np.exp(-(x - knee) / (1.0 - knee)))
-    return np.uint8(x * 255.0 + 0.5)
-
-
-@njit(cache=True, inline="always")
-def _light_ground(out_rgb, c, i, j, wx, wy, g, knee, ambient, wmap, w_ox, w_oy, w_inv, smap, s_ox, s_oy, s_inv):
-    e0, e1, e2 = _ground_irradiance(wx, wy, ambient, wmap, w_ox, w_oy, w_inv, smap, s_ox, s_oy, s_inv)
-    k = g * (1.0 / 255.0)
-    out_rgb[c, i, j, 0] = _enc(out_rgb[c, i, j, 0] * k * e0, knee)
-    out_rgb[c, i, j, 1] = _enc(out_rgb[c, i, j, 1] * k * e1, knee)
-    out_rgb[c, i, j, 2] = _enc(out_rgb[c, i, j, 2] * k * e2, knee)
-
-
-@njit(cache=True, inline="always")
-def _ground_irradiance(wx, wy, ambient, wmap, w_ox, w_oy, w_inv, smap, s_ox, s_oy, s_inv):
-    """Irradiance (RGB, ambient included) of the ground at world (wx, wy): bilinear in the window map, nearest
-    in the static map beyond it (nearest cell)."""
-    e0 = ambient
-    e1 = ambient
-    e2 = ambient
-    fi = (wy - w_oy) * w_inv - 0.5
-    fj = (wx - w_ox) * w_inv - 0.5
-    if fi >= 0.0 and fj >= 0.0 and fi < wmap.shape[0] - 1 and fj < wmap.shape[1] - 1:
-        mi = int(fi)
-        mj = int(fj)
-        ti = fi - mi
-        tj = fj - mj
-        b00 = (1.0 - ti) * (1.0 - tj)
-        b01 = (1.0 - ti) * tj
-        b10 = ti * (1.0 - tj)
-        b11 = ti * tj
-        e0 += b00 * wmap[mi, mj, 0] + b01 * wmap[mi, mj + 1, 0] + b10 * wmap[mi + 1, mj, 0] + b11 * wmap[mi + 1, mj + 1, 0]
-        e1 += b00 * wmap[mi, mj, 1] + b01 * wmap[mi, mj + 1, 1] + b10 * wmap[mi + 1, mj, 1] + b11 * wmap[mi + 1, mj + 1, 1]
-        e2 += b00 * wmap[mi, mj, 2] + b01 * wmap[mi, mj + 1, 2] + b10 * wmap[mi + 1, mj, 2] + b11 * wmap[mi + 1, mj + 1, 2]
-    else:
-        fi = (wy - s_oy) * s_inv
-        fj = (wx - s_ox) * s_inv
-        if fi >= 0.0 and fj >= 0.0 and fi < smap.shape[0] and fj < smap.shape[1]:
-            mi = int(fi)
-            mj = int(fj)
-            e0 += smap[mi, mj, 0]
-            e1 += smap[mi, mj, 1]
-            e2 += smap[mi, mj, 2]
-    return e0, e1, e2
-
-
-#: Night encoding: albedo (0–255) × exposed irradiance in units of ``255/TONE_STEPS`` (``E·gain·TONE_STEPS/255``,
-#: float32) is the index of the exposed radiance in a tone table of :data:`TONE_STEPS` entries per unit up to
-#: :data:`TONE_MAX` (the tone curve is 255 from ≈ 4 on): one product, one conversion and one lookup per channel,
-#: at most a quarter of an 8-bit level from the exact ``round(tone(x)·255)``.
-TONE_STEPS, TONE_MAX = 1024, 8
-#: A ground row samples its irradiance every ``step`` pixels (linear in between), ``step`` pixels spanning at most
-#: :data:`LIGHT_SPAN` window-map cells and at most :data:`MAX_LIGHT_STEP`; a face span every :data:`FACE_STEP`
-#: pixels where that spans at most one cell of the face's grid (else every pixel).
-MAX_LIGHT_STEP = 16
-LIGHT_SPAN = 0.5
-FACE_STEP = 8
-#: Two ground samples further apart than this (in the encoding's units: two 8-bit levels on white) and than an
-#: eighth of the smaller are not interpolated (beam edges): the pixels between them are lit one by one.
-_JUMP = 8.0 / 255.0
-
-
-def night_tone_table(knee: float) -> np.ndarray:
-    """``table[i] = round(tone((i + ½)/TONE_STEPS)·255)`` (uint8): the night encoding of exposed radiance."""
-    x = (np.arange(TONE_STEPS * TONE_MAX + 1) + 0.5) / TONE_STEPS
-    y = np.where(x <= knee, x, knee + (1 - knee) * (1 - np.exp(-(np.maximum(x, knee) - knee) / (1 - knee))))
-    return np.floor(y * 255.0 + 0.5).astype(np.uint8)
-
-
-@njit(cache=True, inline="always")
-def _fix(e, scale):
-    """Irradiance ``e`` in the units of the night encoding (``scale`` = gain · TONE_STEPS/255), float32."""
-    return np.float32(min(e * scale, 1e30))
-
-
-@njit(cache=True, inline="always")
-def _tone_at(tone, albedo, efix):
-    return tone[np.int32(min(np.float32(albedo) * efix, np.float32(TONE_STEPS * TONE_MAX)))]
-
-
-@njit(cache=True)
-def _night_ground_row(out_rgb, out_sem, out_depth, c, i, width, tf, fxw, fyw, kx, ky, surface, s_rows, s_cols,
-                      tiles_x, surf_lut, surf_tag, surf_x0, surf_y0, surf_res, escale, ambient, wmap, w_ox, w_oy,
-                      w_inv, smap, s_ox, s_oy, s_inv, tone):  # fmt: skip
-    """Draw, light, expose and encode a ground row (every pixel of it ground): pixel ``j`` sees surface-map
-    coordinates (fxw + j·kx, fyw + j·ky). The irradiance is sampled every ``step`` pixels (``step`` pixels spanning
-    at most :data:`LIGHT_SPAN` cells of the window map) and interpolated linearly in between."""
-    dwx = kx * surf_res
-    dwy = ky * surf_res
-    wx0 = surf_x0 + fxw * surf_res
-    wy0 = surf_y0 + fyw * surf_res
-    cpp = max(abs(dwx), abs(dwy)) * w_inv  # window cells per pixel
-    step = 1
-    if cpp * MAX_LIGHT_STEP <= LIGHT_SPAN:
-        step = MAX_LIGHT_STEP
-    elif cpp * 2.0 <= LIGHT_SPAN:
-        step = int(LIGHT_SPAN / cpp)
-    e0, e1, e2 = _ground_irradiance(wx0, wy0, ambient, wmap, w_ox, w_oy, w_inv, smap, s_ox, s_oy, s_inv)
-    a0 = _fix(e0, escale)
-    a1 = _fix(e1, escale)
-    a2 = _fix(e2, escale)
-    j0 = 0
-    while True:
-        j1 = min(j0 + step, width - 1)
-        b0, b1, b2 = a0, a1, a2
-        d0 = d1 = d2 = np.float32(0.0)
-        if j1 > j0:
-            e0, e1, e2 = _ground_irradiance(wx0 + dwx * j1, wy0 + dwy * j1, ambient, wmap, w_ox, w_oy, w_inv, smap,
-                                            s_ox, s_oy, s_inv)  # fmt: skip
-            b0 = _fix(e0, escale)
-            b1 = _fix(e1, escale)
-            b2 = _fix(e2, escale)
-            inv = np.float32(1.0 / (j1 - j0))
-            d0 = (b0 - a0) * inv
-            d1 = (b1 - a1) * inv
-            d2 = (b2 - a2) * inv
-        last = j1 == width - 1
-        # samples more than an eighth and two levels apart (a beam's edge): every pixel between them is lit exactly
-        jump = max(abs(b0 - a0) - max(0.125 * min(a0, b0), _JUMP), abs(b1 - a1) - max(0.125 * min(a1, b1), _JUMP),
-                   abs(b2 - a2) - max(0.125 * min(a2, b2), _JUMP))  # fmt: skip
-        exact = jump > 0
-        q0, q1, q2 = a0, a1, a2
-        for j in range(j0, j1 + 1 if last else j1):
-            cls, k = _surface_cell(fxw + kx * j, fyw + ky * j, surface, s_rows, s_cols, tiles_x)
-            if exact and j > j0:
-                e0, e1, e2 = _ground_irradiance(wx0 + dwx * j, wy0 + dwy * j, ambient, wmap, w_ox, w_oy, w_inv, smap,
-                                                s_ox, s_oy, s_inv)  # fmt: skip
-                q0 = _fix(e0, escale)
-                q1 = _fix(e1, escale)
-                q2 = _fix(e2, escale)
-            out_rgb[c, i, j, 0] = _tone_at(tone, surf_lut[k, 0], q0)
-            out_rgb[c, i, j, 1] = _tone_at(tone, surf_lut[k, 1], q1)
-            out_rgb[c, i, j, 2] = _tone_at(tone, surf_lut[k, 2], q2)
-            out_sem[c, i, j] = surf_tag[cls]
-            out_depth[c, i, j] = tf
-            q0 += d0
-            q1 += d1
-            q2 += d2
-        if last:
-            break
-        j0 = j1
-        a0, a1, a2 = b0, b1, b2
-
-
-@njit(cache=True, inline="always")
-def _grid_bilinear(o, n1, n2, s1, s2, g_data):
-    """Bilinear read of an ``n1 × n2`` irradiance grid at ``data[o:]`` at grid coordinates (s1, s2), clamped."""
-    s1 = min(max(s1, 0.0), n1 - 1.0)
-    s2 = min(max(s2, 0.0), n2 - 1.0)
-    u0 = min(int(s1), n1 - 1)
-    v0 = min(int(s2), n2 - 1)
-    u1 = min(u0 + 1, n1 - 1)
-    v1 = min(v0 + 1, n2 - 1)
-    fu = s1 - u0
-    fv = s2 - v0
-    w00 = (1.0 - fu) * (1.0 - fv)
-    w01 = (1.0 - fu) * fv
-    w10 = fu * (1.0 - fv)
-    w11 = fu * fv
-    k00 = o + u0 * n2 + v0
-    k01 = o + u0 * n2 + v1
-    k10 = o + u1 * n2 + v0
-    k11 = o + u1 * n2 + v1
-    e0 = w00 * g_data[k00, 0] + w01 * g_data[k01, 0] + w10 * g_data[k10, 0] + w11 * g_data[k11, 0]
-    e1 = w00 * g_data[k00, 1] + w01 * g_data[k01, 1] + w10 * g_data[k10, 1] + w11 * g_data[k11, 1]
-    e2 = w00 * g_data[k00, 2] + w01 * g_data[k01, 2] + w10 * g_data[k10, 2] + w11 * g_data[k11, 2]
-    return e0, e1, e2
-
-
-@njit(cache=True, inline="always")
-def _face_sample(j, pa, rowz, cx, fx, g1x, rb1, go1, g2x, rb2, go2, g_o, gn1, gn2, g_data, ambient, escale):
-    """Grid coordinates and fixed-point irradiance of a lit face's span at pixel column ``j`` (row terms given)."""
-    zz = 1.0 / (pa * (j + 0.5) + rowz)
-    xn = (j + 0.5 - cx) / fx
-    s1 = zz * (g1x * xn + rb1) + go1
-    s2 = zz * (g2x * xn + rb2) + go2
-    e0, e1, e2 = _grid_bilinear(g_o, gn1, gn2, s1, s2, g_data)
-    return s1, s2, _fix(ambient + e0, escale), _fix(ambient + e1, escale), _fix(ambient + e2, escale)
-
-
-@njit(cache=True, inline="always")
-def _grid_axis(R, ccx, ccy, ccz, p, ax, n, centers, halves, cossin):
-    """Coefficients (gx, gy, gz, o) of grid coordinate ``s = g·P + o`` along local axis ``ax`` (``n`` cells) of
-    primitive ``p``'s face grid for a camera-frame point ``P`` (camera rotation ``R``, centre ``cc`` in the world)."""
-    if ax == 0:
-        ux, uy, uz = cossin[p, 0], cossin[p, 1], 0.0
-    elif ax == 1:
-        ux, uy, uz = -cossin[p, 1], cossin[p, 0], 0.0
-    else:
-        ux, uy, uz = 0.0, 0.0, 1.0
-    sc = 0.5 * n / halves[p, ax]
-    gx = (R[0, 0] * ux + R[0, 1] * uy + R[0, 2] * uz) * sc
-    gy = (R[1, 0] * ux + R[1, 1] * uy + R[1, 2] * uz) * sc
-    gz = (R[2, 0] * ux + R[2, 1] * uy + R[2, 2] * uz) * sc
-    o = (ux * (ccx - centers[p, 0]) + uy * (ccy - centers[p, 1]) + uz * (ccz - centers[p, 2])) * sc + 0.5 * n - 0.5
-    return gx, gy, gz, o
-
-
-@njit(cache=True, inline="always")
-def face_irradiance(p, fs, wx, wy, wz, centers, halves, cossin, g_off, g_dims, g_data):
-    """Bilinear irradiance (RGB) of face ``fs`` of primitive ``p`` at world point w from its grid (0 if unlit)."""
-    o = g_off[p, fs]
-    if o < 0:
-        return 0.0, 0.0, 0.0
-    dx = wx - centers[p, 0]
-    dy = wy - centers[p, 1]
-    lx = dx * cossin[p, 0] + dy * cossin[p, 1]
-    ly = -dx * cossin[p, 1] + dy * cossin[p, 0]
-    lz = wz - centers[p, 2]
-    ax1 = FACE_AXES[fs, 1]
-    ax2 = FACE_AXES[fs, 2]
-    q1 = lx if ax1 == 0 else ly
-    q2 = ly if ax2 == 1 else lz
-    n1 = g_dims[p, fs, 0]
-    n2 = g_dims[p, fs, 1]
-    s1 = (q1 / halves[p, ax1] + 1.0) * 0.5 * n1 - 0.5
-    s2 = (q2 / halves[p, ax2] + 1.0) * 0.5 * n2 - 0.5
-    return _grid_bilinear(o, n1, n2, s1, s2, g_data)
 
 
 @njit(cache=True, parallel=True, fastmath=False)
@@ -514,9 +268,9 @@ def _raster_bands(
             s2 = np.uint8(sky_horizon[2] * (1.0 - w) + sky_zenith[2] * w)
             if night:
                 ks = sky_gain * gains[c] * (1.0 / 255.0)
-                s0 = _enc(s0 * ks, knee)
-                s1 = _enc(s1 * ks, knee)
-                s2 = _enc(s2 * ks, knee)
+                s0 = encode_tone(s0 * ks, knee)
+                s1 = encode_tone(s1 * ks, knee)
+                s2 = encode_tone(s2 * ks, knee)
             if abs(sz) < 1e-15:
                 # no roll: the ray's height component is constant along the row, so is the ground distance
                 if bz < -1e-12 and -ccz / bz < far and -ccz / bz > 0.0:
@@ -527,7 +281,7 @@ def _raster_bands(
                     ky = t * sy * inv_res
                     tf = np.float32(t)
                     if night:
-                        _night_ground_row(out_rgb, out_sem, out_depth, c, i, width, tf, fxw, fyw, kx, ky, surface,
+                        night_ground_row(out_rgb, out_sem, out_depth, c, i, width, tf, fxw, fyw, kx, ky, surface,
                                           s_rows, s_cols, tiles_x, surf_lut, surf_tag, surf_x0, surf_y0, surf_res,
                                           escale, ambient, wmap, w_ox, w_oy, w_inv, smap, s_ox, s_oy, s_inv, tone)
                     else:
@@ -555,7 +309,7 @@ def _raster_bands(
                                   s_rows, s_cols, tiles_x, surf_lut, surf_tag)
                     out_depth[c, i, j] = t
                     if night:
-                        _light_ground(out_rgb, c, i, j, ccx + t * (bx + sx * u), ccy + t * (by + sy * u), gains[c],
+                        light_ground(out_rgb, c, i, j, ccx + t * (bx + sx * u), ccy + t * (by + sy * u), gains[c],
                                       knee, ambient, wmap, w_ox, w_oy, w_inv, smap, s_ox, s_oy, s_inv)
                 else:
                     out_rgb[c, i, j, 0] = s0
@@ -585,22 +339,22 @@ def _raster_bands(
                 s_f = face_side[c, f]
                 kf = gains[c] * (1.0 / 255.0)
                 if face_emis[c, f]:
-                    fr0 = _enc(face_rgb[c, f, 0] * kf * emis_gain, knee)
-                    fr1 = _enc(face_rgb[c, f, 1] * kf * emis_gain, knee)
-                    fr2 = _enc(face_rgb[c, f, 2] * kf * emis_gain, knee)
+                    fr0 = encode_tone(face_rgb[c, f, 0] * kf * emis_gain, knee)
+                    fr1 = encode_tone(face_rgb[c, f, 1] * kf * emis_gain, knee)
+                    fr2 = encode_tone(face_rgb[c, f, 2] * kf * emis_gain, knee)
                 else:
                     lit = g_off[p_f, s_f] >= 0
-                    fr0 = _enc(face_rgb[c, f, 0] * kf * ambient, knee)
-                    fr1 = _enc(face_rgb[c, f, 1] * kf * ambient, knee)
-                    fr2 = _enc(face_rgb[c, f, 2] * kf * ambient, knee)
+                    fr0 = encode_tone(face_rgb[c, f, 0] * kf * ambient, knee)
+                    fr1 = encode_tone(face_rgb[c, f, 1] * kf * ambient, knee)
+                    fr2 = encode_tone(face_rgb[c, f, 2] * kf * ambient, knee)
                 if lit:
                     # grid coordinates (s1, s2) of the face's irradiance grid are affine in the camera-frame point
                     # P = z·(xn, yn, 1): s = g·P + o (see face_irradiance for the same map from world points)
                     g_o = g_off[p_f, s_f]
                     gn1 = g_dims[p_f, s_f, 0]
                     gn2 = g_dims[p_f, s_f, 1]
-                    g1x, g1y, g1z, go1 = _grid_axis(R, ccx, ccy, ccz, p_f, FACE_AXES[s_f, 1], gn1, centers, halves, cossin)
-                    g2x, g2y, g2z, go2 = _grid_axis(R, ccx, ccy, ccz, p_f, FACE_AXES[s_f, 2], gn2, centers, halves, cossin)
+                    g1x, g1y, g1z, go1 = grid_axis(R, ccx, ccy, ccz, p_f, FACE_AXES[s_f, 1], gn1, centers, halves, cossin)
+                    g2x, g2y, g2z, go2 = grid_axis(R, ccx, ccy, ccz, p_f, FACE_AXES[s_f, 2], gn2, centers, halves, cossin)
                     fa0 = face_rgb[c, f, 0]
                     fa1 = face_rgb[c, f, 1]
                     fa2 = face_rgb[c, f, 2]
@@ -637,7 +391,7 @@ def _raster_bands(
                 rb2 = g2y * yn + g2z
                 if lit:  # irradiance sampled every FACE_STEP pixels of the span, linear in between
                     ja = j0
-                    sa1, sa2, a0, a1, a2 = _face_sample(ja, pa, rowz, cx, fx, g1x, rb1, go1, g2x, rb2, go2, g_o, gn1,
+                    sa1, sa2, a0, a1, a2 = face_sample(ja, pa, rowz, cx, fx, g1x, rb1, go1, g2x, rb2, go2, g_o, gn1,
                                                         gn2, g_data, ambient, escale)  # fmt: skip
                     while ja <= j1:
                         jb = min(ja + FACE_STEP, j1)
@@ -645,7 +399,7 @@ def _raster_bands(
                         sb1, sb2 = sa1, sa2
                         d0 = d1 = d2 = np.float32(0.0)
                         if jb > ja:
-                            sb1, sb2, b0, b1, b2 = _face_sample(jb, pa, rowz, cx, fx, g1x, rb1, go1, g2x, rb2, go2, g_o,
+                            sb1, sb2, b0, b1, b2 = face_sample(jb, pa, rowz, cx, fx, g1x, rb1, go1, g2x, rb2, go2, g_o,
                                                                 gn1, gn2, g_data, ambient, escale)  # fmt: skip
                             inv = np.float32(1.0 / (jb - ja))
                             d0 = (b0 - a0) * inv
@@ -664,14 +418,14 @@ def _raster_bands(
                                 if exact and t > 0:
                                     zz = 1.0 / invz
                                     xn = (j + 0.5 - cx) / fx
-                                    e0, e1, e2 = _grid_bilinear(g_o, gn1, gn2, zz * (g1x * xn + rb1) + go1,
+                                    e0, e1, e2 = grid_bilinear(g_o, gn1, gn2, zz * (g1x * xn + rb1) + go1,
                                                                 zz * (g2x * xn + rb2) + go2, g_data)  # fmt: skip
-                                    q0 = _fix(ambient + e0, escale)
-                                    q1 = _fix(ambient + e1, escale)
-                                    q2 = _fix(ambient + e2, escale)
-                                out_rgb[c, i, j, 0] = _tone_at(tone, fa0, q0)
-                                out_rgb[c, i, j, 1] = _tone_at(tone, fa1, q1)
-                                out_rgb[c, i, j, 2] = _tone_at(tone, fa2, q2)
+                                    q0 = fix_irradiance(ambient + e0, escale)
+                                    q1 = fix_irradiance(ambient + e1, escale)
+                                    q2 = fix_irradiance(ambient + e2, escale)
+                                out_rgb[c, i, j, 0] = tone_at(tone, fa0, q0)
+                                out_rgb[c, i, j, 1] = tone_at(tone, fa1, q1)
+                                out_rgb[c, i, j, 2] = tone_at(tone, fa2, q2)
                                 out_sem[c, i, j] = face_tag[c, f]
                                 out_inst[c, i, j] = face_inst[c, f]
                                 if want_face:
@@ -728,34 +482,6 @@ def _night_prims(night: dict | None) -> tuple:
     return night["centers"], night["halves"], night["cossin"], night["g_off"], night["g_dims"], night["g_data"]
 
 
-class TiledSurface(NamedTuple):
-    """A road-surface class map stored in 8×8 tiles (one cache line each), for fast lookups from any view."""
-
-    flat: np.ndarray  # uint8, tiled
-    rows: int
-    cols: int
-    tiles_x: int
-    origin: tuple[float, float]  # world (x, y) of cell (0, 0)'s corner
-    resolution: float  # metres per cell
-
-
-def tile_surface(grid: np.ndarray, origin: tuple[float, float], resolution: float) -> TiledSurface:
-    """Convert a row-major (rows = world y, cols = world x) class grid into :class:`TiledSurface`."""
-    rows, cols = grid.shape
-    ty, tx = -(-rows // 8), -(-cols // 8)
-    padded = np.zeros((ty * 8, tx * 8), np.uint8)
-    padded[:rows, :cols] = grid
-    flat = np.ascontiguousarray(padded.reshape(ty, 8, tx, 8).transpose(0, 2, 1, 3)).reshape(-1)
-    return TiledSurface(flat, rows, cols, tx, (float(origin[0]), float(origin[1])), float(resolution))
-
-
-def surface_lut(class_rgb: np.ndarray, texture_amp: float) -> np.ndarray:
-    """Per-class shaded colours with 16 texture levels: ``(n_classes * 16, 3)`` uint8."""
-    base = np.asarray(class_rgb, np.float64)[:, None, :]
-    levels = (np.arange(16) - 7.5)[None, :, None] * texture_amp
-    return np.clip(np.rint(base + levels), 0, 255).astype(np.uint8).reshape(-1, 3)
-
-
 def render(
     cam_rot: np.ndarray,
     cam_trans: np.ndarray,
@@ -779,8 +505,8 @@ def render(
     """Render ``C`` cameras of one resolution.
 
     ``cam_rot`` (C, 3, 3) and ``cam_trans`` (C, 3) map world to camera frame (``p_c = R p_w + t``);
-    ``cam_k`` (C, 4) holds fx, fy, cx, cy. ``prims`` is a :class:`~fog_gym.primitives.Primitives` (or a mapping
-    :meth:`~fog_gym.primitives.Primitives.coerce` accepts): ``centers`` (P, 3), ``halves`` (P, 3), ``yaws`` (P,),
+    ``cam_k`` (C, 4) holds fx, fy, cx, cy. ``prims`` is a :class:`~fog_gym.world.primitives.Primitives` (or a mapping
+    :meth:`~fog_gym.world.primitives.Primitives.coerce` accepts): ``centers`` (P, 3), ``halves`` (P, 3), ``yaws`` (P,),
     ``colors`` (P, 3) albedo in [0, 1], ``tags`` (P,) uint8, ``insts`` (P,) uint16, ``emissive`` (P,) bool.
     ``surface_lut_rgb`` comes from :func:`surface_lut`, ``surface_tag`` maps surface class → semantic tag.
     Returns ``rgb`` (C, H, W, 3) uint8, ``depth`` (C, H, W) float32, ``sem`` (C, H, W) uint8,

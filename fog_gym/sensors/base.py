@@ -1,9 +1,9 @@
-"""The sensor protocol and the registry that maps a sensor config type to its sensor class.
+"""The sensor protocol, the registry that maps a sensor config type to its sensor class, and sensor names.
 
 A sensor declares everything the env and the dataset need to know about it: its channel names, its Gymnasium
 observation spaces, ``measure(scene, prims, rng, tick)``, and for each channel the dataset's
 :class:`~fog_gym.dataset.layout.ChannelSpec` (folder, file format, encoding, column count) that the writer,
-``validate`` and the loaders read. The physics stays in :mod:`fog_gym.lidar` and :mod:`fog_gym.render`.
+``validate`` and the loaders read. The physics stays in :mod:`fog_gym.sensors.lidar` and :mod:`fog_gym.render`.
 
 See :func:`fog_gym.sensors.rig_sensors` for the sensors of a rig and :func:`fog_gym.sensors.rig_layout` for its
 dataset layout.
@@ -11,22 +11,73 @@ dataset layout.
 
 from __future__ import annotations
 
+import re
 from typing import Any, ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 from gymnasium import spaces
 
 from fog_gym.dataset.layout import ChannelSpec
-from fog_gym.registry import REGISTRY, register, sensor_class
-from fog_gym.primitives import Primitives
-from fog_gym.scene import Scene
+from fog_gym.world.primitives import Primitives
+from fog_gym.world.scene import Scene
+
+
+_NAME_RE = re.compile(r"[A-Z][A-Z0-9_]*")
+
+
+def check_sensor_name(name: Any) -> str:
+    """A sensor (and channel) name is upper case: letters, digits, underscores, starting with a letter.
+
+    >>> check_sensor_name("RADAR_BACK")
+    'RADAR_BACK'
+    >>> check_sensor_name("radar back")
+    Traceback (most recent call last):
+    ...
+    ValueError: sensor name must be an upper-case channel name like 'RADAR_BACK', got 'radar back'
+    """
+    if not isinstance(name, str) or not _NAME_RE.fullmatch(name):
+        raise ValueError(f"sensor name must be an upper-case channel name like 'RADAR_BACK', got {name!r}")
+    return name
+
+
+#: Sensor config type → sensor class (see :func:`register`).
+REGISTRY: dict[type, type] = {}
+
+
+def register(config_type: type):
+    """Class decorator: a rig's sensors whose config is a ``config_type`` are built by the class (its ``build``)."""
+    if not isinstance(config_type, type):
+        raise TypeError(f"config_type must be a class, got {config_type!r}")
+
+    def deco(cls: type) -> type:
+        REGISTRY[config_type] = cls
+        return cls
+
+    return deco
+
+
+def registered_type(config_type: type) -> type | None:
+    """The registered config type that ``config_type`` is (itself or its nearest base along its MRO), or None."""
+    for t in getattr(config_type, "__mro__", (config_type,)):
+        if t in REGISTRY:
+            return t
+    return None
+
+
+def sensor_class(config_type: type) -> type:
+    """The sensor class registered for ``config_type`` (the most specific one along its MRO)."""
+    t = registered_type(config_type)
+    if t is None:
+        names = ", ".join(sorted(t.__name__ for t in REGISTRY))
+        raise ValueError(f"config type must be one of the registered sensor configs ({names}), got {config_type.__name__}")
+    return REGISTRY[t]
 
 
 @runtime_checkable
 class Sensor(Protocol):
     """What the env, observation packing and the dataset ask of a sensor."""
 
-    #: ``camera``, ``lidar``, ``semantic_lidar``, ``radar`` …: picks the fog model (:mod:`fog_gym.fog_models`).
+    #: ``camera``, ``lidar``, ``semantic_lidar``, ``radar`` …: picks the fog model (:mod:`fog_gym.fog.models`).
     kind: ClassVar[str]
     config: Any
 
@@ -108,3 +159,10 @@ class PointSensor:
 
     def measure(self, scene: Scene, prims: Primitives, rng: np.random.Generator, tick: int) -> dict[str, np.ndarray]:
         raise NotImplementedError
+
+
+def point_space(capacity: int, low: list[float], high: list[float]) -> spaces.Box:
+    """Box of a point channel: ``capacity`` rows, each between ``low`` and ``high`` (float32)."""
+    lo = np.tile(np.asarray(low, np.float32), (capacity, 1))
+    hi = np.tile(np.asarray(high, np.float32), (capacity, 1))
+    return spaces.Box(lo, hi, dtype=np.float32)

@@ -1,12 +1,14 @@
 """Cameras: RGB ``C``, planar depth ``C_DEPTH``, semantic tags ``C_SEM`` (and instance ids, not a channel).
 
-A pure function of (:class:`~fog_gym.scene.Scene`, :class:`~fog_gym.config.RigConfig`): nothing here
+:class:`CameraConfig` is one pinhole camera (FogDrive's poses in :data:`FOGDRIVE_CAMERA_POSES`).
+
+A pure function of (:class:`~fog_gym.world.scene.Scene`, :class:`~fog_gym.sensors.rig.RigConfig`): nothing here
 steps the world. :class:`CameraRig` renders every camera of a rig, cameras that share a resolution in one
 batched kernel call; :class:`CameraSensor` is one camera behind the :class:`~fog_gym.sensors.base.Sensor`
 protocol (channels, spaces, dataset layout).
 
 Example:
-    >>> from fog_gym.config import RigConfig
+    >>> from fog_gym.envs.config import RigConfig
     >>> cams = CameraRig(RigConfig.fogdrive(resolution=(64, 48)))
     >>> cams.names
     ('CAM_FRONT', 'CAM_BACK', 'CAM_LEFT', 'CAM_RIGHT')
@@ -16,23 +18,72 @@ Example:
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from fog_gym import geometry
 from gymnasium import spaces
 
-from fog_gym.camera_config import CameraConfig
-from fog_gym.dataset.layout import FOG_LEVELS, ChannelSpec
-from fog_gym.sensors.base import register
-from fog_gym.render.lights import beam_window, concat_lights, cull_lights, lamp_light_map, render_night, street_lamp_lights
+from fog_gym.checks import finite
+from fog_gym.dataset.layout import CAMERA_NAMES, FOG_LEVELS, ChannelSpec  # noqa: F401  (CAMERA_NAMES: re-exported)
+from fog_gym.geometry import Pose
+from fog_gym.sensors.base import check_sensor_name, register
+from fog_gym.render.lights import (beam_window, concat_lights, cull_lights, headlights, lamp_light_map, render_night,
+                                   street_lamp_lights)  # fmt: skip
 from fog_gym.render.raster import render
-from fog_gym.primitives import Primitives
-from fog_gym.scene import Scene, headlights, prop_primitives
+from fog_gym.render.surface import albedo_lut, ground_lut, tiled_surface
+from fog_gym.world.primitives import Primitives
+from fog_gym.world.scene import Scene, prop_primitives
 from fog_gym.encoding import SEMANTIC_TAGS
-from fog_gym.scenery import SURFACE_TAGS, lamp_heads
+from fog_gym.world.scenery import SURFACE_TAGS, lamp_heads
+
+@dataclass(frozen=True)
+class CameraConfig:
+    """One pinhole camera; RGB, depth, semantic and instance buffers share its pose and intrinsics. Its name is
+    its RGB channel (a FogDrive name of :data:`CAMERA_NAMES`, or any upper-case name for an added camera).
+
+    >>> CameraConfig("CAM_FRONT", Pose(1.8, 0, 1.2), 640, 480).intrinsic()[0, 0].round(2)
+    np.float64(268.51)
+    """
+
+    name: str
+    pose: Pose
+    width: int = 1280
+    height: int = 960
+    fov: float = 100.0  # horizontal field of view, degrees
+
+    def __post_init__(self) -> None:
+        check_sensor_name(self.name)  # the FogDrive cameras are CAMERA_NAMES; an added camera takes any such name
+        object.__setattr__(self, "pose", Pose.coerce(self.pose))
+        for attr in ("width", "height"):
+            value = getattr(self, attr)
+            if isinstance(value, bool) or not isinstance(value, (int,)) and not (
+                isinstance(value, float) and value.is_integer()
+            ):
+                raise ValueError(f"resolution {attr} must be a positive integer, got {value!r}")
+            if int(value) <= 0:
+                raise ValueError(f"resolution {attr} must be a positive integer, got {value!r}")
+            object.__setattr__(self, attr, int(value))
+        fov = finite("fov", self.fov)
+        if not 0.0 < fov < 180.0:
+            raise ValueError(f"fov must lie in the open interval (0, 180) degrees, got {self.fov!r}")
+        object.__setattr__(self, "fov", fov)
+
+    def intrinsic(self):
+        from fog_gym.geometry import intrinsic_matrix
+
+        return intrinsic_matrix(self.width, self.height, self.fov)
+
+
+#: Camera poses of FogDrive Table 2.
+FOGDRIVE_CAMERA_POSES: dict[str, Pose] = {
+    "CAM_FRONT": Pose(1.8, 0.0, 1.2, 0.0, 0.0, 0.0),
+    "CAM_BACK": Pose(-2.4, 0.0, 1.2, 0.0, 0.0, 180.0),
+    "CAM_LEFT": Pose(0.5, -0.7, 1.5, 0.0, 0.0, -100.0),
+    "CAM_RIGHT": Pose(0.5, 0.7, 1.5, 0.0, 0.0, 100.0),
+}
 
 #: Lights farther than this from the ego (beyond their own radius) are left out of a night frame [m].
 LIGHT_RANGE = 250.0
@@ -51,10 +102,10 @@ class CameraFrame:
 
 
 class CameraRig:
-    """Renders every camera of a :class:`~fog_gym.config.RigConfig` (or of a sequence of
-    :class:`~fog_gym.camera_config.CameraConfig`) from a :class:`Scene`."""
+    """Renders every camera of a :class:`~fog_gym.sensors.rig.RigConfig` (or of a sequence of
+    :class:`~fog_gym.sensors.camera.CameraConfig`) from a :class:`Scene`."""
 
-    def __init__(self, rig: RigConfig | Sequence[CameraConfig], far: float = 1000.0, render_radius: float = 600.0) -> None:
+    def __init__(self, rig: Any, far: float = 1000.0, render_radius: float = 600.0) -> None:
         self.rig = rig
         cameras = tuple(rig.cameras if hasattr(rig, "cameras") else rig)
         self.far = float(far)
@@ -88,22 +139,22 @@ class CameraRig:
         light = scene.lighting
         night = light.night
         if night:  # albedo pass, then street lamps, headlights and auto-exposure (fog_gym.render.lights)
-            lut, ambient, sun = light.albedo_lut(), 1.0, 0.0
+            lut, ambient, sun = albedo_lut(), 1.0, 0.0
             heads, lights, ground = self.night_lights(scene)
         else:
-            lut, ambient, sun = light.surface_lut(), light.ambient, light.sun_intensity
+            lut, ambient, sun = ground_lut(light), light.ambient, light.sun_intensity
         frames: dict[str, CameraFrame] = {}
         for (width, height), cams in self._groups:
             mats = np.array([self.world_to_camera(scene, c.name) for c in cams])
             ks = np.array([[k[0, 0], k[1, 1], k[0, 2], k[1, 2]] for k in (self.intrinsics[c.name] for c in cams)])
             if night:
                 out, gains = render_night(
-                    mats[:, :3, :3], mats[:, :3, 3], ks, width, height, self.far, prims, scene.static.tiled, lut,
+                    mats[:, :3, :3], mats[:, :3, 3], ks, width, height, self.far, prims, tiled_surface(scene.static), lut,
                     SURFACE_TAGS, light.sky_horizon, light.sky_zenith, lights, ground, heads,
                 )  # fmt: skip
             else:
                 out = render(
-                    mats[:, :3, :3], mats[:, :3, 3], ks, width, height, self.far, prims, scene.static.tiled, lut,
+                    mats[:, :3, :3], mats[:, :3, 3], ks, width, height, self.far, prims, tiled_surface(scene.static), lut,
                     SURFACE_TAGS, light.sky_horizon, light.sky_zenith, light.sun_dir, ambient, sun,
                 )  # fmt: skip
                 gains = np.ones(len(cams))

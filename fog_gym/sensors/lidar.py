@@ -1,19 +1,297 @@
-"""``LIDAR_TOP``: the 64-channel LiDAR (x, y, z, intensity), physics in :func:`fog_gym.lidar.simulate_lidar`.
+"""``LIDAR_TOP``: a CARLA-style rotating ray-cast LiDAR (x, y, z, intensity) — its config, its physics and its sensor.
 
->>> from fog_gym.lidar import LidarConfig
->>> s = LidarSensor(LidarConfig.fogdrive())
->>> s.channels, s.layout()["LIDAR_TOP"].folder, s.layout()["LIDAR_TOP_FOG_DENSE"].folder, s.space().shape[1]
-(('LIDAR_TOP',), 'lidar', 'lidar_fog_dense', 4)
+Pure functions of the render primitives (upright boxes, see :mod:`fog_gym.world.scene`), a sensor→world transform
+and a seeded ``numpy.random.Generator``; nothing here imports the environment. The model follows CARLA's
+``sensor.lidar.ray_cast`` (RayCastLidar.cpp; research note fog_physics.md §4.2):
+
+* ray pattern: ``channels`` lasers evenly spaced from ``upper_fov`` down to ``lower_fov``; each shoots
+  ``round(points_per_second / (simulation_frequency · channels))`` rays per tick, evenly spaced over the
+  ``rotation_frequency · horizontal_fov / simulation_frequency`` degrees the head turns in one tick
+  (one full sweep when the rotation frequency equals the simulation frequency);
+* intensity ``exp(−a · d)``, general and intensity drop-off, Gaussian range noise.
+
+Points are in the sensor frame: left-handed, +x forward, +y right, +z up (as CARLA's ``raw_data``). Pass
+primitives without the ego's own boxes (``Scene.primitives`` leaves them out); a sensor inside a box sees through
+it in any case, as a line trace that starts inside a mesh. The semantic LiDAR (:mod:`fog_gym.sensors.semantic_lidar`)
+shares the ray pattern; its config type :class:`SemanticLidarConfig` lives here beside the LiDAR's.
+
+Example:
+    >>> s = LidarSensor(LidarConfig.fogdrive())
+    >>> s.channels, s.layout()["LIDAR_TOP"].folder, s.layout()["LIDAR_TOP_FOG_DENSE"].folder, s.space().shape[1]
+    (('LIDAR_TOP',), 'lidar', 'lidar_fog_dense', 4)
 """
 
 from __future__ import annotations
 
-import numpy as np
+import functools
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import Any
 
+import numpy as np
+from numba import njit
+
+from fog_gym.checks import finite, interval, positive
 from fog_gym.dataset.layout import FOG_LEVELS
-from fog_gym.lidar import LidarConfig, sensor_to_world, simulate_lidar
-from fog_gym.points import LIDAR, lidar_space
-from fog_gym.sensors.base import PointSensor, register
+from fog_gym.geometry import Pose, sensor_to_world
+from fog_gym.sensors.base import PointSensor, point_space, register
+from fog_gym.dataset.packing import LIDAR
+from fog_gym.sensors.raycast import MISS, cast_rays
+from fog_gym.world.primitives import Primitives
+from fog_gym.world.scenery import SurfaceMap
+
+_EPS = float(np.finfo(np.float32).eps)  # CARLA switches drop-off / noise on above float epsilon
+
+
+def simulation_frequency_hz(value: Any) -> float:
+    """A simulation frequency [Hz] > 0 (every point sensor's ray count depends on it)."""
+    return positive("simulation_frequency", value)
+
+
+@dataclass(frozen=True)
+class LidarConfig:
+    """A rotating ray-cast LiDAR (CARLA ``sensor.lidar.ray_cast`` attributes and defaults).
+
+    Angles in degrees, range in metres, frequencies in Hz. :meth:`fogdrive` and :meth:`fogdrive_semantic` are
+    the FogDrive sensors (Table 2); what FogDrive leaves at default keeps CARLA's default.
+    The semantic LiDAR ignores the attenuation, drop-off and noise fields.
+
+    >>> cfg = LidarConfig.fogdrive()
+    >>> cfg.channels, cfg.range, cfg.points_per_channel(20)
+    (64, 120.0, 1016)
+    >>> LidarConfig(upper_fov=-40.0)
+    Traceback (most recent call last):
+    ...
+    ValueError: upper_fov must be greater than lower_fov, got upper_fov=-40.0 and lower_fov=-30.0
+    """
+
+    pose: Pose = field(default_factory=Pose)
+    channels: int = 32
+    range: float = 10.0
+    points_per_second: float = 56000.0
+    rotation_frequency: float = 10.0
+    upper_fov: float = 10.0
+    lower_fov: float = -30.0
+    horizontal_fov: float = 360.0
+    atmosphere_attenuation_rate: float = 0.004
+    dropoff_general_rate: float = 0.45
+    dropoff_intensity_limit: float = 0.8
+    dropoff_zero_intensity: float = 0.4
+    noise_stddev: float = 0.0
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "pose", Pose.coerce(self.pose))
+        ch = self.channels
+        if isinstance(ch, bool) or not isinstance(ch, (int, np.integer, float)) or (
+            isinstance(ch, float) and not ch.is_integer()
+        ) or ch < 1:
+            raise ValueError(f"channels must be an integer >= 1, got {ch!r}")
+        object.__setattr__(self, "channels", int(ch))
+        for name in ("range", "points_per_second", "rotation_frequency"):
+            object.__setattr__(self, name, positive(name, getattr(self, name)))
+        upper = interval("upper_fov", self.upper_fov, -90.0, 90.0)
+        lower = interval("lower_fov", self.lower_fov, -90.0, 90.0)
+        if upper <= lower:
+            raise ValueError(
+                f"upper_fov must be greater than lower_fov, got upper_fov={upper!r} and lower_fov={lower!r}"
+            )
+        object.__setattr__(self, "upper_fov", upper)
+        object.__setattr__(self, "lower_fov", lower)
+        object.__setattr__(self, "horizontal_fov", interval("horizontal_fov", self.horizontal_fov, 0.0, 360.0, True))
+        for name in ("dropoff_general_rate", "dropoff_intensity_limit", "dropoff_zero_intensity"):
+            object.__setattr__(self, name, interval(name, getattr(self, name), 0.0, 1.0))
+        for name in ("atmosphere_attenuation_rate", "noise_stddev"):
+            v = finite(name, getattr(self, name))
+            if v < 0.0:
+                raise ValueError(f"{name} must be >= 0, got {getattr(self, name)!r}")
+            object.__setattr__(self, name, v)
+
+    @classmethod
+    def fogdrive(cls, **overrides: Any) -> LidarConfig:
+        """FogDrive's LiDAR: roof at (0, 0, 2), 64 channels, 120 m, 1.3 M points/s, 20 Hz, FOV [−20°, +5°] × 360°.
+
+        >>> LidarConfig.fogdrive(noise_stddev=0.02).noise_stddev
+        0.02
+        """
+        values = dict(pose=Pose(0.0, 0.0, 2.0), channels=64, range=120.0, points_per_second=1_300_000.0,
+                      rotation_frequency=20.0, upper_fov=5.0, lower_fov=-20.0, horizontal_fov=360.0)  # fmt: skip
+        values.update(overrides)
+        return cls(**values)
+
+    @classmethod
+    def fogdrive_semantic(cls, **overrides: Any) -> SemanticLidarConfig:
+        """FogDrive's semantic LiDAR: as :meth:`fogdrive` with 750 k points/s (a :class:`SemanticLidarConfig`).
+
+        >>> LidarConfig.fogdrive_semantic().points_per_channel(20)
+        586
+        """
+        return SemanticLidarConfig.fogdrive(**{"points_per_second": 750_000.0, **overrides})
+
+    def points_per_channel(self, simulation_frequency: float = 20.0) -> int:
+        """Rays per laser per tick, ``points_per_second / (simulation_frequency · channels)`` rounded half up.
+
+        >>> LidarConfig(channels=32, points_per_second=56000).points_per_channel(10)
+        175
+        """
+        f = simulation_frequency_hz(simulation_frequency)
+        return int(math.floor(self.points_per_second / (f * self.channels) + 0.5))
+
+    def tick_angle(self, simulation_frequency: float = 20.0) -> float:
+        """Degrees the head turns in one tick: ``rotation_frequency · horizontal_fov / simulation_frequency``.
+
+        >>> LidarConfig.fogdrive().tick_angle(20)
+        360.0
+        """
+        return self.rotation_frequency * self.horizontal_fov / simulation_frequency_hz(simulation_frequency)
+
+    def ray_angles(self, simulation_frequency: float = 20.0, start_angle: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+        """Laser elevations ``(C,)`` (upper first) and the tick's azimuths ``(M,)``, degrees, as CARLA.
+
+        Azimuth ``i`` is ``fmod(start_angle + i · tick_angle / M, horizontal_fov) − horizontal_fov / 2``; pass
+        ``(start_angle + tick_angle) % horizontal_fov`` to the next tick when one tick is not a full sweep.
+
+        >>> el, az = LidarConfig(channels=3, upper_fov=0, lower_fov=-10, points_per_second=240,
+        ...                      rotation_frequency=20).ray_angles(20)
+        >>> el.tolist(), az.tolist()
+        ([0.0, -5.0, -10.0], [-180.0, -90.0, 0.0, 90.0])
+        """
+        m = self.points_per_channel(simulation_frequency)
+        c = self.channels
+        step_el = 0.0 if c == 1 else (self.upper_fov - self.lower_fov) / (c - 1)
+        elevations = self.upper_fov - step_el * np.arange(c)
+        step_az = self.tick_angle(simulation_frequency) / m
+        azimuths = np.fmod(float(start_angle) + step_az * np.arange(m), self.horizontal_fov) - self.horizontal_fov / 2
+        return elevations, azimuths
+
+
+@dataclass(frozen=True)
+class SemanticLidarConfig(LidarConfig):
+    """A semantic LiDAR (CARLA ``sensor.lidar.ray_cast_semantic``): the LiDAR's attributes, its own type so that a
+    rig's sensor registry builds a semantic LiDAR for it (:mod:`fog_gym.sensors`).
+
+    >>> isinstance(LidarConfig.fogdrive_semantic(), SemanticLidarConfig)
+    True
+    """
+
+
+@functools.lru_cache(maxsize=16)
+def _lidar_directions(cfg: LidarConfig, simulation_frequency: float, start_angle: float) -> np.ndarray:
+    el, az = cfg.ray_angles(simulation_frequency, start_angle)
+    e = np.radians(el)[:, None]
+    a = np.radians(az)[None, :]
+    dirs = np.stack(np.broadcast_arrays(np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)), axis=-1)
+    dirs = np.ascontiguousarray(dirs.reshape(-1, 3))
+    dirs.flags.writeable = False
+    return dirs
+
+
+def lidar_directions(cfg: LidarConfig, simulation_frequency: float = 20.0, start_angle: float = 0.0) -> np.ndarray:
+    """Unit ray directions ``(channels · M, 3)`` of one tick in the sensor frame, channel-major (read-only, cached).
+
+    >>> lidar_directions(LidarConfig.fogdrive()).shape
+    (65024, 3)
+    """
+    return _lidar_directions(cfg, float(simulation_frequency_hz(simulation_frequency)), float(start_angle))
+
+
+def split_transform(sensor_to_world: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``(rotation (3, 3), origin (3,))`` of a 4×4 sensor→world transform, which must be finite."""
+    m = np.asarray(sensor_to_world, np.float64)
+    if m.shape != (4, 4) or not np.all(np.isfinite(m)):
+        raise ValueError(f"sensor_to_world must be a finite 4x4 matrix, got shape {m.shape}")
+    return m[:3, :3], m[:3, 3].copy()
+
+
+@njit(cache=True)
+def _lidar_points(dirs, dist, index, noise, uniform, attenuation, limit, alpha, beta):
+    """Kept returns as (N, 4) float32 x, y, z, intensity; ``noise`` / ``uniform`` empty when switched off.
+
+    Intensity and the drop-off test are float32, as CARLA computes them."""
+    n = dirs.shape[0]
+    intensity = np.empty(n, dtype=np.float32)
+    keep = np.zeros(n, dtype=np.bool_)
+    neg_a = np.float32(-attenuation)
+    limit32 = np.float32(limit)
+    alpha32 = np.float32(alpha)
+    beta32 = np.float32(beta)
+    count = 0
+    for i in range(n):
+        if index[i] == MISS:
+            continue
+        value = np.exp(neg_a * dist[i])
+        intensity[i] = value
+        if value > limit32 or uniform.shape[0] == 0 or uniform[i] < alpha32 * value + beta32:
+            keep[i] = True
+            count += 1
+    out = np.empty((count, 4), dtype=np.float32)
+    k = 0
+    for i in range(n):
+        if keep[i]:
+            r = np.float64(dist[i])
+            if noise.shape[0] > 0:
+                r += noise[i]
+            out[k, 0] = dirs[i, 0] * r
+            out[k, 1] = dirs[i, 1] * r
+            out[k, 2] = dirs[i, 2] * r
+            out[k, 3] = intensity[i]
+            k += 1
+    return out
+
+
+_NONE = np.zeros(0)
+
+
+def simulate_lidar(
+    cfg: LidarConfig,
+    sensor_to_world: np.ndarray,
+    prims: Primitives | Mapping[str, Any],
+    surface: SurfaceMap | None,
+    rng: np.random.Generator,
+    simulation_frequency: float = 20.0,
+    start_angle: float = 0.0,
+) -> np.ndarray:
+    """One tick of a ray-cast LiDAR: ``(N, 4)`` float32 x, y, z, intensity in the sensor frame.
+
+    Follows CARLA: each ray is first skipped with probability ``dropoff_general_rate``; a hit within ``range``
+    gets intensity ``I = exp(−atmosphere_attenuation_rate · d)`` from the exact distance ``d``; with
+    ``noise_stddev > 0`` the point moves along its ray by N(0, σ); then it is kept if ``I >
+    dropoff_intensity_limit``, else with probability ``I · dropoff_zero_intensity / dropoff_intensity_limit +
+    1 − dropoff_zero_intensity``. Misses give no point. Points are in laser order (channel-major).
+    ``surface`` is not used (CARLA's intensity has no reflectivity term); it keeps the LiDAR signatures alike.
+    The random draws (a uniform per ray for the general drop-off, then per traced ray a normal for the noise and a
+    uniform for the intensity drop-off, each only when switched on) all come from ``rng``: a seed fixes the result.
+
+    >>> cfg = LidarConfig.fogdrive(dropoff_general_rate=0.0, dropoff_zero_intensity=0.0)
+    >>> pts = simulate_lidar(cfg, sensor_to_world(cfg.pose), Primitives.empty(), None, np.random.default_rng(0))
+    >>> len(pts) // 1016, bool(np.allclose(pts[:, 2], -2.0, atol=1e-4))  # the 48 rings that meet the ground in 120 m
+    (48, True)
+    >>> bool(np.allclose(pts[:, 3], np.exp(-0.004 * np.linalg.norm(pts[:, :3], axis=1)), atol=1e-6))
+    True
+    """
+    rot, origin = split_transform(sensor_to_world)
+    dirs = lidar_directions(cfg, simulation_frequency, start_angle)
+    if cfg.dropoff_general_rate > _EPS:  # rays skipped before tracing
+        dirs = dirs.take(np.flatnonzero(rng.random(dirs.shape[0]) >= cfg.dropoff_general_rate), axis=0)
+    n = dirs.shape[0]
+    hits = cast_rays(origin, dirs, cfg.range, prims, rotation=rot)
+    noise = rng.normal(0.0, cfg.noise_stddev, n) if cfg.noise_stddev > _EPS else _NONE
+    uniform = rng.random(n) if cfg.dropoff_zero_intensity > 0.0 else _NONE
+    limit = cfg.dropoff_intensity_limit
+    alpha = cfg.dropoff_zero_intensity / limit if limit > 0.0 else 0.0
+    return _lidar_points(dirs, hits.distance, hits.index, noise, uniform, cfg.atmosphere_attenuation_rate, limit,
+                         alpha, 1.0 - cfg.dropoff_zero_intensity)  # fmt: skip
+
+
+def lidar_space(cfg, simulation_frequency: float, semantic: bool) -> Any:
+    """Box of a (semantic) LiDAR channel: one row per ray cast in a tick."""
+    capacity = cfg.channels * cfg.points_per_channel(simulation_frequency)
+    reach = cfg.range + 10.0 * cfg.noise_stddev + 1.0
+    if semantic:  # x, y, z, cos(incidence), object id, tag
+        low, high = [-reach, -reach, -reach, 0.0, 0.0, 0.0], [reach, reach, reach, 1.0, 65535.0, 255.0]
+    else:  # x, y, z, intensity
+        low, high = [-reach, -reach, -reach, 0.0], [reach, reach, reach, 1.0]
+    return point_space(capacity, low, high)
 
 
 @register(LidarConfig)

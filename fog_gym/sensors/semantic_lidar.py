@@ -1,24 +1,107 @@
-"""``SEM_LIDAR_TOP``: the semantic LiDAR (x, y, z, cos incidence, object id, tag), physics in
-:func:`fog_gym.lidar.simulate_semantic_lidar`.
+"""``SEM_LIDAR_TOP``: the semantic LiDAR (x, y, z, cos incidence, object id, tag), as CARLA's
+``sensor.lidar.ray_cast_semantic``: the LiDAR's ray pattern (:mod:`fog_gym.sensors.lidar`), no intensity, drop-off
+or noise; object id = the vehicle id (0 for the static world and the ground), tag from the primitive or, on the
+ground, from the road-surface map.
 
->>> from fog_gym.lidar import LidarConfig
->>> s = SemanticLidarSensor(LidarConfig.fogdrive_semantic())
->>> s.channels, s.layout()["SEM_LIDAR_TOP"].folder, s.space().shape[1]
-(('SEM_LIDAR_TOP',), 'semantic_lidar', 6)
+Example:
+    >>> s = SemanticLidarSensor(LidarConfig.fogdrive_semantic())
+    >>> s.channels, s.layout()["SEM_LIDAR_TOP"].folder, s.space().shape[1]
+    (('SEM_LIDAR_TOP',), 'semantic_lidar', 6)
 """
 
 from __future__ import annotations
 
-import numpy as np
+from collections.abc import Mapping
+from typing import Any
 
-from fog_gym.lidar import SemanticLidarConfig, sensor_to_world, simulate_semantic_lidar
-from fog_gym.points import SEMANTIC_LIDAR, lidar_space
+import numpy as np
+from numba import njit
+
+from fog_gym.geometry import sensor_to_world
 from fog_gym.sensors.base import PointSensor, register
+from fog_gym.sensors.lidar import LidarConfig, SemanticLidarConfig, lidar_directions, lidar_space, split_transform
+from fog_gym.dataset.packing import SEMANTIC_LIDAR
+from fog_gym.sensors.raycast import MISS, cast_rays
+from fog_gym.world.primitives import Primitives
+from fog_gym.world.scenery import SURFACE_TAGS, SurfaceMap
+
+
+@njit(cache=True)
+def _semantic_points(dirs, dist, index, cosine, rotation, origin, insts, tags, grid, gx0, gy0, res, surface_tags):
+    """Returns as (N, 6) float32 x, y, z, cos, id, tag; ground tags from the surface grid (as SurfaceMap.class_at)."""
+    n = dirs.shape[0]
+    count = 0
+    for i in range(n):
+        if index[i] != MISS:
+            count += 1
+    out = np.empty((count, 6), dtype=np.float32)
+    rows, cols = grid.shape
+    k = 0
+    for i in range(n):
+        p = index[i]
+        if p == MISS:
+            continue
+        d = np.float64(dist[i])
+        out[k, 0] = dirs[i, 0] * d
+        out[k, 1] = dirs[i, 1] * d
+        out[k, 2] = dirs[i, 2] * d
+        out[k, 3] = cosine[i]
+        if p >= 0:
+            out[k, 4] = insts[p]
+            out[k, 5] = tags[p]
+        else:
+            ux, uy, uz = dirs[i, 0], dirs[i, 1], dirs[i, 2]
+            wx = origin[0] + d * (rotation[0, 0] * ux + rotation[0, 1] * uy + rotation[0, 2] * uz)
+            wy = origin[1] + d * (rotation[1, 0] * ux + rotation[1, 1] * uy + rotation[1, 2] * uz)
+            col = int(np.floor((wx - gx0) / res))
+            row = int(np.floor((wy - gy0) / res))
+            cls = grid[row, col] if 0 <= row < rows and 0 <= col < cols else 0
+            out[k, 4] = 0.0
+            out[k, 5] = surface_tags[cls]
+        k += 1
+    return out
+
+
+def simulate_semantic_lidar(
+    cfg: LidarConfig,
+    sensor_to_world: np.ndarray,
+    prims: Primitives | Mapping[str, Any],
+    surface: SurfaceMap,
+    rng: np.random.Generator | None = None,
+    simulation_frequency: float = 20.0,
+    start_angle: float = 0.0,
+) -> np.ndarray:
+    """One tick of a semantic LiDAR: ``(N, 6)`` float32 x, y, z, cos(incidence), object id, semantic tag.
+
+    Same ray pattern as :func:`simulate_lidar` but no intensity, drop-off or noise, so ``rng`` is not used.
+    The object id is the primitive's ``insts`` (vehicle id; 0 for the static world and the ground); the ground's
+    tag is ``SURFACE_TAGS[surface.class_at(x, y)]`` at the hit. cos(incidence) is ``|ray · surface normal|``.
+
+    >>> from fog_gym.world.scenery import SurfaceMap
+    >>> surface = SurfaceMap(np.zeros((10, 10), np.uint8), (-5.0, -5.0), 1.0)
+    >>> box = {"centers": np.array([[10.0, 0, 1]]), "halves": np.array([[1.0, 1, 1]]), "yaws": np.zeros(1),
+    ...        "tags": np.array([14], np.uint8), "insts": np.array([7], np.uint16)}
+    >>> cfg = LidarConfig.fogdrive_semantic()
+    >>> pts = simulate_semantic_lidar(cfg, sensor_to_world(cfg.pose), box, surface)
+    >>> car = pts[pts[:, 4] == 7]
+    >>> round(float(car[:, 0].min()), 3), set(car[:, 5].tolist())
+    (9.0, {14.0})
+    """
+    rot, origin = split_transform(sensor_to_world)
+    dirs = lidar_directions(cfg, simulation_frequency, start_angle)
+    prims = Primitives.coerce(prims)
+    hits = cast_rays(origin, dirs, cfg.range, prims, rotation=rot)
+    grid = np.ascontiguousarray(surface.grid, np.uint8)
+    return _semantic_points(
+        dirs, hits.distance, hits.index, hits.cos_incidence, rot, origin,
+        prims.insts, prims.tags, grid,
+        float(surface.origin[0]), float(surface.origin[1]), float(surface.resolution), SURFACE_TAGS,
+    )  # fmt: skip
 
 
 @register(SemanticLidarConfig)
 class SemanticLidarSensor(PointSensor):
-    """Built for a :class:`~fog_gym.lidar.SemanticLidarConfig` (``LidarConfig.fogdrive_semantic()``)."""
+    """Built for a :class:`~fog_gym.sensors.lidar.SemanticLidarConfig` (``LidarConfig.fogdrive_semantic()``)."""
 
     kind = "semantic_lidar"
     default_channel, columns, default_folder = SEMANTIC_LIDAR, 6, "semantic_lidar"

@@ -1,0 +1,31 @@
+"""The environments, registered in one place (as Gymnasium's ``envs/__init__.py``): ``import fog_gym`` runs this.
+
+========================  =================================================================================
+``FogDrive-v0``           the FogDrive rig on a highway-env town (:class:`~fog_gym.envs.fogdrive.FogDriveEnv`),
+                          ``fog=`` wraps it in :class:`~fog_gym.wrappers.FogWrapper`
+``FogDriveRL-v0``         the RL preset: 64×64 front camera and LiDAR bird's-eye image, 5 Hz policy
+``FogDriveRLHazard-v0``   the RL preset on stalled vehicles ahead: seeing far enough decides the episode
+========================  =================================================================================
+
+Entry points live in :mod:`fog_gym.envs.presets`, the env class in :mod:`fog_gym.envs.fogdrive`, its configuration
+in :mod:`fog_gym.envs.config`.
+
+Example:
+    >>> import gymnasium as gym
+    >>> sorted(k for k in gym.registry if k.startswith("FogDrive"))
+    ['FogDrive-v0', 'FogDriveRL-v0', 'FogDriveRLHazard-v0']
+"""
+
+from __future__ import annotations
+
+from gymnasium.envs.registration import register
+
+#: Every registered id → its entry point.
+ENV_IDS = {
+    "FogDrive-v0": "fog_gym.envs.presets:make_fogdrive",
+    "FogDriveRL-v0": "fog_gym.envs.presets:make_fogdrive_rl",
+    "FogDriveRLHazard-v0": "fog_gym.envs.presets:make_fogdrive_rl_hazard",
+}
+
+for _id, _entry in ENV_IDS.items():
+    register(id=_id, entry_point=_entry, max_episode_steps=None)

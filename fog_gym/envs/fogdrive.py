@@ -1,0 +1,311 @@
+"""``FogDrive-v0``: a highway-env traffic world lifted into 3D, seen through the FogDrive camera rig.
+
+Example:
+    >>> import gymnasium as gym, fog_gym
+    >>> env = gym.make("FogDrive-v0", town="roundabout", resolution=(64, 48))
+    >>> obs, info = env.reset(seed=0)
+    >>> obs["CAM_FRONT"].shape, obs["CAM_FRONT_DEPTH"].dtype, obs["CAM_FRONT_SEM"].dtype
+    ((48, 64, 3), dtype('float32'), dtype('uint8'))
+"""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import replace
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+
+from fog_gym._numba import announce_compilation
+from fog_gym.envs.config import FogDriveConfig
+from fog_gym.world.hazards import HazardConfig
+from fog_gym.sensors.rig import RigConfig
+from fog_gym import geometry
+from fog_gym.dataset.layout import extrinsic_key
+from fog_gym.labels.boxes import CameraView, LabelConfig, annotate
+from fog_gym.geometry import sensor_to_world
+from fog_gym.world.scene import Lighting, Scene, StaticWorld, vehicle_primitives
+from fog_gym.world.scenery import STYLES, build_surface, place_props
+from fog_gym.dataset.packing import SEMANTIC_LIDAR, pack_points
+from fog_gym.sensors import CameraFrame, CameraRig, PointSensors, rig_layout, rig_sensors
+from fog_gym.world.traffic_world import EGO_ID, TrafficWorld
+from fog_gym.world.towns import TOWN_SPECS
+from fog_gym.seeds import stream
+
+MAX_SPEED = 40.0  # highway-env's Vehicle.MAX_SPEED [m/s]: bounds where the ego can get in one episode
+
+
+class FogDriveEnv(gym.Env):
+    """The FogDrive rig in a highway-env world. Observation: a flat ``Dict`` keyed by FogDrive channel names.
+
+    The channels follow the rig (:class:`RigConfig`, a sequence of named sensors). For each camera ``C`` of the
+    rig (the FogDrive four, or any added one): ``C`` (H, W, 3) uint8 RGB, ``C_DEPTH`` (H, W) float32 planar depth in
+    metres (sky = 1000), ``C_SEM`` (H, W) uint8 CARLA ≥ 0.9.14 tag ids. Point sensors, as fixed-capacity float32
+    arrays (points first, zero rows after; :func:`fog_gym.unpack_points` gives the exact (N, C) array):
+    ``LIDAR_TOP`` (x, y, z, intensity), ``SEM_LIDAR_TOP`` (x, y, z, cos incidence, object id, tag),
+    ``RADAR_FRONT`` (velocity, azimuth, altitude, depth), and each added point sensor's channel. Instance ids per camera are in
+    :attr:`instance_buffers` (not a FogDrive channel). Actions, reward and termination are highway-env's.
+
+    Arguments (all optional): ``town`` (one of :data:`fog_gym.TOWNS`), ``time_of_day`` ("day"/"night"),
+    ``resolution`` (W, H) for every camera, ``cameras`` (subset of camera names), ``rig`` (a full
+    :class:`RigConfig`), ``episode_seconds``, ``simulation_frequency``, ``keyframe_frequency``,
+    ``highway_config`` (highway-env config overrides), ``traffic`` ("fast", the default traffic core, or
+    "reference", highway-env's own Python path; same trajectories), ``hazards`` (a :class:`HazardConfig`: stalled
+    vehicles ahead of the ego at every reset; ``info["hazards"]`` then holds, per stalled vehicle, its offset from the
+    ego in metres ahead and to the right, its length and width), or ``config`` (a complete :class:`FogDriveConfig`).
+
+    Public attributes (what wrappers and tools may use): ``config`` (the validated :class:`FogDriveConfig`),
+    ``episode_seed`` (set by ``reset``; every random stream of the episode derives from it), ``scene`` (the
+    latest :class:`~fog_gym.world.scene.Scene`), ``frames`` (the latest :class:`~fog_gym.sensors.CameraFrame` per
+    camera), ``points`` (the latest ``(N, C)`` sweep per point sensor), :attr:`camera_names`, :attr:`intrinsics`,
+    :attr:`instance_buffers`, :attr:`idle_action`, :meth:`ground_truth`, ``cameras`` (the
+    :class:`~fog_gym.sensors.CameraRig`), ``sensors`` (every sensor, rig order), ``point_sensors`` and ``world`` (the :class:`~fog_gym.world.traffic_world.TrafficWorld`).
+
+    >>> env = FogDriveEnv(town="merge", resolution=(32, 24), cameras=["CAM_FRONT"])
+    >>> sorted(env.observation_space.spaces)
+    ['CAM_FRONT', 'CAM_FRONT_DEPTH', 'CAM_FRONT_SEM', 'LIDAR_TOP', 'RADAR_FRONT', 'SEM_LIDAR_TOP']
+    """
+
+    metadata = {"render_modes": ["rgb_array"], "render_fps": 10}
+
+    def __init__(
+        self,
+        town: str | None = None,
+        time_of_day: str | None = None,
+        resolution: Sequence[int] | None = None,
+        cameras: Sequence[str] | None = None,
+        rig: RigConfig | None = None,
+        episode_seconds: float | None = None,
+        simulation_frequency: int | None = None,
+        keyframe_frequency: int | None = None,
+        highway_config: dict[str, Any] | None = None,
+        visibility: str | None = None,
+        labels: LabelConfig | None | str = "default",
+        config: FogDriveConfig | None = None,
+        render_mode: str | None = None,
+        traffic: str | None = None,
+        hazards: HazardConfig | None = None,
+    ) -> None:
+        cfg = config if config is not None else FogDriveConfig()
+        if not isinstance(cfg, FogDriveConfig):
+            raise ValueError(f"config must be a FogDriveConfig, got {type(cfg).__name__}")
+        rig_cfg = rig if rig is not None else cfg.rig
+        if cameras is not None:
+            if isinstance(cameras, str):
+                raise ValueError(f"cameras must be a sequence of camera names, got the string {cameras!r}")
+            rig_cfg = replace(rig_cfg, cameras=tuple(_camera(rig_cfg, n) for n in cameras))
+        if resolution is not None:
+            rig_cfg = rig_cfg.with_resolution(resolution)
+        label_cfg = cfg.labels if isinstance(labels, str) and labels == "default" else labels
+        if visibility is not None:
+            label_cfg = replace(label_cfg if label_cfg is not None else LabelConfig(), visibility=visibility)
+        updates = {
+            k: v
+            for k, v in dict(
+                town=town, time_of_day=time_of_day, episode_seconds=episode_seconds,
+                simulation_frequency=simulation_frequency, keyframe_frequency=keyframe_frequency,
+                highway_config=highway_config, traffic=traffic, hazards=hazards,
+            ).items()
+            if v is not None
+        }  # fmt: skip
+        self.config = replace(cfg, rig=rig_cfg, labels=label_cfg, **updates)
+        if render_mode is not None and render_mode not in self.metadata["render_modes"]:
+            raise ValueError(f"render_mode must be one of {self.metadata['render_modes']} or None, got {render_mode!r}")
+        self.render_mode = render_mode
+
+        c = self.config
+        self.metadata = {**self.metadata, "render_fps": c.keyframe_frequency}
+        announce_compilation()
+        self.world = TrafficWorld(c.town, c.simulation_frequency, c.keyframe_frequency, c.episode_seconds, dict(c.highway_config),
+                                  traffic=c.traffic, hazards=c.hazards)  # fmt: skip
+        self.cameras = CameraRig(c.rig, far=c.far_distance)
+        self.action_space = self.world.action_space
+        rig_layout(c.rig)  # channel or folder clashes between the rig's sensors fail here, before any work
+        #: Every sensor of the rig, in rig order (the observation's channels are theirs).
+        self.sensors = rig_sensors(c.rig, c.simulation_frequency, c.far_distance)
+        obs_spaces: dict[str, spaces.Space] = {}
+        for sensor in self.sensors:
+            obs_spaces.update(sensor.observation_spaces())
+        self.point_sensors = PointSensors(c.rig, c.simulation_frequency)
+        # ground truth lives in the LiDAR frame (FogDrive's 3D boxes); the FogDrive roof pose if the rig has no LiDAR
+        label_lidar = c.rig.lidar or c.rig.semantic_lidar
+        self._label_lidar_to_vehicle = sensor_to_world(label_lidar.pose if label_lidar else (0.0, 0.0, 2.0))
+        self._extrinsics = {
+            cam.name: geometry.lidar_to_camera(self._label_lidar_to_vehicle, self.cameras.sensor_to_vehicle[cam.name])
+            for cam in c.rig.cameras
+        }
+        self.observation_space = spaces.Dict(obs_spaces)
+        self.scene: Scene | None = None
+        self.frames: dict[str, CameraFrame] = {}
+        self.points: dict[str, np.ndarray] = {}  # the latest sweep of each point sensor, (N, C) float32
+        self._static: StaticWorld | None = None
+        self._lighting: Lighting | None = None
+        self._steps = 0
+        self.episode_seed: int | None = None
+
+    @staticmethod
+    def episode_seed_for(seed: int) -> int:
+        """The :attr:`episode_seed` that ``reset(seed=seed)`` draws (the world's highway-env seed; every random
+        stream of the episode derives from it)."""
+        from gymnasium.utils import seeding
+
+        return int(seeding.np_random(seed)[0].integers(0, 2**31 - 1))
+
+    # -- Gymnasium API --------------------------------------------------------------------------------
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        super().reset(seed=seed)
+        world_seed = int(self.np_random.integers(0, 2**31 - 1))  # = episode_seed_for(seed) when a seed is given
+        self.episode_seed = world_seed  # everything random in the episode derives from it (fog noise too)
+        self.world.reset(seed=world_seed)
+        self.action_space = self.world.action_space
+        rng = stream(world_seed, "scenery")
+        self._static = self.build_static_world(rng)
+        self._lighting = Lighting.for_time_of_day(self.config.time_of_day, rng)
+        self._sensor_rng = stream(world_seed, "sensors")
+        self._steps = 0
+        obs = self._observe()
+        return obs, self._info({})
+
+    def step(self, action: Any):
+        if self.scene is None:
+            raise RuntimeError("call reset() before step()")
+        reward, terminated, hw_info = self.world.step(action)
+        self._steps += 1
+        truncated = self._steps >= self.config.episode_steps and not terminated
+        obs = self._observe()
+        return obs, reward, terminated, truncated, self._info(hw_info)
+
+    def render(self) -> np.ndarray | None:
+        if self.render_mode != "rgb_array" or self.scene is None:
+            return None
+        from fog_gym.render.birds_eye import birds_eye_view, composite
+
+        front = self.frames.get("CAM_FRONT") or next(iter(self.frames.values()), None)
+        return composite(None if front is None else front.rgb, birds_eye_view(self.scene))
+
+    def close(self) -> None:
+        self.world.close()
+
+    # -- internals ------------------------------------------------------------------------------------
+    def build_static_world(self, rng: np.random.Generator) -> StaticWorld:
+        """The episode's static world (road surface map and props) around the world's start, drawn from ``rng``
+        (what ``reset`` builds from the episode's scenery stream)."""
+        radius = MAX_SPEED * self.config.episode_seconds + 250.0
+        lanes = self.world.lane_geometry(self.world.start_position, radius)
+        surface = build_surface(lanes, resolution=self.config.surface_resolution)
+        props = place_props(lanes, surface, rng, STYLES[TOWN_SPECS[self.config.town].scenery])
+        return StaticWorld.build(surface, props)
+
+    def build_scene(self) -> Scene:
+        """The :class:`Scene` of the world's current state (what every sensor sees)."""
+        state = self.world.vehicle_state()
+        return Scene(
+            time=self.world.time,
+            ego_id=EGO_ID,
+            ego_pose=self.world.ego_pose,
+            vehicles=state,
+            static=self._static,
+            lighting=self._lighting,
+            primitives=vehicle_primitives(state, self._lighting.night, exclude_id=EGO_ID),  # never see the own body
+        )
+
+    def _observe(self) -> dict[str, np.ndarray]:
+        self.scene = self.build_scene()
+        prims = self.cameras.primitives(self.scene)
+        self.frames = self.cameras.render(self.scene, prims)
+        obs: dict[str, np.ndarray] = {}
+        for name, f in self.frames.items():
+            obs[name] = f.rgb
+            obs[f"{name}_DEPTH"] = f.depth
+            obs[f"{name}_SEM"] = f.semantic
+        tick = max(self.world.tick - 1, 0)  # the simulation tick this keyframe closes
+        self.points = self.point_sensors.measure(self.scene, prims, self._sensor_rng, tick)
+        for name, pts in self.points.items():
+            obs[name] = pack_points(pts, self.observation_space[name].shape[0])
+        return obs
+
+    def _info(self, hw_info: dict) -> dict[str, Any]:
+        info = {
+            "town": self.config.town,
+            "town_number": self.config.town_number,
+            "time_of_day": self.config.time_of_day,
+            "sim_time": self.world.time,
+            "step": self._steps,
+            "speed": self.world.ego_speed,
+            "crashed": self.world.ego_crashed,
+        }
+        if self.config.hazards is not None:
+            info["hazards"] = self.world.hazards_ego()
+        if "rewards" in hw_info:
+            info["rewards"] = {k: float(v) for k, v in hw_info["rewards"].items()}
+        if self.config.labels is not None:
+            info.update(self.ground_truth())
+        return info
+
+    def ground_truth(self, labels: LabelConfig | None = None) -> dict[str, Any]:
+        """``boxes_3d``, ``boxes_2d`` (per camera), ``intrinsics`` and ``extrinsics`` of the current frame, under the
+        env's label config or, for this call only, ``labels`` (a :class:`LabelConfig`; the env is not changed)."""
+        if labels is not None and not isinstance(labels, LabelConfig):
+            raise ValueError(f"labels must be a LabelConfig or None, got {type(labels).__name__}")
+        label_cfg = labels if labels is not None else self.config.labels
+        if label_cfg is None:
+            raise ValueError("this env was built with labels=None: pass labels=LabelConfig(...)")
+        if self.scene is None:
+            raise RuntimeError("call reset() before ground_truth()")
+        scene, rig = self.scene, self.config.rig
+        ego_to_world = geometry.yaw_transform(*scene.ego_pose)
+        world_to_lidar = np.linalg.inv(ego_to_world @ self._label_lidar_to_vehicle)
+        views = [
+            CameraView(c.name, self._extrinsics[c.name], self.cameras.intrinsics[c.name], c.width, c.height,
+                       self.frames[c.name].instance)  # fmt: skip
+            for c in rig.cameras
+        ]
+        v = scene.vehicles
+        others = v.ids != scene.ego_id
+        sem = self.points.get(SEMANTIC_LIDAR)
+        boxes_3d, boxes_2d = annotate(v.ids[others], v.classes[others], v.centers[others], v.sizes[others],
+                                      v.yaws[others], v.velocities[others], world_to_lidar, views, sem,
+                                      label_cfg)  # fmt: skip
+        return {
+            "boxes_3d": boxes_3d,
+            "boxes_2d": boxes_2d,
+            "intrinsics": {c.name: self.cameras.intrinsics[c.name].copy() for c in rig.cameras},
+            "extrinsics": {extrinsic_key(c.name): self._extrinsics[c.name].copy() for c in rig.cameras},
+        }
+
+    @property
+    def idle_action(self) -> Any:
+        """The action that keeps lane and speed: highway-env's ``IDLE`` meta-action (1), zeros if continuous."""
+        space = self.action_space
+        return 1 if space.shape == () else np.zeros(space.shape, space.dtype)
+
+    @property
+    def camera_names(self) -> tuple[str, ...]:
+        """The rig's camera names, in rig order."""
+        return self.cameras.names
+
+    @property
+    def intrinsics(self) -> dict[str, np.ndarray]:
+        """Each camera's 3×3 intrinsic matrix K (pixel centres at +0.5; CARLA's pinhole)."""
+        return self.cameras.intrinsics
+
+    @property
+    def instance_buffers(self) -> dict[str, np.ndarray]:
+        """Per-camera instance ids of the latest frame (vehicle id; 0 = static world and sky)."""
+        return {name: f.instance for name, f in self.frames.items()}
+
+
+def _camera(rig: RigConfig, name: str):
+    """The camera ``name`` of the rig, or a FogDrive camera at the rig's camera size (``cameras=`` of the env)."""
+    from fog_gym.sensors.camera import CAMERA_NAMES, FOGDRIVE_CAMERA_POSES, CameraConfig
+
+    known = tuple(dict.fromkeys((*CAMERA_NAMES, *(c.name for c in rig.cameras))))
+    if name not in known:
+        raise ValueError(f"camera name must be one of {known}, got {name!r}")
+    try:
+        return rig.camera(name)
+    except KeyError:
+        ref = rig.cameras[0] if rig.cameras else None
+        return CameraConfig(name, FOGDRIVE_CAMERA_POSES[name], *((ref.width, ref.height, ref.fov) if ref else ()))

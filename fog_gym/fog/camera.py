@@ -1,0 +1,247 @@
+"""Koschmieder fog for camera images, implemented from the equations (research note ``fog_physics.md`` §1).
+
+``I = J·t + A·(1 − t)``, ``t = exp(−α·ℓ)`` with ℓ the Euclidean distance of each pixel (from planar depth and the
+intrinsics) and ``A`` the atmospheric light (dark channel 15×15, top 0.1 %, median grey); at night ``A`` comes
+from the lit surroundings (:func:`night_airlight`) and lit fog glows around bright sources (:func:`add_glow`).
+
+Example:
+    >>> from fog_gym.fog.physics import parse_fog
+    >>> img = fog_image(np.zeros((2, 2, 3), np.uint8), np.full((2, 2), 1000.0, np.float32), np.eye(3),
+    ...                 parse_fog("dense").alpha, np.full(3, 200.0))
+    >>> int(img.max())  # the sky takes the airlight
+    200
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+
+import cv2
+import numpy as np
+from numba import njit, prange
+
+import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
+
+def ray_length_factor(width: int, height: int, K: np.ndarray) -> np.ndarray:
+    """Per-pixel ``ℓ / z`` = ``sqrt(1 + ((u − cx)/fx)² + ((v − cy)/fy)²)`` at pixel centres, float32 ``(H, W)``."""
+    u = (np.arange(width) + 0.5 - K[0, 2]) / K[0, 0]
+    v = (np.arange(height) + 0.5 - K[1, 2]) / K[1, 1]
+    return np.sqrt(1.0 + u[None, :] ** 2 + v[:, None] ** 2).astype(np.float32)
+
+
+def atmospheric_light(rgb: np.ndarray, window: int = 15, top_fraction: float = 0.001) -> np.ndarray:
+    """Atmospheric light ``A`` (RGB, 0–255 floats) of a clear image: dark channel (``window``² erosion, channel
+    minimum), the top ``top_fraction`` of its pixels (count forced odd), and the RGB of the one with median grey.
+    """
+    img = np.ascontiguousarray(rgb)
+    if img.ndim != 3 or img.shape[2] != 3:
+        raise ValueError(f"expected an (H, W, 3) RGB image, got shape {img.shape}")
+    channels = cv2.split(img)
+    dark = cv2.erode(cv2.min(cv2.min(channels[0], channels[1]), channels[2]), np.ones((window, window), np.uint8))
+    k = max(1, int(math.floor(top_fraction * dark.size)))
+    k += 1 - k % 2
+    flat = dark.reshape(-1)
+    # the k brightest dark-channel pixels: all above a threshold value, then ties in raster order
+    counts = np.bincount(flat, minlength=256)
+    above = np.cumsum(counts[::-1])[::-1]  # pixels >= value
+    threshold = int(np.nonzero(above >= k)[0].max())
+    strictly = np.flatnonzero(flat > threshold)
+    ties = np.flatnonzero(flat == threshold)[: k - len(strictly)]
+    top = np.concatenate([strictly, ties])
+    pixels = img.reshape(-1, 3)[top].astype(np.float64)
+    grey = pixels @ np.array([0.2989, 0.5870, 0.1140])
+    return pixels[np.argsort(grey, kind="stable")[k // 2]]
+
+
+#: Night airlight: pixels nearer than this [m] light the fog; their ``NIGHT_AIRLIGHT_PERCENTILE`` colour is ``A``.
+NIGHT_AIRLIGHT_RANGE, NIGHT_AIRLIGHT_PERCENTILE = 30.0, 75.0
+#: Glow: sources are pixels at or above ``GLOW_THRESHOLD`` (any channel, 0–255), taken at ``GLOW_SOURCE_GAIN`` ×
+#: their 8-bit value (a clipped lamp is far brighter than white); ``GLOW_FORWARD`` of the light they lose to fog
+#: is scattered forwards into a Gaussian of angular width ``GLOW_WIDTH_RAD · (1 + α · GLOW_DISTANCE)``.
+GLOW_THRESHOLD, GLOW_SOURCE_GAIN, GLOW_FORWARD = 240, 12.0, 0.5
+GLOW_WIDTH_RAD, GLOW_DISTANCE = math.radians(0.6), 50.0
+
+
+def night_airlight(rgb: np.ndarray, depth: np.ndarray, max_range: float = NIGHT_AIRLIGHT_RANGE) -> np.ndarray:
+    """Atmospheric light of a night frame: the fog is lit like the surfaces around the camera.
+
+    At night there is no bright sky to take ``A`` from (the dark-channel estimate would pick a lamp head); the
+    droplets near the camera are lit by the same lamps and beams as the surfaces there, so ``A`` is the
+    ``NIGHT_AIRLIGHT_PERCENTILE`` colour of the pixels nearer than ``max_range`` (all pixels if none are).
+
+    >>> rgb = np.zeros((2, 2, 3), np.uint8); rgb[0] = 80
+    >>> night_airlight(rgb, np.array([[10.0, 10.0], [500.0, 500.0]], np.float32)).tolist()
+    [80.0, 80.0, 80.0]
+    """
+    img = np.asarray(rgb)
+    if img.ndim != 3 or img.shape[2] != 3 or np.shape(depth) != img.shape[:2]:
+        raise ValueError(f"rgb must be (H, W, 3) and depth (H, W), got {img.shape} and {np.shape(depth)}")
+    near = np.asarray(depth) < max_range
+    pixels = img[near] if near.any() else img.reshape(-1, 3)
+    if pixels.dtype != np.uint8:
+        return np.percentile(pixels.astype(np.float64), NIGHT_AIRLIGHT_PERCENTILE, axis=0)
+    # np.percentile's linear rule from the channels' 256-bin counts (no sort): the order statistics at
+    # floor(q·(n − 1)) and the next one, interpolated by the fraction
+    pos = NIGHT_AIRLIGHT_PERCENTILE / 100.0 * (len(pixels) - 1)
+    lo, frac = int(math.floor(pos)), pos - math.floor(pos)
+    out = np.empty(3)
+    for ch in range(3):
+        cum = np.cumsum(np.bincount(pixels[:, ch], minlength=256))
+        a, b = np.searchsorted(cum, [lo + 1, min(lo + 2, len(pixels))]).astype(np.float64)
+        out[ch] = b - (b - a) * (1.0 - frac) if frac >= 0.5 else a + (b - a) * frac
+    return out
+
+
+def glow_sigma_px(K: np.ndarray, alpha: float) -> float:
+    """Width (pixels) of the glow around a bright source: ``fx · tan(GLOW_WIDTH_RAD · (1 + α · GLOW_DISTANCE))``."""
+    return float(K[0, 0] * math.tan(GLOW_WIDTH_RAD * (1.0 + alpha * GLOW_DISTANCE)))
+
+
+def add_glow(fogged: np.ndarray, clean: np.ndarray, depth: np.ndarray, K: np.ndarray, alpha: float) -> np.ndarray:
+    """Forward-scattered light of bright sources (lamps, headlights) added to a fogged night image.
+
+    A source pixel of radiance ``S`` (clean image, ≥ ``GLOW_THRESHOLD``, taken at ``GLOW_SOURCE_GAIN · S``) at
+    ray distance ℓ loses ``1 − e^{−αℓ}`` of its light to the fog; ``GLOW_FORWARD`` of that is scattered forwards
+    into a Gaussian of width :func:`glow_sigma_px`: ``G = N_σ * [η · g · S · (1 − e^{−αℓ})]`` and the result is
+    ``min(255, fogged + G)``. Both the strength (through ``1 − e^{−αℓ}``) and the width grow with α; with
+    ``α = 0`` nothing is added.
+
+    >>> clean = np.zeros((41, 41, 3), np.uint8); clean[20, 20] = 255
+    >>> K = np.array([[100.0, 0, 20.5], [0, 100.0, 20.5], [0, 0, 1]])
+    >>> d = np.full((41, 41), 40.0, np.float32)
+    >>> g = add_glow(np.zeros_like(clean), clean, d, K, 0.06)
+    >>> bool(g[20, 24, 0] > g[20, 28, 0] > 0), int(add_glow(clean, clean, d, K, 0.0)[20, 19, 0])
+    (True, 0)
+    """
+    if alpha <= 0.0:
+        return fogged
+    src = clean.max(axis=2) >= GLOW_THRESHOLD
+    if not src.any():
+        return fogged
+    h, w = depth.shape
+    sigma = max(glow_sigma_px(K, alpha), 0.5)
+    # only the sources' bounding box grown by the kernel's reach can receive glow (OpenCV's float kernel spans
+    # ±4σ): blur that window alone, with the same zero border
+    reach = int(round(4.0 * sigma)) + 2
+    rows, cols = np.flatnonzero(src.any(axis=1)), np.flatnonzero(src.any(axis=0))
+    r0, r1 = max(rows[0] - reach, 0), min(rows[-1] + reach + 1, h)
+    c0, c1 = max(cols[0] - reach, 0), min(cols[-1] + reach + 1, w)
+    win = (slice(r0, r1), slice(c0, c1))
+    ell = depth[win] * ray_length_factor(w, h, K)[win]
+    weight = np.where(src[win], GLOW_FORWARD * GLOW_SOURCE_GAIN * (1.0 - np.exp(-alpha * ell)), 0.0).astype(np.float32)
+    energy = clean[win].astype(np.float32) * weight[..., None]
+    glow = cv2.GaussianBlur(energy, (0, 0), sigmaX=sigma, sigmaY=sigma, borderType=cv2.BORDER_CONSTANT)
+    out = np.array(fogged, np.uint8, copy=True)
+    out[win] = np.clip(fogged[win].astype(np.float32) + glow + 0.5, 0, 255).astype(np.uint8)
+    return out
+
+
+_F32 = np.float32
+
+
+@njit(cache=True, inline="always", fastmath=True)
+def _exp_neg(x):
+    """exp(x) for float32 x ≤ 0 without a libm call, so pixel loops vectorise: exp(x) = (exp(x/64))^64 with a
+    degree-5 Taylor polynomial on [−0.25, 0] (relative error < 2e-5); x is clamped at −16 (exp(−16) = 1.1e-7)."""
+    y = max(x, _F32(-16.0)) * _F32(0.015625)
+    p = _F32(1.0) + y * (_F32(1.0) + y * (_F32(0.5) + y * (_F32(1.0 / 6) + y * (_F32(1.0 / 24) + y * _F32(1.0 / 120)))))
+    p = p * p
+    p = p * p
+    p = p * p
+    p = p * p
+    p = p * p
+    return p * p
+
+
+@njit(cache=True, parallel=True, fastmath=True)
+def _koschmieder(rgb, depth, col_sq, row_sq, alphas, airlight_row, out):
+    # rgb (H, 3W) and out (L, H, 3W) are viewed flat per row so every inner loop is contiguous (SIMD);
+    # rows go in 16 chunks so each task allocates its scratch rows once
+    h, w = depth.shape
+    n_levels = alphas.shape[0]
+    n_chunks = 16
+    for chunk in prange(n_chunks):
+        ell = np.empty(w, np.float32)
+        t = np.empty(w, np.float32)
+        diff = np.empty(3 * w, np.float32)
+        t3 = np.empty(3 * w, np.float32)
+        for i in range(chunk * h // n_chunks, (chunk + 1) * h // n_chunks):
+            b2 = np.float32(1.0) + row_sq[i]
+            for j in range(w):
+                ell[j] = depth[i, j] * np.sqrt(b2 + col_sq[j])
+            for k in range(3 * w):
+                diff[k] = np.float32(rgb[i, k]) - airlight_row[k]
+            for lv in range(n_levels):
+                a = -alphas[lv]
+                for j in range(w):
+                    t[j] = _exp_neg(a * ell[j])
+                for j in range(w):  # repeat each pixel's transmittance for its three channels
+                    t3[3 * j] = t[j]
+                    t3[3 * j + 1] = t[j]
+                    t3[3 * j + 2] = t[j]
+                for k in range(3 * w):
+                    out[lv, i, k] = np.uint8(airlight_row[k] + diff[k] * t3[k] + np.float32(0.5))
+
+
+def check_fog_inputs(rgb: np.ndarray, depth: np.ndarray, K: np.ndarray, alphas: Sequence[float], airlight: np.ndarray) -> None:
+    """``ValueError`` naming the problem unless the inputs of :func:`fog_images` are usable.
+
+    rgb uint8 (H, W, 3); depth (H, W) finite and ≥ 0 (sky is a large finite depth, 1000 m in fog-gym);
+    K a 3×3 intrinsic matrix with finite positive focal lengths; every α finite and > 0; airlight three finite
+    values in [0, 255].
+    """
+    depth = np.asarray(depth)
+    if depth.ndim != 2:
+        raise ValueError(f"depth must be an (H, W) array of metres, got shape {depth.shape}")
+    h, w = depth.shape
+    if not isinstance(rgb, np.ndarray) or rgb.shape != (h, w, 3) or rgb.dtype != np.uint8:
+        raise ValueError(f"expected a uint8 (H, W, 3) image matching depth {depth.shape}, got "
+                         f"{getattr(rgb, 'dtype', type(rgb).__name__)} {getattr(rgb, 'shape', '')}")  # fmt: skip
+    low = float(np.min(depth)) if depth.size else 0.0
+    if not math.isfinite(low) or low < 0 or (depth.size and not math.isfinite(float(np.max(depth)))):
+        raise ValueError("depth must be finite and >= 0 metres everywhere (sky: a large finite depth such as 1000)")
+    K = np.asarray(K, np.float64)
+    if K.shape != (3, 3) or not np.isfinite(K).all() or K[0, 0] <= 0 or K[1, 1] <= 0:
+        raise ValueError(f"K must be a finite 3×3 intrinsic matrix with positive focal lengths, got {K.tolist()}")
+    a = np.asarray(alphas, np.float64)
+    if a.ndim != 1 or not len(a) or not np.isfinite(a).all() or (a <= 0).any():
+        raise ValueError(f"alphas must be finite extinctions > 0 [1/m], got {list(np.atleast_1d(a))}")
+    A = np.asarray(airlight, np.float64)
+    if A.shape != (3,) or not np.isfinite(A).all() or (A < 0).any() or (A > 255).any():
+        raise ValueError(f"airlight must be three values in [0, 255], got {A.tolist()}")
+
+
+def fog_images(rgb: np.ndarray, depth: np.ndarray, K: np.ndarray, alphas: Sequence[float], airlight: np.ndarray,
+               validate: bool = True) -> np.ndarray:  # fmt: skip
+    """Koschmieder fog at several extinctions in one pass: ``(L, H, W, 3)`` uint8 for ``alphas`` (all > 0).
+
+    ``ℓ = z · sqrt(1 + ((u − cx)/fx)² + ((v − cy)/fy)²)`` at pixel centres; ``t = exp(−α·ℓ)``;
+    ``I = A + (J − A)·t`` rounded. One read of image and depth serves every level. Inputs are checked
+    (:func:`check_fog_inputs`) unless ``validate=False`` (the env's own frames, on the hot path).
+    """
+    if validate:
+        check_fog_inputs(rgb, depth, K, alphas, airlight)
+    h, w = depth.shape
+    col = (((np.arange(w) + 0.5 - K[0, 2]) / K[0, 0]) ** 2).astype(np.float32)
+    row = (((np.arange(h) + 0.5 - K[1, 2]) / K[1, 1]) ** 2).astype(np.float32)
+    out = np.empty((len(alphas), h, w, 3), np.uint8)
+    airlight_row = np.tile(np.asarray(airlight, np.float32), w)
+    _koschmieder(np.ascontiguousarray(rgb).reshape(h, 3 * w), np.ascontiguousarray(depth, np.float32), col, row,
+                 np.asarray(alphas, np.float32), airlight_row, out.reshape(len(alphas), h, 3 * w))  # fmt: skip
+    return out
+
+
+def fog_image(rgb: np.ndarray, depth: np.ndarray, K: np.ndarray, alpha: float, airlight: np.ndarray) -> np.ndarray:
+    """Koschmieder fog on a uint8 RGB image with planar depth (metres) and intrinsic ``K``; ``alpha = 0`` copies.
+
+    >>> from fog_gym.fog.physics import alpha_from_visibility
+    >>> img = np.zeros((2, 2, 3), np.uint8); depth = np.full((2, 2), 50.0, np.float32)
+    >>> K = np.array([[1e6, 0, 1], [0, 1e6, 1], [0, 0, 1]])
+    >>> fog_image(img, depth, K, alpha_from_visibility(50), np.array([200.0, 200, 200]))[0, 0].tolist()
+    [190, 190, 190]
+    """
+    if alpha == 0.0:
+        check_fog_inputs(rgb, depth, K, [1.0], airlight)
+        return rgb.copy()
+    return fog_images(rgb, depth, K, [alpha], airlight)[0]

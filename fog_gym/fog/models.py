@@ -1,0 +1,107 @@
+"""Fog models: the protocol, the registry that maps a sensor kind to its model, and the two built-in models.
+
+A fog model turns one clean channel into its fogged versions, one per :class:`~fog_gym.fog.physics.FogLevel`; the
+physics stays in :mod:`fog_gym.fog.camera` and :mod:`fog_gym.fog.lidar`. :class:`~fog_gym.wrappers.FogWrapper` asks
+:func:`model_for` for the model of each sensor of the rig (cameras → :class:`Koschmieder`, LiDAR → :class:`Hahner`);
+a kind without a model (semantic LiDAR, radar) keeps its clean data. A new model is a class with ``name`` and
+``apply`` registered for a sensor kind with :func:`register_model`.
+
+Example:
+    >>> model_for("camera").name, model_for("lidar").name, model_for("radar")
+    ('koschmieder', 'hahner', None)
+    >>> obs = {"C": np.zeros((2, 2, 3), np.uint8), "C_DEPTH": np.full((2, 2), 1000.0, np.float32)}
+    >>> ctx = FogContext(intrinsics={"C": np.array([[1.0, 0, 1], [0, 1.0, 1], [0, 0, 1]])}, airlight={"C": np.full(3, 200.0)})
+    >>> int(Koschmieder().apply(obs, "C", [parse_fog("dense")], ctx)["dense"].max())  # the sky takes the airlight
+    200
+    >>> obs = {"LIDAR_TOP": np.array([[10.0, 0, 0, 1.0], [0, 0, 0, 0]], np.float32)}
+    >>> lv = parse_fog("clear")
+    >>> Hahner().apply(obs, "LIDAR_TOP", [lv], FogContext(rngs={lv.name: np.random.default_rng(0)}))["clear"].shape
+    (2, 4)
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from typing import ClassVar, Protocol, runtime_checkable
+
+import numpy as np
+
+from fog_gym.fog.camera import add_glow, fog_images
+from fog_gym.fog.lidar import fog_lidar
+from fog_gym.fog.physics import FogLevel, parse_fog  # noqa: F401  (parse_fog: the example)
+from fog_gym.dataset.packing import pack_points, unpack_points
+
+
+@dataclass(frozen=True)
+class FogContext:
+    """What a model may need beyond the observation: per-camera intrinsics and atmospheric light, one random
+    generator per level name, whether the scene is at night, and the LiDAR fog's noise scale [m]."""
+
+    intrinsics: Mapping[str, np.ndarray] = field(default_factory=dict)
+    airlight: Mapping[str, np.ndarray] = field(default_factory=dict)
+    rngs: Mapping[str, np.random.Generator] = field(default_factory=dict)
+    night: bool = False
+    lidar_noise: float = 10.0
+
+
+@runtime_checkable
+class FogModel(Protocol):
+    """Fog for one sensor kind."""
+
+    name: ClassVar[str]
+
+    def apply(self, obs: Mapping[str, np.ndarray], channel: str, levels: Sequence[FogLevel],
+              context: FogContext) -> dict[str, np.ndarray]:  # fmt: skip
+        """``{level name: fogged array of channel}``, shaped as ``obs[channel]``; clean data are never changed."""
+
+
+#: Sensor kind → fog model instance (see :func:`register_model`).
+MODELS: dict[str, FogModel] = {}
+
+
+def register_model(kind: str):
+    """Class decorator: the model fogs every sensor of ``kind`` (``camera``, ``lidar``, …)."""
+    if not isinstance(kind, str) or not kind:
+        raise ValueError(f"kind must be a sensor kind such as 'camera' or 'lidar', got {kind!r}")
+
+    def deco(cls: type) -> type:
+        MODELS[kind] = cls()
+        return cls
+
+    return deco
+
+
+def model_for(kind: str) -> FogModel | None:
+    """The fog model of a sensor kind, or None when the kind is not fogged (the built-in models register when
+    :mod:`fog_gym.fog.models` is imported)."""
+    return MODELS.get(kind)
+
+
+@register_model("camera")
+class Koschmieder:
+    """Koschmieder fog for cameras (:func:`fog_gym.fog.camera.fog_images`; at night plus the glow of
+    :func:`fog_gym.fog.camera.add_glow`); needs the camera's ``C_DEPTH`` beside its RGB, its intrinsics and its
+    atmospheric light from the context."""
+
+    name = "koschmieder"
+
+    def apply(self, obs, channel, levels, context):
+        rgb, depth, K = obs[channel], obs[f"{channel}_DEPTH"], context.intrinsics[channel]
+        images = fog_images(rgb, depth, K, [lv.alpha for lv in levels], context.airlight[channel], validate=False)
+        return {lv.name: add_glow(img, rgb, depth, K, lv.alpha) if context.night else img
+                for lv, img in zip(levels, images)}  # fmt: skip
+
+
+@register_model("lidar")
+class Hahner:
+    """Hahner et al. fog for LiDAR point clouds (:func:`fog_gym.fog.lidar.fog_lidar`) on the packed observation; each
+    level draws from its own generator (``context.rngs[level name]``)."""
+
+    name = "hahner"
+
+    def apply(self, obs, channel, levels, context):
+        clean = unpack_points(obs, channel)
+        capacity = obs[channel].shape[0]
+        return {lv.name: pack_points(fog_lidar(clean, lv, context.rngs[lv.name], context.lidar_noise), capacity)
+                for lv in levels}  # fmt: skip
