@@ -16,7 +16,7 @@ from fog_gym.render.lights import headlights
 from fog_gym.render.surface import albedo_lut, ground_lut, tiled_surface
 from tests.render.reference_night import shade_night
 from fog_gym.world.scenery import POLE_TAG, SIDEWALK_WIDTH, STYLES, LaneGeometry, Props, build_surface, lamp_heads, lit_edge_length, place_props  # fmt: skip
-from tests.test_render import front_rig, make_scene
+from tests.render.test_raster import front_rig, make_scene
 
 UP = np.array([0.0, 0.0, 1.0])
 

@@ -8,6 +8,8 @@ import json
 import numpy as np
 import pytest
 
+from tests.helpers import ROOT
+
 pytest.importorskip("torch")
 
 from fog_gym.dataset.access import FogDrive  # noqa: E402
@@ -131,7 +133,7 @@ def test_the_seed_check_refuses_a_run_without_results_before_any_work(tmp_path):
     import sys
     from pathlib import Path
 
-    script = Path(__file__).resolve().parents[1] / "scripts" / "exp2_seed_check.py"
+    script = ROOT / "scripts" / "exp2_seed_check.py"
     r = subprocess.run([sys.executable, str(script), "--root", str(tmp_path), "--run", str(tmp_path / "none"), "--seed", "1"],
                        capture_output=True, text=True)  # fmt: skip
     assert r.returncode == 2 and "results.json not found" in r.stderr

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from fog_gym.fog.schedules import MixedSampler, StepSchedule
-from tests.helpers import load_module
+from tests.helpers import ROOT, load_module
 
 
 def test_preset_spaces_match_observations():
@@ -56,7 +56,7 @@ def test_eval_script_writes_the_matrix(tmp_path):
     import importlib.util
     from pathlib import Path
 
-    root = Path(__file__).resolve().parent.parent / "examples"
+    root = ROOT / "examples"
     mods = {}
     for name in ("train_curriculum", "eval_matrix"):
         spec = importlib.util.spec_from_file_location(name, root / f"{name}.py")
@@ -73,7 +73,7 @@ def test_eval_matrix_rows_follow_condition_order_and_one_episode_has_no_ci(tmp_p
     import importlib.util
     from pathlib import Path
 
-    path = Path(__file__).resolve().parent.parent / "examples" / "eval_matrix.py"
+    path = ROOT / "examples" / "eval_matrix.py"
     spec = importlib.util.spec_from_file_location("eval_matrix", path)
     mod = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(mod)

@@ -11,7 +11,7 @@ from fog_gym.geometry import sensor_to_world
 from fog_gym.world.scenery import Props
 from fog_gym.sensors import CameraRig, PointSensors
 
-from .test_render import make_scene
+from tests.render.test_raster import make_scene
 
 W, H = 320, 240
 LIDAR_TO_VEHICLE = sensor_to_world((0.0, 0.0, 2.0))

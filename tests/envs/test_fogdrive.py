@@ -10,7 +10,7 @@ from fog_gym.envs.fogdrive import FogDriveEnv
 from fog_gym.world.scenery import SURFACE_TAGS
 from fog_gym.world.traffic_world import CLASS_SPECS, EGO_ID, EGO_SIZE
 
-from .conftest import first_idle
+from tests.conftest import first_idle
 
 SMALL = (96, 72)
 

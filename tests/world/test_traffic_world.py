@@ -15,7 +15,7 @@ from fog_gym.labels.boxes import LabelConfig
 from fog_gym.world.towns import IDM_PROFILES, TOWN_SPECS, TownSpec, apply_idm_profile, highway_env_config
 from fog_gym.world.traffic_world import TrafficWorld
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 #: The modules allowed to hold highway-env objects: the world and its traffic core.
 OWNERS = {"fog_gym/world/traffic_world.py"}
 

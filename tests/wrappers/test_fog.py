@@ -11,7 +11,7 @@ import fog_gym
 from fog_gym.fog import parse_fog
 from fog_gym.wrappers import FogWrapper
 
-from .conftest import first_idle
+from tests.conftest import first_idle
 
 KW = dict(town="highway", resolution=(96, 72))
 
