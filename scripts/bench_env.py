@@ -93,7 +93,7 @@ RIGS: dict[str, dict[str, Any]] = {
 def build_scene(env: Any) -> tuple[Any, dict[str, float]]:
     """``env.build_scene()`` (what ``step`` does before it renders), with its sub-stages timed separately."""
     from fog_gym.world.scene import vehicle_primitives
-    from fog_gym.world.traffic_world import EGO_ID
+    from fog_gym.world.fleet import EGO_ID
 
     t0 = time.perf_counter_ns()
     state = env.world.vehicle_state()

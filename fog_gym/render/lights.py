@@ -124,7 +124,7 @@ def headlight_lights(centers: np.ndarray, sizes: np.ndarray, yaws: np.ndarray, l
 
 
 def headlights(state: Any) -> Lights:
-    """Low beams of every vehicle of a :class:`~fog_gym.world.traffic_world.VehicleState` (the ego included) at its
+    """Low beams of every vehicle of a :class:`~fog_gym.world.fleet.VehicleState` (the ego included) at its
     lamp height, pointing along its heading."""
     return headlight_lights(state.centers, state.sizes, state.yaws, lamp_heights(state))
 

@@ -113,7 +113,7 @@ def simulate_radar(
     Every box and the ground occlude, but only hits on actors (``insts > 0``) become detections, in ray order.
     ``velocity = (v_target − sensor_velocity) · unit(hit − sensor)``: negative when the target approaches.
     ``velocities_by_id`` gives each actor's world velocity: a mapping id → (3,), an ``(ids, velocities)`` pair or a
-    :class:`~fog_gym.world.traffic_world.VehicleState`; ids it lacks count as standing still. Azimuth (positive to the right)
+    :class:`~fog_gym.world.fleet.VehicleState`; ids it lacks count as standing still. Azimuth (positive to the right)
     and altitude come from the ray direction in the sensor frame; depth is the hit distance.
 
     >>> box = {"centers": np.array([[22.0, 0, 1]]), "halves": np.array([[2.0, 1, 1]]), "yaws": np.zeros(1),

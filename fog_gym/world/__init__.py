@@ -22,8 +22,8 @@ from typing import Any
 
 _LAZY = {
     "TOWNS": "towns", "TOWN_SPECS": "towns", "TIMES_OF_DAY": "towns", "TownSpec": "towns",
-    "HazardConfig": "hazards", "EGO_ID": "traffic_world", "TrafficWorld": "traffic_world",
-    "VehicleState": "traffic_world", "Scene": "scene", "StaticWorld": "scene", "Lighting": "scene",
+    "HazardConfig": "hazards", "EGO_ID": "fleet", "TrafficWorld": "traffic_world",
+    "VehicleState": "fleet", "Scene": "scene", "StaticWorld": "scene", "Lighting": "scene",
     "Primitives": "primitives", "accelerate": "traffic",
 }  # fmt: skip
 __all__ = sorted(_LAZY)

@@ -5,7 +5,7 @@ surface map and roadside props) is built once per episode; each keyframe adds th
 3D as a few boxes each (body, cabin or cargo, wheels, lamps), all inside the vehicle's ground-truth box.
 
 Example:
-    >>> from fog_gym.world.traffic_world import VehicleState
+    >>> from fog_gym.world.fleet import VehicleState
     >>> import numpy as np
     >>> state = VehicleState(np.array([1, 2], np.int32), np.array([0, 1], np.int8),
     ...     np.array([[0, 0, 0.75], [20, 0, 1.6]]), np.array([[4.8, 2.1, 1.5], [9, 2.5, 3.2]]),
@@ -24,7 +24,7 @@ import numpy as np
 
 from fog_gym.world.primitives import Primitives
 from fog_gym.world.scenery import Props, SurfaceMap
-from fog_gym.world.traffic_world import VehicleState
+from fog_gym.world.fleet import VehicleState
 
 #: Semantic tag of each FogDrive class (CARLA ≥ 0.9.14: 14 Car, 15 Truck).
 CLASS_TAGS = {0: 14, 1: 15, 2: 18, 3: 19, 4: 14}

@@ -16,7 +16,6 @@ Example:
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -26,35 +25,7 @@ from fog_gym.world.scenery import LaneGeometry
 from fog_gym.world.towns import IDM_PROFILES, TOWN_SPECS, TOWNS, apply_idm_profile, check_traffic_mode, highway_env_config
 from fog_gym.world.traffic.core import accelerate, is_accelerated
 from fog_gym.seeds import stream
-
-EGO_ID = 1
-#: Tesla Model 3 (CARLA ``vehicle.tesla.model3`` bounding box): length, width, height [m].
-EGO_SIZE = (4.79, 2.16, 1.49)
-#: Spawn probability and (length, width, height) ranges of each class.
-CLASS_SPECS: dict[int, tuple[float, tuple[float, float], tuple[float, float], tuple[float, float]]] = {
-    0: (0.72, (4.2, 4.9), (1.80, 2.00), (1.40, 1.60)),
-    4: (0.18, (4.9, 5.9), (1.95, 2.10), (1.85, 2.50)),
-    1: (0.10, (7.5, 10.0), (2.40, 2.60), (3.00, 3.80)),
-}
-_CAR_COLORS = np.array([
-    [0.92, 0.92, 0.92], [0.08, 0.08, 0.09], [0.62, 0.63, 0.65], [0.35, 0.36, 0.38], [0.70, 0.08, 0.07],
-    [0.10, 0.22, 0.55], [0.05, 0.10, 0.25], [0.12, 0.32, 0.18], [0.85, 0.65, 0.10], [0.55, 0.32, 0.18],
-])  # fmt: skip
-
-@dataclass(frozen=True)
-class VehicleState:
-    """All vehicles at one instant (ego first). Positions are box centres at z = h/2, CARLA world frame."""
-
-    ids: np.ndarray  # (N,) int32, stable for the episode
-    classes: np.ndarray  # (N,) int8, FogDrive taxonomy
-    centers: np.ndarray  # (N, 3)
-    sizes: np.ndarray  # (N, 3) length, width, height
-    yaws: np.ndarray  # (N,) radians
-    velocities: np.ndarray  # (N, 3) m/s, world frame
-    colors: np.ndarray  # (N, 3) albedo in [0, 1]
-
-    def __len__(self) -> int:
-        return len(self.ids)
+from fog_gym.world.fleet import EGO_COLOR, EGO_ID, EGO_SIZE, VehicleState, draw_vehicle
 
 
 class TrafficWorld:
@@ -138,22 +109,15 @@ class TrafficWorld:
     # -- vehicles -------------------------------------------------------------------------------------
     def _assign(self, v: Any, is_ego: bool = False) -> None:
         if is_ego:
-            vid, cls = EGO_ID, 0
-            length, width, height = EGO_SIZE
-            color = np.array([0.75, 0.10, 0.10])
+            vid, cls, (length, width, height), color = EGO_ID, 0, EGO_SIZE, EGO_COLOR
         else:
             vid = self._next_id
             self._next_id += 1
-            classes = list(CLASS_SPECS)
-            probs = np.array([CLASS_SPECS[c][0] for c in classes])
-            cls = int(classes[self._rng.choice(len(classes), p=probs / probs.sum())])
-            _, lr, wr, hr = CLASS_SPECS[cls]
-            length, width, height = (float(self._rng.uniform(*r)) for r in (lr, wr, hr))
-            color = _CAR_COLORS[self._rng.integers(len(_CAR_COLORS))] * self._rng.uniform(0.9, 1.05)
+            cls, (length, width, height), color = draw_vehicle(self._rng)
         v._fog_id = vid
         v._fog_class = cls
         v._fog_height = height
-        v._fog_color = np.clip(color, 0.0, 1.0)
+        v._fog_color = color
         # highway-env's collision geometry equals the rendered box (maintainer's recipe, #490)
         v.LENGTH, v.WIDTH = length, width
         v.diagonal = math.hypot(length, width)

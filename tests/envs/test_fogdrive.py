@@ -8,7 +8,7 @@ from gymnasium.utils.env_checker import check_env
 import fog_gym
 from fog_gym.envs.fogdrive import FogDriveEnv
 from fog_gym.world.scenery import SURFACE_TAGS
-from fog_gym.world.traffic_world import CLASS_SPECS, EGO_ID, EGO_SIZE
+from fog_gym.world.fleet import CLASS_SPECS, EGO_ID, EGO_SIZE
 
 from tests.conftest import first_idle
 

@@ -11,7 +11,7 @@ from fog_gym.world.scene import Lighting, Scene, StaticWorld, vehicle_primitives
 from fog_gym.world.scenery import Props, SurfaceMap
 from fog_gym.render.surface import ground_lut, tiled_surface
 from fog_gym.sensors import CameraRig
-from fog_gym.world.traffic_world import VehicleState
+from fog_gym.world.fleet import VehicleState
 
 W, H = 320, 240
 

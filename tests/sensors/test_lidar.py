@@ -15,7 +15,7 @@ from fog_gym.geometry import sensor_to_world
 from fog_gym.sensors.semantic_lidar import simulate_semantic_lidar
 from fog_gym.sensors.raycast import GROUND, MISS, cast_rays
 from fog_gym.world.scenery import SURFACE_TAGS, SurfaceMap
-from fog_gym.world.traffic_world import VehicleState
+from fog_gym.world.fleet import VehicleState
 
 ROAD = SurfaceMap(np.ones((400, 400), np.uint8), (-200.0, -200.0), 1.0)
 NO_DROP = dict(dropoff_general_rate=0.0, dropoff_zero_intensity=0.0)

@@ -94,3 +94,60 @@ def compare_town(town: str, seed: int, steps: int, atol: float = 1e-9) -> int:
             ref.reset(seed=seed + k + 1)
             fast.reset(seed=seed + k + 1)
     return ended
+
+
+def compare_native(overrides: dict[str, Any], seed: int, steps: int, hazards: Any = None, keyframe_frequency: int = 5,
+                   atol: float = 1e-9) -> int:  # fmt: skip
+    """The highway town's ``TrafficWorld`` on highway-env's own path (``traffic="reference"``) against the native
+    array core (:class:`~fog_gym.world.traffic.native.NativeTraffic`), with seeded random meta-actions.
+
+    After every step: ids, classes, sizes and colours equal; every vehicle's position, heading and speed within
+    ``atol``; every vehicle's lane, target lane and crash flag, the ego's termination identical; the reward within
+    ``atol``. An ended episode restarts both on a new seed. Returns the number of episodes ended.
+    """
+    from fog_gym.world.traffic import kernels as K
+    from fog_gym.world.traffic.native import NativeTraffic
+    from fog_gym.world.traffic_world import TrafficWorld
+
+    ref = TrafficWorld("highway", 20, keyframe_frequency, highway_config=dict(overrides), traffic="reference",
+                       hazards=hazards)  # fmt: skip
+    nat = NativeTraffic(1, overrides, hazards, 20, keyframe_frequency)
+    rng = np.random.default_rng(seed)
+    episode_seed = seed
+    ref.reset(seed=episode_seed)
+    nat.reset(0, episode_seed)
+    ended = 0
+    for k in range(steps + 1):
+        where = f"seed {episode_seed} step {k}"
+        a = ref.vehicle_state()
+        ids, classes, centers, sizes, yaws, vel, colors = nat.vehicle_arrays(0)
+        np.testing.assert_array_equal(ids, a.ids, err_msg=where)
+        np.testing.assert_array_equal(classes, a.classes, err_msg=where)
+        np.testing.assert_array_equal(sizes, a.sizes, err_msg=where)
+        np.testing.assert_array_equal(colors, a.colors, err_msg=where)
+        np.testing.assert_allclose(centers, a.centers, rtol=0, atol=atol, err_msg=where)
+        np.testing.assert_allclose(yaws, a.yaws, rtol=0, atol=atol, err_msg=where)
+        np.testing.assert_allclose(vel, a.velocities, rtol=0, atol=atol, err_msg=where)
+        vs = ref.vehicles()
+        n = len(vs)
+        lanes = [v.lane_index[2] for v in vs]
+        targets = [getattr(v, "target_lane_index", v.lane_index)[2] for v in vs]
+        crashed = [bool(v.crashed) for v in vs]
+        assert nat.ints[0, :n, K.ILANE].tolist() == lanes, where
+        kinds = nat.ints[0, :n, K.IKIND]
+        assert [t for t, kd in zip(nat.ints[0, :n, K.ITLANE].tolist(), kinds) if kd != K.STALLED] == \
+            [t for t, kd in zip(targets, kinds) if kd != K.STALLED], where  # fmt: skip
+        assert nat.ints[0, :n, K.ICRASH].astype(bool).tolist() == crashed, where
+        if k == steps:
+            break
+        action = int(rng.integers(5))
+        r_ref, t_ref, _ = ref.step(action)
+        nat.step(np.array([action]))
+        assert abs(nat.reward(0) - r_ref) <= atol, where
+        assert nat.ego_crashed(0) == ref.ego_crashed, where
+        if t_ref:
+            ended += 1
+            episode_seed = seed * 1000 + k + 1
+            ref.reset(seed=episode_seed)
+            nat.reset(0, episode_seed)
+    return ended

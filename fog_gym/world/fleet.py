@@ -1,0 +1,60 @@
+"""The fleet: FogDrive's vehicle classes (supplementary D1: 0 car, 1 truck, 4 bigger car), their spawn shares, size
+ranges and colours, the ego car, :class:`VehicleState` (every vehicle at one instant as arrays) and the draws
+that give a spawned vehicle its class, size and colour (:func:`draw_vehicle`; both traffic cores use it, so a seed
+gives the same fleet in each).
+
+Example:
+    >>> cls, size, color = draw_vehicle(np.random.default_rng(0))
+    >>> cls in CLASS_SPECS, len(size), bool((0 <= color).all() and (color <= 1).all())
+    (True, 3, True)
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+EGO_ID = 1
+#: Tesla Model 3 (CARLA ``vehicle.tesla.model3`` bounding box): length, width, height [m].
+EGO_SIZE = (4.79, 2.16, 1.49)
+#: Spawn probability and (length, width, height) ranges of each class.
+CLASS_SPECS: dict[int, tuple[float, tuple[float, float], tuple[float, float], tuple[float, float]]] = {
+    0: (0.72, (4.2, 4.9), (1.80, 2.00), (1.40, 1.60)),
+    4: (0.18, (4.9, 5.9), (1.95, 2.10), (1.85, 2.50)),
+    1: (0.10, (7.5, 10.0), (2.40, 2.60), (3.00, 3.80)),
+}
+_CAR_COLORS = np.array([
+    [0.92, 0.92, 0.92], [0.08, 0.08, 0.09], [0.62, 0.63, 0.65], [0.35, 0.36, 0.38], [0.70, 0.08, 0.07],
+    [0.10, 0.22, 0.55], [0.05, 0.10, 0.25], [0.12, 0.32, 0.18], [0.85, 0.65, 0.10], [0.55, 0.32, 0.18],
+])  # fmt: skip
+#: The ego's colour.
+EGO_COLOR = np.array([0.75, 0.10, 0.10])
+
+
+def draw_vehicle(rng: np.random.Generator) -> tuple[int, tuple[float, float, float], np.ndarray]:
+    """``(class, (length, width, height), colour)`` of one spawned vehicle, drawn from ``rng`` in a fixed order (class,
+    length, width, height, colour, brightness)."""
+    classes = list(CLASS_SPECS)
+    probs = np.array([CLASS_SPECS[c][0] for c in classes])
+    cls = int(classes[rng.choice(len(classes), p=probs / probs.sum())])
+    _, lr, wr, hr = CLASS_SPECS[cls]
+    length, width, height = (float(rng.uniform(*r)) for r in (lr, wr, hr))
+    color = _CAR_COLORS[rng.integers(len(_CAR_COLORS))] * rng.uniform(0.9, 1.05)
+    return cls, (length, width, height), np.clip(color, 0.0, 1.0)
+
+
+@dataclass(frozen=True)
+class VehicleState:
+    """All vehicles at one instant (ego first). Positions are box centres at z = h/2, CARLA world frame."""
+
+    ids: np.ndarray  # (N,) int32, stable for the episode
+    classes: np.ndarray  # (N,) int8, FogDrive taxonomy
+    centers: np.ndarray  # (N, 3)
+    sizes: np.ndarray  # (N, 3) length, width, height
+    yaws: np.ndarray  # (N,) radians
+    velocities: np.ndarray  # (N, 3) m/s, world frame
+    colors: np.ndarray  # (N, 3) albedo in [0, 1]
+
+    def __len__(self) -> int:
+        return len(self.ids)
