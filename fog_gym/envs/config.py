@@ -19,6 +19,9 @@ from fog_gym.sensors.rig import RigConfig
 from fog_gym.world.hazards import HazardConfig
 from fog_gym.world.towns import TIMES_OF_DAY, TOWNS, check_traffic_mode
 
+#: Allowed values of ``FogDriveConfig.static_world``.
+STATIC_WORLDS: tuple[str, ...] = ("episode", "town")
+
 
 @dataclass(frozen=True)
 class FogDriveConfig:
@@ -43,11 +46,16 @@ class FogDriveConfig:
     labels: LabelConfig | None = field(default_factory=lambda: _default_labels())  # None: no boxes in info
     traffic: str = "fast"  # "fast": fog_gym.world.traffic core; "reference": highway-env's own Python path
     hazards: HazardConfig | None = None  # stalled vehicles ahead of the ego (the RL hazard preset)
+    #: "episode": road surface and props built around each episode's start from its seed (FogDrive-v0, datasets);
+    #: "town": built once per town and reused by every episode (resets in milliseconds; the RL presets)
+    static_world: str = "episode"
 
     def __post_init__(self) -> None:
         if self.town not in TOWNS:
             raise ValueError(f"town must be one of {TOWNS}, got {self.town!r}")
         check_traffic_mode(self.traffic)
+        if self.static_world not in STATIC_WORLDS:
+            raise ValueError(f"static_world must be one of {STATIC_WORLDS}, got {self.static_world!r}")
         if self.hazards is not None and not isinstance(self.hazards, HazardConfig):
             raise ValueError(f"hazards must be a HazardConfig or None, got {type(self.hazards).__name__}")
         if self.time_of_day not in TIMES_OF_DAY:

@@ -30,11 +30,16 @@ from fog_gym.world.scene import Lighting, Scene, StaticWorld, vehicle_primitives
 from fog_gym.world.scenery import STYLES, build_surface, place_props
 from fog_gym.dataset.packing import SEMANTIC_LIDAR, pack_points
 from fog_gym.sensors import CameraFrame, CameraRig, PointSensors, rig_layout, rig_sensors
-from fog_gym.world.traffic_world import EGO_ID, TrafficWorld
+from fog_gym.world.fleet import EGO_ID
+from fog_gym.world.traffic_world import make_world
 from fog_gym.world.towns import TOWN_SPECS
 from fog_gym.seeds import stream
 
 MAX_SPEED = 40.0  # highway-env's Vehicle.MAX_SPEED [m/s]: bounds where the ego can get in one episode
+#: Where a town's static world (``static_world="town"``) is built: (centre, half-size) [m]. The highway's covers every
+#: spawn (the ego starts ≈ 100–300 m down the road) plus a 20 s episode at 40 m/s and the sensors' reach.
+TOWN_WINDOWS: dict[str, tuple[tuple[float, float], float]] = {"highway": ((700.0, 6.0), 1050.0)}
+_TOWN_STATIC: dict[tuple, StaticWorld] = {}
 
 
 class FogDriveEnv(gym.Env):
@@ -87,6 +92,7 @@ class FogDriveEnv(gym.Env):
         render_mode: str | None = None,
         traffic: str | None = None,
         hazards: HazardConfig | None = None,
+        static_world: str | None = None,
     ) -> None:
         cfg = config if config is not None else FogDriveConfig()
         if not isinstance(cfg, FogDriveConfig):
@@ -106,7 +112,7 @@ class FogDriveEnv(gym.Env):
             for k, v in dict(
                 town=town, time_of_day=time_of_day, episode_seconds=episode_seconds,
                 simulation_frequency=simulation_frequency, keyframe_frequency=keyframe_frequency,
-                highway_config=highway_config, traffic=traffic, hazards=hazards,
+                highway_config=highway_config, traffic=traffic, hazards=hazards, static_world=static_world,
             ).items()
             if v is not None
         }  # fmt: skip
@@ -118,8 +124,8 @@ class FogDriveEnv(gym.Env):
         c = self.config
         self.metadata = {**self.metadata, "render_fps": c.keyframe_frequency}
         announce_compilation()
-        self.world = TrafficWorld(c.town, c.simulation_frequency, c.keyframe_frequency, c.episode_seconds, dict(c.highway_config),
-                                  traffic=c.traffic, hazards=c.hazards)  # fmt: skip
+        self.world = make_world(c.town, c.simulation_frequency, c.keyframe_frequency, c.episode_seconds,
+                                dict(c.highway_config), traffic=c.traffic, hazards=c.hazards)  # fmt: skip
         self.cameras = CameraRig(c.rig, far=c.far_distance)
         self.action_space = self.world.action_space
         rig_layout(c.rig)  # channel or folder clashes between the rig's sensors fail here, before any work
@@ -161,7 +167,7 @@ class FogDriveEnv(gym.Env):
         self.world.reset(seed=world_seed)
         self.action_space = self.world.action_space
         rng = stream(world_seed, "scenery")
-        self._static = self.build_static_world(rng)
+        self._static = self.town_static_world() if self.config.static_world == "town" else self.build_static_world(rng)
         self._lighting = Lighting.for_time_of_day(self.config.time_of_day, rng)
         self._sensor_rng = stream(world_seed, "sensors")
         self._steps = 0
@@ -197,6 +203,21 @@ class FogDriveEnv(gym.Env):
         surface = build_surface(lanes, resolution=self.config.surface_resolution)
         props = place_props(lanes, surface, rng, STYLES[TOWN_SPECS[self.config.town].scenery])
         return StaticWorld.build(surface, props)
+
+    def town_static_world(self) -> StaticWorld:
+        """The town's static world, built once per process and town (and lane count, surface resolution): the road
+        surface and props over the whole stretch episodes can reach, props from a fixed per-town seed."""
+        c = self.config
+        lanes_count = dict(c.highway_config).get("lanes_count", TOWN_SPECS[c.town].config.get("lanes_count"))
+        key = (c.town, lanes_count, c.surface_resolution)
+        static = _TOWN_STATIC.get(key)
+        if static is None:
+            center, radius = TOWN_WINDOWS.get(c.town, (self.world.start_position, MAX_SPEED * c.episode_seconds + 250.0))
+            lanes = self.world.lane_geometry(np.asarray(center, np.float64), radius)
+            surface = build_surface(lanes, resolution=c.surface_resolution)
+            props = place_props(lanes, surface, stream(c.town_number, "scenery"), STYLES[TOWN_SPECS[c.town].scenery])
+            static = _TOWN_STATIC[key] = StaticWorld.build(surface, props)
+        return static
 
     def build_scene(self) -> Scene:
         """The :class:`Scene` of the world's current state (what every sensor sees)."""

@@ -65,6 +65,8 @@ def make_fogdrive_rl(fog: Any = "clear", town: str = "highway", camera_size: Seq
         ("CAM_FRONT", CameraConfig("CAM_FRONT", FOGDRIVE_CAMERA_POSES["CAM_FRONT"], w, h, 100.0)),
         ("LIDAR_TOP", LidarConfig.fogdrive(channels=32, points_per_second=200_000.0)),
     ))
+    kwargs.setdefault("traffic", "native" if town == "highway" else "fast")
+    kwargs.setdefault("static_world", "town")
     base = FogDriveEnv(town=town, rig=rig, keyframe_frequency=5, highway_config={**RL_TRAFFIC, **(highway_config or {})},
                        labels=None, render_mode=render_mode, **kwargs)  # fmt: skip
     env: gym.Env = FogWrapper(base, fog)

@@ -10,7 +10,7 @@ vehicles, static world, lighting, primitives). Names load on first use (``import
 of highway-env).
 
 Example:
-    >>> from fog_gym.world.traffic_world import TOWNS
+    >>> from fog_gym.world import TOWNS
     >>> TOWNS[:2]
     ('highway', 'merge')
 """

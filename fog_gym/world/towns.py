@@ -17,7 +17,7 @@ from typing import Any
 TOWNS: tuple[str, ...] = ("highway", "merge", "roundabout", "intersection", "racetrack", "exit")
 TIMES_OF_DAY: tuple[str, ...] = ("day", "night")
 #: Allowed values of the ``traffic=`` argument of FogDrive environments.
-TRAFFIC_MODES: tuple[str, ...] = ("fast", "reference")
+TRAFFIC_MODES: tuple[str, ...] = ("fast", "reference", "native")
 
 
 def check_traffic_mode(traffic: str) -> str:
@@ -28,7 +28,7 @@ def check_traffic_mode(traffic: str) -> str:
     >>> check_traffic_mode("numba")
     Traceback (most recent call last):
     ...
-    ValueError: traffic must be one of ('fast', 'reference'), got 'numba'
+    ValueError: traffic must be one of ('fast', 'reference', 'native'), got 'numba'
     """
     if not isinstance(traffic, str) or traffic not in TRAFFIC_MODES:
         raise ValueError(f"traffic must be one of {TRAFFIC_MODES}, got {traffic!r}")

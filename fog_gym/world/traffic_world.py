@@ -225,3 +225,133 @@ class TrafficWorld:
 
     def close(self) -> None:
         self.hw.close()
+
+
+class NativeTrafficWorld:
+    """The highway town on the native array core (:class:`~fog_gym.world.traffic.native.NativeTraffic`), with
+    :class:`TrafficWorld`'s surface: same seeds, trajectories (≤ 1e-9 m), rewards, classes, ids and hazards.
+
+    ``core`` and ``index``: a world of a shared core (a vector env steps all its worlds in one call, then each
+    sub-env's :meth:`step` finds its world already stepped with its action); by default the world owns a core of
+    one world and steps it itself. ``vehicles()`` (highway-env objects) does not exist here.
+    """
+
+    traffic = "native"
+
+    def __init__(self, town: str = "highway", simulation_frequency: int = 20, keyframe_frequency: int = 10,
+                 episode_seconds: float = 20.0, highway_config: dict[str, Any] | None = None,
+                 hazards: HazardConfig | None = None, core: Any = None, index: int = 0) -> None:  # fmt: skip
+        from gymnasium import spaces
+
+        from fog_gym.world.traffic.native import NativeTraffic
+
+        if town != "highway":
+            raise ValueError(f"traffic='native' drives the highway town only (straight lanes), got town {town!r}; "
+                             "use traffic='fast'")  # fmt: skip
+        self.town = town
+        self.spec = TOWN_SPECS[town]
+        self.idm_profile = dict(IDM_PROFILES[self.spec.idm])
+        self.episode_seconds = float(episode_seconds)
+        self.core = core if core is not None else NativeTraffic(1, highway_config, hazards, simulation_frequency,
+                                                                keyframe_frequency)  # fmt: skip
+        self.index = int(index)
+        self.hazards = self.core.hazards
+        self.simulation_frequency = int(self.core.config["simulation_frequency"])
+        self.action_space = spaces.Discrete(5)
+        self.start_position = np.zeros(2)
+        self._pending: int | None = None  # the action a shared core already stepped this world with
+
+    def reset(self, seed: int | None = None) -> None:
+        self.core.reset(self.index, seed)
+        self.start_position = self.core.start_position[self.index].copy()
+        self._pending = None
+
+    def pre_stepped(self, action: int) -> None:
+        """Tell the world its core already advanced it with ``action`` (a vector env's batched step)."""
+        self._pending = int(action)
+
+    def step(self, action: Any) -> tuple[float, bool, dict]:
+        a = int(action)
+        if not self.action_space.contains(a):
+            raise ValueError(f"action must be a meta-action 0..4, got {action!r}")
+        if self._pending is None:
+            actions = np.ones(self.core.num_worlds, np.int64)
+            actions[self.index] = a
+            active = np.zeros(self.core.num_worlds, bool)
+            active[self.index] = True
+            self.core.step(actions, active)
+        elif self._pending != a:
+            raise RuntimeError(f"world {self.index} was stepped with action {self._pending}, not {a}")
+        self._pending = None
+        w = self.index
+        rewards = self.core.rewards(w)
+        info = {"speed": self.ego_speed, "crashed": self.ego_crashed, "action": a, "rewards": rewards}
+        return self.core.reward(w), self.ego_crashed, info
+
+    def vehicle_state(self) -> VehicleState:
+        return VehicleState(*self.core.vehicle_arrays(self.index))
+
+    def hazards_ego(self) -> np.ndarray:
+        return self.core.hazards_ego(self.index)
+
+    @property
+    def ego_pose(self) -> tuple[float, float, float]:
+        f = self.core.floats[self.index, 0]
+        return float(f[0]), float(f[1]), float(f[2])
+
+    @property
+    def time(self) -> float:
+        return float(self.core.ticks[self.index] / self.simulation_frequency)
+
+    @property
+    def tick(self) -> int:
+        return int(self.core.ticks[self.index])
+
+    @property
+    def ego_speed(self) -> float:
+        return float(self.core.floats[self.index, 0, 3])
+
+    @property
+    def ego_crashed(self) -> bool:
+        return self.core.ego_crashed(self.index)
+
+    @property
+    def vehicle_count(self) -> int:
+        return int(self.core.counts[self.index])
+
+    @property
+    def accelerated(self) -> bool:
+        return True
+
+    def lane_geometry(self, center: np.ndarray, radius: float, step: float = 1.0) -> list[LaneGeometry]:
+        """The straight lanes (0, 4 i) → (10 000, 4 i) sampled every ``step`` metres near ``center``."""
+        from fog_gym.world.traffic import kernels as K
+
+        x0 = max(0.0, float(center[0]) - radius - 25.0)
+        x1 = min(K.LANE_LENGTH, float(center[0]) + radius + 25.0)
+        lanes = []
+        for i in range(self.core.lanes):
+            y = i * K.LANE_WIDTH
+            if abs(y - float(center[1])) > radius + 25.0 or x1 <= x0:
+                continue
+            line_types = (3 if i == 0 else 1, 3 if i == self.core.lanes - 1 else 0)  # highway-env's straight_road_network
+            s = np.linspace(x0, x1, max(2, int(np.ceil((x1 - x0) / step)) + 1))
+            c = np.c_[s, np.full(len(s), y)]
+            half = np.array([0.0, K.LANE_WIDTH / 2])
+            lanes.append(LaneGeometry(s, c, c - half, c + half, line_types))
+        return lanes
+
+    def close(self) -> None:
+        pass
+
+
+def make_world(town: str, simulation_frequency: int = 20, keyframe_frequency: int = 10, episode_seconds: float = 20.0,
+               highway_config: dict[str, Any] | None = None, traffic: str = "fast",
+               hazards: HazardConfig | None = None) -> TrafficWorld | NativeTrafficWorld:  # fmt: skip
+    """The world of a town on the traffic core ``traffic`` ("fast", "reference": highway-env's objects; "native": the
+    array core, highway town only)."""
+    check_traffic_mode(traffic)
+    if traffic == "native":
+        return NativeTrafficWorld(town, simulation_frequency, keyframe_frequency, episode_seconds, highway_config,
+                                  hazards)  # fmt: skip
+    return TrafficWorld(town, simulation_frequency, keyframe_frequency, episode_seconds, highway_config, traffic, hazards)

@@ -54,7 +54,7 @@ def test_accelerate_rejects_other_envs():
 
 
 def test_unknown_traffic_mode_names_the_allowed_values():
-    with pytest.raises(ValueError, match=r"traffic must be one of \('fast', 'reference'\)"):
+    with pytest.raises(ValueError, match=r"traffic must be one of \('fast', 'reference', 'native'\)"):
         check_traffic_mode("numba")
     with pytest.raises(ValueError):
         check_traffic_mode(None)
