@@ -27,6 +27,38 @@ import numba
 if "NUMBA_THREADING_LAYER" not in os.environ:
     numba.config.THREADING_LAYER = "workqueue"
 
+
+def drop_stale_caches(root: Path | None = None) -> bool:
+    """Delete every numba cache file of the package when a module with kernels changed since they were written.
+
+    numba keys a cached kernel on its own module's source only; a kernel that inlines a function of another module
+    (the rasteriser's night shading, the perception kernels' ray caster) would keep running the old code after that
+    module changed. A digest of all sources, kept beside the caches, catches it; returns whether caches were dropped.
+    """
+    import hashlib
+
+    root = root or Path(__file__).resolve().parent
+    texts = [p.read_bytes() for p in sorted(root.rglob("*.py")) if "__pycache__" not in p.parts]
+    digest = hashlib.sha256(b"".join(t for t in texts if b"njit" in t)).hexdigest()  # the kernels' modules
+    marker = root / "__pycache__" / "kernels.digest"
+    try:
+        if marker.exists() and marker.read_text() == digest:
+            return False
+        dropped = False
+        for cache in root.rglob("__pycache__"):
+            for f in [*cache.glob("*.nbi"), *cache.glob("*.nbc")]:
+                f.unlink(missing_ok=True)
+                dropped = True
+        marker.parent.mkdir(exist_ok=True)
+        marker.write_text(digest)
+        return dropped
+    except OSError:  # a read-only install: numba falls back to its own cache folder, nothing to do here
+        return False
+
+
+if os.environ.get("FOG_GYM_KEEP_NUMBA_CACHE", "0") != "1":
+    drop_stale_caches()
+
 #: The main kernels (module file relative to the package, function name), the ones every env compiles first.
 MAIN_KERNELS = (("render/raster.py", "_raster_bands"), ("sensors/raycast.py", "_cast"), ("fog/camera.py", "_koschmieder"),
                 ("fog/lidar.py", "_hahner"), ("labels/boxes.py", "_project_boxes"), ("sensors/lidar.py", "_lidar_points"))  # fmt: skip

@@ -26,7 +26,7 @@ from fog_gym import geometry
 from fog_gym.dataset.layout import extrinsic_key
 from fog_gym.labels.boxes import CameraView, LabelConfig, annotate
 from fog_gym.geometry import sensor_to_world
-from fog_gym.world.scene import Lighting, Scene, StaticWorld, vehicle_primitives
+from fog_gym.world.scene import Lighting, Scene, StaticWorld, town_static_world, vehicle_primitives
 from fog_gym.world.scenery import STYLES, build_surface, place_props
 from fog_gym.dataset.packing import SEMANTIC_LIDAR, pack_points
 from fog_gym.sensors import CameraFrame, CameraRig, PointSensors, rig_layout, rig_sensors
@@ -36,10 +36,6 @@ from fog_gym.world.towns import TOWN_SPECS
 from fog_gym.seeds import stream
 
 MAX_SPEED = 40.0  # highway-env's Vehicle.MAX_SPEED [m/s]: bounds where the ego can get in one episode
-#: Where a town's static world (``static_world="town"``) is built: (centre, half-size) [m]. The highway's covers every
-#: spawn (the ego starts ≈ 100–300 m down the road) plus a 20 s episode at 40 m/s and the sensors' reach.
-TOWN_WINDOWS: dict[str, tuple[tuple[float, float], float]] = {"highway": ((700.0, 6.0), 1050.0)}
-_TOWN_STATIC: dict[tuple, StaticWorld] = {}
 
 
 class FogDriveEnv(gym.Env):
@@ -205,19 +201,11 @@ class FogDriveEnv(gym.Env):
         return StaticWorld.build(surface, props)
 
     def town_static_world(self) -> StaticWorld:
-        """The town's static world, built once per process and town (and lane count, surface resolution): the road
-        surface and props over the whole stretch episodes can reach, props from a fixed per-town seed."""
+        """The town's static world (:func:`fog_gym.world.scene.town_static_world`), built once per process."""
         c = self.config
         lanes_count = dict(c.highway_config).get("lanes_count", TOWN_SPECS[c.town].config.get("lanes_count"))
-        key = (c.town, lanes_count, c.surface_resolution)
-        static = _TOWN_STATIC.get(key)
-        if static is None:
-            center, radius = TOWN_WINDOWS.get(c.town, (self.world.start_position, MAX_SPEED * c.episode_seconds + 250.0))
-            lanes = self.world.lane_geometry(np.asarray(center, np.float64), radius)
-            surface = build_surface(lanes, resolution=c.surface_resolution)
-            props = place_props(lanes, surface, stream(c.town_number, "scenery"), STYLES[TOWN_SPECS[c.town].scenery])
-            static = _TOWN_STATIC[key] = StaticWorld.build(surface, props)
-        return static
+        return town_static_world(self.world, c.town, lanes_count, c.surface_resolution,
+                                 MAX_SPEED * c.episode_seconds + 250.0)  # fmt: skip
 
     def build_scene(self) -> Scene:
         """The :class:`Scene` of the world's current state (what every sensor sees)."""

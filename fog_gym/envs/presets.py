@@ -52,13 +52,53 @@ def make_fogdrive(fog: Any = None, airlight: Any = "estimate", **kwargs: Any) ->
 RL_TRAFFIC = {"vehicles_count": 20, "lanes_count": 3}
 
 
+#: Values of the RL presets' ``observation`` argument.
+OBSERVATIONS: tuple[str, ...] = ("pixels", "objects")
+#: The RL presets' arguments of the perceived-objects observation (:class:`~fog_gym.perception.objects.ObjectsConfig`).
+OBJECT_ARGS: tuple[str, ...] = ("sensors", "max_objects", "min_points", "min_pixels", "min_contrast")
+
+
+def objects_config(kwargs: dict[str, Any]) -> Any:
+    """Pop the perceived-objects arguments from ``kwargs`` into an :class:`~fog_gym.perception.objects.ObjectsConfig`
+    (bad values fail here, naming the argument)."""
+    from fog_gym.perception.objects import ObjectsConfig
+
+    return ObjectsConfig(**{k: kwargs.pop(k) for k in OBJECT_ARGS if k in kwargs})
+
+
+def check_observation(observation: Any) -> str:
+    if not isinstance(observation, str) or observation not in OBSERVATIONS:
+        raise ValueError(f"observation must be one of {OBSERVATIONS}, got {observation!r}")
+    return observation
+
+
 def make_fogdrive_rl(fog: Any = "clear", town: str = "highway", camera_size: Sequence[int] = (64, 64),
                      grayscale: bool = False, bev_size: int = 64, frame_stack: int = 1,
                      highway_config: dict | None = None, render_mode: str | None = None, bev_ahead: float = 0.0,
-                     **kwargs: Any) -> gym.Env:  # fmt: skip
+                     observation: str = "pixels", **kwargs: Any) -> gym.Env:  # fmt: skip
     """Build the RL preset (see the module docstring); ``bev_ahead`` shifts the bird's-eye image forward (metres,
-    :class:`~fog_gym.wrappers.LidarBEV`'s ``ahead``); ``kwargs`` go to :class:`fog_gym.envs.fogdrive.FogDriveEnv`."""
+    :class:`~fog_gym.wrappers.LidarBEV`'s ``ahead``); ``kwargs`` go to :class:`fog_gym.envs.fogdrive.FogDriveEnv`.
+
+    ``observation="objects"`` gives the perceived-objects observation instead (:mod:`fog_gym.envs.objects`;
+    ``sensors``, ``max_objects``, ``min_points``, ``min_pixels``, ``min_contrast`` configure it; highway town only)."""
     from fog_gym.wrappers import FogWrapper, LidarBEV, ResizeCameras, SelectKeys, StackFrames
+
+    check_observation(observation)
+    if observation == "objects":
+        from fog_gym.envs.objects import FogDriveObjectsEnv
+
+        objects = objects_config(kwargs)
+        hazards = kwargs.pop("hazards", None)
+        episode_seconds = kwargs.pop("episode_seconds", 20.0)
+        kwargs.pop("traffic", None)
+        if kwargs:
+            raise ValueError(f"observation='objects' does not take {sorted(kwargs)}")
+        if town != "highway":
+            raise ValueError(f"observation='objects' runs on the highway town only, got town {town!r}")
+        return FogDriveObjectsEnv({**RL_TRAFFIC, **(highway_config or {})}, hazards, fog, objects, episode_seconds)
+    leftover = [k for k in OBJECT_ARGS if k in kwargs]
+    if leftover:
+        raise ValueError(f"{leftover} configure observation='objects'; this env has observation='pixels'")
 
     w, h = (int(v) for v in camera_size)
     rig = RigConfig((

@@ -80,16 +80,32 @@ def lidar_crossover_range(level: FogLevel) -> float:
     return float(r[np.argmax(r**2 * I[-1] * beta / beta0 > np.exp(-2 * level.alpha * r))])
 
 
+@njit(cache=True, inline="always")
+def hahner_intensities(r0, intensity, table_i, alpha, beta_ratio):
+    """The rule's two intensities (0–255) of a return at range ``r0`` with CARLA intensity ``intensity`` ∈ [0, 1]:
+    ``(i_hard, i_soft, table key)``; a fog return replaces the point when ``i_soft > i_hard``."""
+    last = table_i.shape[0] - 1
+    i_orig = np.round(intensity * 255.0)
+    i_hard = np.round(i_orig * np.exp(-2.0 * alpha * r0))
+    key = min(int(np.round(min(r0, 200.0) / TABLE_STEP)), last)
+    i_soft = min(255.0, table_i[key] * i_orig * r0 * r0 * beta_ratio)
+    return i_hard, i_soft, key
+
+
+@njit(cache=True)
+def hahner_keeps(r0, intensity, table_i, table_r, alpha, beta_ratio):
+    """Whether a return at range ``r0`` with intensity ``intensity`` survives the fog (``i_soft <= i_hard``); the
+    same decision :func:`fog_lidar` makes per point, for the perception kernels."""
+    i_hard, i_soft, _ = hahner_intensities(r0, intensity, table_i, alpha, beta_ratio)
+    return not i_soft > i_hard
+
+
 @njit(cache=True, parallel=True)
 def _hahner(pts, table_i, table_r, alpha, beta_ratio, log_noise, u, out):
-    last = table_i.shape[0] - 1
     for n in prange(pts.shape[0]):
         x, y, z = np.float64(pts[n, 0]), np.float64(pts[n, 1]), np.float64(pts[n, 2])
         r0 = np.sqrt(x * x + y * y + z * z)
-        i_orig = np.round(np.float64(pts[n, 3]) * 255.0)
-        i_hard = np.round(i_orig * np.exp(-2.0 * alpha * r0))
-        key = min(int(np.round(min(r0, 200.0) / TABLE_STEP)), last)
-        i_soft = min(255.0, table_i[key] * i_orig * r0 * r0 * beta_ratio)
+        i_hard, i_soft, key = hahner_intensities(r0, np.float64(pts[n, 3]), table_i, alpha, beta_ratio)
         if i_soft > i_hard:  # the fog's own return is stronger: a fog point on the same ray
             scale = table_r[key] / max(r0, 1e-12) * np.exp(log_noise * u[n])
             out[n, 0] = np.float32(x * scale)

@@ -19,11 +19,14 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
+from fog_gym.seeds import stream
 from fog_gym.world.primitives import Primitives
-from fog_gym.world.scenery import Props, SurfaceMap
+from fog_gym.world.scenery import STYLES, Props, SurfaceMap, build_surface, place_props
+from fog_gym.world.towns import TOWN_SPECS, TOWNS
 from fog_gym.world.fleet import VehicleState
 
 #: Semantic tag of each FogDrive class (CARLA ≥ 0.9.14: 14 Car, 15 Truck).
@@ -74,6 +77,27 @@ class StaticWorld:
     @classmethod
     def build(cls, surface: SurfaceMap, props: Props) -> StaticWorld:
         return cls(surface, props)
+
+
+#: Where a town's static world (``static_world="town"``) is built: (centre, half-size) [m]. The highway's covers every
+#: spawn (the ego starts ≈ 100–300 m down the road) plus a 20 s episode at 40 m/s and the sensors' reach.
+TOWN_WINDOWS: dict[str, tuple[tuple[float, float], float]] = {"highway": ((700.0, 6.0), 1050.0)}
+_TOWN_STATIC: dict[tuple, StaticWorld] = {}
+
+
+def town_static_world(world: Any, town: str, lanes_count: Any, surface_resolution: float, radius: float) -> StaticWorld:
+    """A town's static world, built once per process and (town, lane count, surface resolution): the road surface
+    and props over the stretch episodes can reach (:data:`TOWN_WINDOWS`; elsewhere ``radius`` around the world's
+    start), props from a fixed per-town seed. Every episode of the town reuses it: resets cost milliseconds."""
+    key = (town, lanes_count, surface_resolution)
+    static = _TOWN_STATIC.get(key)
+    if static is None:
+        center, half = TOWN_WINDOWS.get(town, (world.start_position, radius))
+        lanes = world.lane_geometry(np.asarray(center, np.float64), half)
+        surface = build_surface(lanes, resolution=surface_resolution)
+        props = place_props(lanes, surface, stream(TOWNS.index(town) + 1, "scenery"), STYLES[TOWN_SPECS[town].scenery])
+        static = _TOWN_STATIC[key] = StaticWorld.build(surface, props)
+    return static
 
 
 @dataclass(frozen=True)

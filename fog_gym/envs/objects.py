@@ -1,0 +1,239 @@
+"""The RL presets with the perceived-objects observation: N worlds in arrays (:class:`ObjectWorlds`), one as a
+Gymnasium env (:class:`FogDriveObjectsEnv`), N as a vector env (:class:`fog_gym.envs.vector.FogDriveVectorEnv`).
+
+A world is the preset's highway traffic on the native core (:mod:`fog_gym.world.traffic.native`), its fog level and
+its episode's seeds; an observation is what the fogged sensors detect (:mod:`fog_gym.perception.objects`). Seeds
+follow ``FogDriveEnv``: ``reset(seed=s)`` seeds the world's generator, the episode seed is its first draw, the
+traffic, hazards, vehicle classes, lighting and every detection draw derive from it; an unseeded reset continues
+the generator. Fog changes with :meth:`FogDriveObjectsEnv.set_fog` from the next reset, as the fog wrapper's.
+
+Example:
+    >>> import gymnasium as gym, fog_gym
+    >>> env = gym.make("FogDriveRLHazard-v0", observation="objects", fog="dense")
+    >>> obs, info = env.reset(seed=0)
+    >>> obs.shape, obs.dtype, sorted(info["detections"])
+    ((8, 8), dtype('float32'), ['camera', 'fused', 'lidar', 'radar'])
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import gymnasium as gym
+import numpy as np
+from gymnasium import spaces
+from gymnasium.utils import seeding
+
+from fog_gym.fog.lidar import BETA_PER_MOR, GAMMA, soft_response_table
+from fog_gym.fog.physics import FogLevel, parse_fog
+from fog_gym.perception import objects as PO
+from fog_gym.seeds import stream
+from fog_gym.world.hazards import HazardConfig
+from fog_gym.world.scene import Lighting, town_static_world
+from fog_gym.world.scenery import SURFACE_RGB
+from fog_gym.world.traffic import kernels as K
+from fog_gym.world.traffic.native import NativeTraffic
+from fog_gym.world.traffic_world import NativeTrafficWorld
+
+SKY_HORIZON = np.array([205.0, 218.0, 232.0])  # the day sky's horizon colour (Lighting.for_time_of_day)
+
+
+def _luma(rgb: np.ndarray) -> np.ndarray:
+    return 0.2126 * rgb[..., 0] + 0.7152 * rgb[..., 1] + 0.0722 * rgb[..., 2]
+
+
+class ObjectWorlds:
+    """``num_worlds`` worlds of an RL preset with the perceived-objects observation, stepped together.
+
+    ``highway_config`` and ``hazards`` define the traffic (the preset's), ``fog`` the initial level of every world,
+    ``episode_seconds`` the truncation, ``objects`` the detection rig (:class:`~fog_gym.perception.objects.ObjectsConfig`).
+    """
+
+    def __init__(self, num_worlds: int, highway_config: Mapping[str, Any], hazards: HazardConfig | None, fog: Any,
+                 objects: PO.ObjectsConfig, episode_seconds: float = 20.0, keyframe_frequency: int = 5,
+                 simulation_frequency: int = 20, surface_resolution: float = 0.1) -> None:  # fmt: skip
+        self.core = NativeTraffic(num_worlds, highway_config, hazards, simulation_frequency, keyframe_frequency)
+        self.n = num_worlds
+        self.objects = objects
+        self.keyframe_frequency = keyframe_frequency
+        self.episode_steps = int(round(episode_seconds * keyframe_frequency))
+        self.levels: list[FogLevel] = [parse_fog(fog)] * num_worlds
+        self.pending: list[FogLevel | None] = [None] * num_worlds
+        self.np_random = [seeding.np_random(None)[0] for _ in range(num_worlds)]
+        self.episode_seed = np.zeros(num_worlds, np.int64)
+        self.keys = np.zeros(num_worlds, np.uint64)
+        self.steps = np.zeros(num_worlds, np.int64)
+        self.suns = np.zeros((num_worlds, 3))
+        self.shades = np.zeros((num_worlds, 3))
+        v, m = self.core.capacity, objects.max_objects
+        self.present = np.zeros((num_worlds, v, 4), np.bool_)
+        self.pos = np.zeros((num_worlds, v, 4, 2))
+        self.vel = np.zeros((num_worlds, v, 4, 2))
+        self.prev_present = np.zeros((num_worlds, v, 4), np.bool_)
+        self.prev_pos = np.zeros((num_worlds, v, 4, 2))
+        self.obs = np.zeros((num_worlds, m, len(objects.features)), np.float32)
+        self.alphas = np.zeros(num_worlds)
+        self.beta_ratios = np.zeros(num_worlds)
+        self.tables_i = np.zeros((num_worlds, 101))
+        self.tables_r = np.zeros((num_worlds, 101))
+        static = town_static_world(NativeTrafficWorld("highway", core=self.core), "highway",
+                                   self.core.lanes, surface_resolution, 1050.0)  # fmt: skip
+        s = static.surface
+        self._grid = np.ascontiguousarray(s.grid, np.uint8)
+        self._ground = (float(s.origin[0]), float(s.origin[1]), float(s.resolution))
+        self._surf_luma = _luma(SURFACE_RGB)
+        o = objects
+        self._elev = o.lidar_elevations()
+        self._drop = np.array([0.45, 0.8, 0.4])  # CARLA's LiDAR drop-off defaults (LidarConfig)
+        self._cam = np.array([o.camera_pose[0], o.camera_pose[1], o.camera_focal, o.camera_size[0], o.camera_size[1],
+                              o.camera_range])  # fmt: skip
+        self._rad = np.array([o.radar_pose[0], o.radar_pose[1], o.radar_range, math.radians(o.radar_fov[0]),
+                              math.radians(o.radar_fov[1]), o.radar_rays])  # fmt: skip
+        self._rules = np.array([o.min_points, o.min_pixels, o.min_contrast, 0.0, o.max_rays], np.float64)
+        self._mask = o.sensor_mask
+        for w in range(num_worlds):
+            self._set_level(w, self.levels[w])
+
+    # -- fog ------------------------------------------------------------------------------------------
+    def _set_level(self, w: int, level: FogLevel) -> None:
+        self.levels[w] = level
+        self.alphas[w] = level.alpha
+        if level.is_clear:
+            self.beta_ratios[w] = 0.0
+            self.tables_i[w] = 0.0
+            self.tables_r[w] = 0.0
+        else:
+            ti, tr = soft_response_table(level.alpha)
+            self.tables_i[w], self.tables_r[w] = ti, tr
+            self.beta_ratios[w] = BETA_PER_MOR / level.visibility_m / (GAMMA / math.pi)
+
+    def set_fog(self, w: int, fog: Any) -> None:
+        """World ``w``'s fog from its next reset on."""
+        self.pending[w] = parse_fog(fog)
+
+    # -- episodes -------------------------------------------------------------------------------------
+    def reset(self, w: int, seed: int | None = None) -> None:
+        if seed is not None:
+            self.np_random[w] = seeding.np_random(seed)[0]
+        if self.pending[w] is not None:
+            self._set_level(w, self.pending[w])
+            self.pending[w] = None
+        world_seed = int(self.np_random[w].integers(0, 2**31 - 1))
+        self.episode_seed[w] = world_seed
+        self.core.reset(w, world_seed)
+        light = Lighting.for_time_of_day("day", stream(world_seed, "scenery"))
+        self.suns[w] = light.sun_dir
+        self.shades[w] = light.ambient, light.sun_intensity, light.ground_shade
+        self.keys[w] = np.uint64(int(np.random.SeedSequence([world_seed, 0x0B5]).generate_state(1, np.uint64)[0]))
+        self.steps[w] = 0
+        self.prev_present[w] = False
+        active = np.zeros(self.n, bool)
+        active[w] = True
+        self._perceive(active)
+
+    def step(self, actions: np.ndarray, active: np.ndarray) -> None:
+        self.core.step(actions, active)
+        self.steps[active] += 1
+        self._perceive(active)
+
+    def _perceive(self, active: np.ndarray) -> None:
+        c = self.core
+        PO.perceive_worlds(active, c.floats, c.counts, c.classes, c.colors, c.heights, self.keys, c.ticks,
+                           self.alphas, self.beta_ratios, self.tables_i, self.tables_r, self.suns, self.shades,
+                           float(_luma(SKY_HORIZON)), self._grid, *self._ground, self._surf_luma, self._elev,
+                           self.objects.lidar_beams, self.objects.lidar_range, self.objects.lidar_height, self._drop,
+                           self._cam, self._rad, self._mask, self._rules, 1.0 / self.keyframe_frequency, c.lanes,
+                           self.present, self.pos, self.vel, self.prev_present, self.prev_pos, self.obs)  # fmt: skip
+
+    # -- per-world results ----------------------------------------------------------------------------
+    def terminated(self, w: int) -> bool:
+        return self.core.ego_crashed(w)
+
+    def truncated(self, w: int) -> bool:
+        return bool(self.steps[w] >= self.episode_steps) and not self.terminated(w)
+
+    def info(self, w: int, detections: bool = True) -> dict[str, Any]:
+        c = self.core
+        level = self.levels[w]
+        info: dict[str, Any] = {"speed": float(c.floats[w, 0, K.FS]), "crashed": c.ego_crashed(w),
+                                "fog": level.info(), "step": int(self.steps[w])}  # fmt: skip
+        if c.hazards is not None:
+            info["hazards"] = c.hazards_ego(w)
+        if detections:
+            info["detections"] = self.detections(w)
+        return info
+
+    def detections(self, w: int) -> dict[str, dict[str, np.ndarray]]:
+        """Per sensor of the rig and ``"fused"``: ``vehicle_ids``, ``position`` (reported x, y, ego frame),
+        ``true_position`` (their true centres, ego frame) and ``distance`` (true, from the ego's centre) [m]."""
+        c = self.core
+        n = int(c.counts[w])
+        f = c.floats[w, :n]
+        ex, ey, eh = f[0, K.FX], f[0, K.FY], f[0, K.FH]
+        d = f[:, [K.FX, K.FY]] - (ex, ey)
+        cs, sn = math.cos(eh), math.sin(eh)
+        true = np.c_[d[:, 0] * cs + d[:, 1] * sn, -d[:, 0] * sn + d[:, 1] * cs]
+        out = {}
+        for s, name in ((PO.CAM, "camera"), (PO.LID, "lidar"), (PO.RAD, "radar"), (PO.FUSED, "fused")):
+            if name != "fused" and name not in self.objects.sensors:
+                continue
+            slots = np.flatnonzero(self.present[w, :n, s])
+            out[name] = {"vehicle_ids": c.ids[w, slots].astype(np.int64), "position": self.pos[w, slots, s].copy(),
+                         "true_position": true[slots], "distance": np.hypot(true[slots, 0], true[slots, 1])}  # fmt: skip
+        return out
+
+
+class FogDriveObjectsEnv(gym.Env):
+    """One world of :class:`ObjectWorlds` as a Gymnasium env (what ``gym.make(<RL preset>, observation="objects")``
+    returns). Observation: ``Box(-1, 1, (max_objects, 5 + len(sensors)), float32)``; actions, reward, termination
+    and truncation as the preset's; ``info``: speed, crashed, fog, step, hazards (hazard preset), detections."""
+
+    metadata = {"render_modes": [], "render_fps": 5}
+
+    def __init__(self, highway_config: Mapping[str, Any], hazards: HazardConfig | None, fog: Any = "clear",
+                 objects: PO.ObjectsConfig | None = None, episode_seconds: float = 20.0) -> None:  # fmt: skip
+        self.objects = objects if objects is not None else PO.ObjectsConfig()
+        self.worlds = ObjectWorlds(1, highway_config, hazards, fog, self.objects, episode_seconds)
+        m, nf = self.worlds.obs.shape[1:]
+        self.observation_space = spaces.Box(-1.0, 1.0, (m, nf), np.float32)
+        self.action_space = spaces.Discrete(5)
+        self._started = False
+
+    @property
+    def episode_seed(self) -> int:
+        return int(self.worlds.episode_seed[0])
+
+    @property
+    def fog(self) -> FogLevel:
+        return self.worlds.levels[0]
+
+    def set_fog(self, fog: Any) -> None:
+        """Change the fog from the next ``reset`` on (curricula)."""
+        self.worlds.set_fog(0, fog)
+
+    @property
+    def next_fog(self) -> FogLevel | None:
+        return self.worlds.pending[0]
+
+    @next_fog.setter
+    def next_fog(self, fog: Any) -> None:
+        if fog is not None:
+            self.set_fog(fog)
+
+    def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
+        super().reset(seed=seed)
+        self.worlds.reset(0, seed)
+        self._started = True
+        return self.worlds.obs[0].copy(), self.worlds.info(0)
+
+    def step(self, action: Any):
+        if not self._started:
+            raise RuntimeError("call reset() before step()")
+        a = int(action)
+        if not self.action_space.contains(a):
+            raise ValueError(f"action must be a meta-action 0..4, got {action!r}")
+        self.worlds.step(np.array([a]), np.ones(1, bool))
+        w = self.worlds
+        return w.obs[0].copy(), w.core.reward(0), w.terminated(0), w.truncated(0), w.info(0)

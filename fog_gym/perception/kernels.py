@@ -1,0 +1,386 @@
+"""Detection kernels: which vehicles each fogged sensor actually sees, from rays cast into the scene (numba).
+
+Every sensor here casts the rays its data is made of, but only those that can land on a vehicle: the LiDAR's beams
+through a vehicle's angular extent, the camera's pixels inside a vehicle's projected box and a ring around it,
+the radar's random rays. Occluders are every other vehicle's box and the ground (z = 0); roadside props are not
+tested (on the RL presets' straight highway they stand beside the road). Random draws (CARLA's LiDAR drop-off,
+measurement noise, the radar's rays) come from a counter-based hash of (episode key, tick, sensor, ray or vehicle),
+so the result does not depend on which rays were cast or in which order, and a seed fixes it.
+
+* LiDAR (CARLA ``ray_cast`` + Hahner et al. fog): a return on vehicle j at range R with intensity
+  ``exp(−0.004 R)`` survives CARLA's general and intensity drop-off, then the Hahner model
+  (:func:`fog_gym.fog.lidar.hahner_keeps`): a fog return replaces it when the fog's soft response is stronger. At
+  most ``max_rays`` beams per vehicle are cast, evenly strided over its angular extent; the surviving count is
+  scaled by the stride (exact for vehicles under ``max_rays`` beams: all distant ones).
+* Camera (Koschmieder on a day scene): each sampled pixel's ray gives radiance ``J`` (vehicle: its albedo shaded
+  by the sun as the renderer shades faces; ground: the road-surface class; sky: the horizon colour) and
+  fogged luminance ``I = J·t + A·(1 − t)``, ``t = exp(−α·ℓ)``, ``A`` the horizon's. A vehicle's Weber contrast is
+  its mean fogged luminance over its visible pixels against the mean of what those pixels would show without it
+  (the fogged road or sky behind it): the contrast of the object against its background that defines visibility,
+  so a black car against the sky is seen to ≈ V.
+* Radar (CARLA ``sensor.other.radar``): random rays into the FOV cone; a hit on a vehicle is a detection with its
+  range, azimuth and radial velocity. Never fogged.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
+from fog_gym.fog.lidar import hahner_keeps
+
+_MASK = np.uint64(0xFFFFFFFFFFFFFFFF)
+#: Sensor keys of the hash streams.
+LIDAR_KEY, CAMERA_KEY, RADAR_KEY, NOISE_KEY = 1, 2, 3, 4
+
+
+@njit(cache=True, inline="always")
+def _splitmix(x):
+    x = (x + np.uint64(0x9E3779B97F4A7C15)) & _MASK
+    x = ((x ^ (x >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)) & _MASK
+    x = ((x ^ (x >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)) & _MASK
+    return x ^ (x >> np.uint64(31))
+
+
+@njit(cache=True)
+def uniform(key, a, b, c, d):
+    """A uniform draw in [0, 1) from the hash of (key, a, b, c, d) (non-negative integers)."""
+    h = _splitmix(np.uint64(key))
+    h = _splitmix(h ^ np.uint64(a))
+    h = _splitmix(h ^ np.uint64(b))
+    h = _splitmix(h ^ np.uint64(c))
+    h = _splitmix(h ^ np.uint64(d))
+    return (h >> np.uint64(11)) * (1.0 / 9007199254740992.0)
+
+
+@njit(cache=True)
+def normal(key, a, b, c, d):
+    """A standard normal draw (Box–Muller on two hashed uniforms)."""
+    u1 = max(uniform(key, a, b, c, 2 * d), 1e-300)
+    u2 = uniform(key, a, b, c, 2 * d + 1)
+    return math.sqrt(-2.0 * math.log(u1)) * math.cos(2.0 * math.pi * u2)
+
+
+@njit(cache=True)
+def ray_box(ox, oy, oz, dx, dy, dz, cx, cy, yaw, hl, hw, h):
+    """Entry distance of a ray into an upright box (centre (cx, cy), yaw, half length/width, height h from z = 0) and
+    the entry face's normal axis (0: x, 1: y, 2: z) and sign; (inf, -1, 0) when missed or when the origin is inside."""
+    c, s = math.cos(yaw), math.sin(yaw)
+    px, py = ox - cx, oy - cy
+    lx = c * px + s * py
+    ly = -s * px + c * py
+    ldx = c * dx + s * dy
+    ldy = -s * dx + c * dy
+    t0 = -np.inf
+    t1 = np.inf
+    axis = -1
+    sign = 0.0
+    lo = (-hl, -hw, 0.0)
+    hi = (hl, hw, h)
+    o = (lx, ly, oz)
+    d = (ldx, ldy, dz)
+    for k in range(3):
+        if abs(d[k]) < 1e-12:
+            if o[k] < lo[k] or o[k] > hi[k]:
+                return np.inf, -1, 0.0
+            continue
+        ta = (lo[k] - o[k]) / d[k]
+        tb = (hi[k] - o[k]) / d[k]
+        sg = -1.0
+        if ta > tb:
+            ta, tb = tb, ta
+            sg = 1.0
+        if ta > t0:
+            t0 = ta
+            axis = k
+            sign = sg
+        if tb < t1:
+            t1 = tb
+        if t0 > t1:
+            return np.inf, -1, 0.0
+    if t0 <= 0.0:  # behind, or the origin inside the box
+        return np.inf, -1, 0.0
+    return t0, axis, sign
+
+
+@njit(cache=True)
+def nearest(ox, oy, oz, dx, dy, dz, n, bx, by, byaw, bl, bw, bh, amin, amax, az, max_t):
+    """Nearest hit along a ray among boxes 1..n-1 (slot 0, the ego, is skipped) whose azimuth interval
+    [amin, amax] (sensor-relative, radians) holds the ray's azimuth ``az``, and the ground: (t, box or −1 ground
+    or −2 nothing, face axis, face sign)."""
+    best_t = max_t
+    best = -2
+    best_axis = -1
+    best_sign = 0.0
+    if dz < 0.0:
+        tg = -oz / dz
+        if tg < best_t:
+            best_t = tg
+            best = -1
+    for j in range(1, n):
+        if az < amin[j] or az > amax[j]:
+            continue
+        t, axis, sign = ray_box(ox, oy, oz, dx, dy, dz, bx[j], by[j], byaw[j], bl[j] / 2, bw[j] / 2, bh[j])
+        if t < best_t:
+            best_t = t
+            best = j
+            best_axis = axis
+            best_sign = sign
+    return best_t, best, best_axis, best_sign
+
+
+@njit(cache=True)
+def angular_extents(n, bx, by, byaw, bl, bw, bh, sx, sy, sz, syaw, amin, amax, emin, emax, dist):
+    """Per box: azimuth and elevation intervals seen from a sensor at (sx, sy, sz) with yaw ``syaw`` (radians,
+    azimuth positive to the right = +y) and the distance to its centre; a box around the sensor gets an empty one."""
+    c0, s0 = math.cos(syaw), math.sin(syaw)
+    for j in range(n):
+        cj, sj = math.cos(byaw[j]), math.sin(byaw[j])
+        a_lo, a_hi = np.inf, -np.inf
+        e_lo, e_hi = np.inf, -np.inf
+        inside = True
+        for cx_ in range(2):
+            for cy_ in range(2):
+                lx = (bl[j] / 2) * (1 if cx_ else -1)
+                ly = (bw[j] / 2) * (1 if cy_ else -1)
+                wx = bx[j] + cj * lx - sj * ly - sx
+                wy = by[j] + sj * lx + cj * ly - sy
+                fx = c0 * wx + s0 * wy
+                fy = -s0 * wx + c0 * wy
+                a = math.atan2(fy, fx)
+                r = math.hypot(fx, fy)
+                if r < 0.05:
+                    continue
+                a_lo = min(a_lo, a)
+                a_hi = max(a_hi, a)
+                for z in (0.0, bh[j]):
+                    e = math.atan2(z - sz, r)
+                    e_lo = min(e_lo, e)
+                    e_hi = max(e_hi, e)
+        rx, ry = bx[j] - sx, by[j] - sy
+        fx = c0 * rx + s0 * ry
+        fy = -s0 * rx + c0 * ry
+        inside = abs(-sj * (sx - bx[j]) + cj * (sy - by[j])) < bw[j] / 2 and abs(cj * (sx - bx[j]) + sj * (sy - by[j])) < bl[j] / 2
+        if a_hi - a_lo > math.pi:  # straddles ±π (behind the sensor): take the wrapped interval's complement
+            a_lo, a_hi = -math.pi, math.pi
+        if inside:
+            a_lo, a_hi = 1.0, -1.0
+        amin[j], amax[j] = a_lo, a_hi
+        emin[j], emax[j] = e_lo, e_hi
+        dist[j] = math.hypot(fx, fy)
+
+
+@njit(cache=True)
+def lidar_detect(n, bx, by, byaw, bl, bw, bh, ex, ey, eyaw, sz, elev, n_az, rng_max, key, tick, alpha, beta_ratio,
+                 table_i, table_r, drop_general, drop_limit, drop_zero, max_rays, count, centroid):  # fmt: skip
+    """Surviving LiDAR returns per vehicle (``count``, scaled by the stride) and their centroid in the sensor frame
+    (``centroid`` (V, 3)), for a LiDAR at height ``sz`` above the ego origin (ex, ey) with the ego's yaw."""
+    amin = np.empty(n)
+    amax = np.empty(n)
+    emin = np.empty(n)
+    emax = np.empty(n)
+    dist = np.empty(n)
+    angular_extents(n, bx, by, byaw, bl, bw, bh, ex, ey, sz, eyaw, amin, amax, emin, emax, dist)
+    c0, s0 = math.cos(eyaw), math.sin(eyaw)
+    n_el = elev.shape[0]
+    step = 2.0 * math.pi / n_az
+    for j in range(1, n):
+        count[j] = 0.0
+        centroid[j, 0] = centroid[j, 1] = centroid[j, 2] = 0.0
+        if amin[j] > amax[j] or dist[j] - math.hypot(bl[j], bw[j]) / 2 > rng_max:
+            continue
+        k0 = int(math.ceil((amin[j] + math.pi) / step))
+        k1 = int(math.floor((amax[j] + math.pi) / step))
+        c_lo = 0
+        while c_lo < n_el and elev[c_lo] > emax[j]:
+            c_lo += 1
+        c_hi = n_el - 1
+        while c_hi >= 0 and elev[c_hi] < emin[j]:
+            c_hi -= 1
+        if k1 < k0 or c_hi < c_lo:
+            continue
+        nk = k1 - k0 + 1
+        nc = c_hi - c_lo + 1
+        stride = max(1, int(math.ceil(math.sqrt(nk * nc / max_rays))))
+        total = 0.0
+        sx = sy = sz_ = 0.0
+        for ci in range(c_lo, c_hi + 1, stride):
+            ce, se = math.cos(elev[ci]), math.sin(elev[ci])
+            for k in range(k0, k1 + 1, stride):
+                a = k * step - math.pi
+                fx, fy, fz = ce * math.cos(a), ce * math.sin(a), se
+                dx = c0 * fx - s0 * fy
+                dy = s0 * fx + c0 * fy
+                t, hit, _, _ = nearest(ex, ey, sz, dx, dy, fz, n, bx, by, byaw, bl, bw, bh, amin, amax, a, rng_max)
+                if hit != j:
+                    continue
+                if uniform(key, tick, 1, ci, k) < drop_general:
+                    continue
+                inten = math.exp(-0.004 * t)
+                if inten <= drop_limit and uniform(key, tick, 2, ci, k) >= inten * drop_zero / drop_limit + 1 - drop_zero:
+                    continue
+                if alpha > 0.0 and not hahner_keeps(t, inten, table_i, table_r, alpha, beta_ratio):
+                    continue
+                w = stride * stride
+                total += w
+                sx += w * fx * t
+                sy += w * fy * t
+                sz_ += w * fz * t
+        count[j] = total
+        if total > 0:
+            centroid[j, 0], centroid[j, 1], centroid[j, 2] = sx / total, sy / total, sz_ / total
+
+
+@njit(cache=True, inline="always")
+def _luma(r, g, b):
+    return 0.2126 * r + 0.7152 * g + 0.0722 * b
+
+
+@njit(cache=True)
+def _pixel_luminance(t, hit, axis, sign, dx, dy, dz, ox, oy, oz, byaw, colors, sun, ambient, sun_int, grid, gx0,
+                     gy0, res, surf_luma, ground_shade, sky_luma, alpha):  # fmt: skip
+    """Fogged luminance (0–255) seen along one ray and whether it hit anything but the sky."""
+    if hit == -2:
+        return sky_luma, False
+    if hit == -1:
+        wx, wy = ox + t * dx, oy + t * dy
+        col = int(math.floor((wx - gx0) / res))
+        row = int(math.floor((wy - gy0) / res))
+        cls = grid[row, col] if 0 <= row < grid.shape[0] and 0 <= col < grid.shape[1] else 0
+        j_l = surf_luma[cls] * ground_shade
+    else:
+        c, s = math.cos(byaw[hit]), math.sin(byaw[hit])
+        if axis == 2:
+            nx, ny, nz = 0.0, 0.0, sign
+        elif axis == 0:
+            nx, ny, nz = c * sign, s * sign, 0.0
+        else:
+            nx, ny, nz = -s * sign, c * sign, 0.0
+        lam = nx * sun[0] + ny * sun[1] + nz * sun[2]
+        shade = ambient + sun_int * max(lam, 0.0)
+        j_l = _luma(colors[hit, 0], colors[hit, 1], colors[hit, 2]) * 255.0 * shade
+    tr = math.exp(-alpha * t)
+    return j_l * tr + sky_luma * (1.0 - tr), True
+
+
+@njit(cache=True)
+def camera_detect(n, bx, by, byaw, bl, bw, bh, colors, ex, ey, eyaw, cam_x, cam_z, fx_, width, height, alpha, sun,
+                  ambient, sun_int, ground_shade, sky_luma, grid, gx0, gy0, res, surf_luma, max_rays, rng_max,
+                  pixels, contrast, bearing, size_px):  # fmt: skip
+    """Per vehicle: visible pixels (scaled by the stride), Weber contrast in the fogged image against its background,
+    bearing of its visible pixels (radians, + right) and its visible box height in pixels, for a camera
+    ``cam_x`` ahead of the ego origin at height ``cam_z`` looking along the ego's heading (pinhole, focal ``fx_``,
+    ``width`` × ``height`` pixels, principal point at the centre)."""
+    c0, s0 = math.cos(eyaw), math.sin(eyaw)
+    ox, oy, oz = ex + c0 * cam_x, ey + s0 * cam_x, cam_z
+    amin = np.empty(n)
+    amax = np.empty(n)
+    emin = np.empty(n)
+    emax = np.empty(n)
+    dist = np.empty(n)
+    angular_extents(n, bx, by, byaw, bl, bw, bh, ox, oy, oz, eyaw, amin, amax, emin, emax, dist)
+    cx, cy = width / 2.0, height / 2.0
+    for j in range(1, n):
+        pixels[j] = 0.0
+        contrast[j] = 0.0
+        bearing[j] = 0.0
+        size_px[j] = 0.0
+        if amin[j] > amax[j] or dist[j] > rng_max or amax[j] < -math.pi / 2 or amin[j] > math.pi / 2:
+            continue
+        # the box's image rectangle: u = cx + fx tan(az), v = cy − fx tan(el) / cos(az) (conservative)
+        if amin[j] <= -1.5 or amax[j] >= 1.5:
+            continue
+        u0 = int(math.floor(cx + fx_ * math.tan(amin[j])))
+        u1 = int(math.floor(cx + fx_ * math.tan(amax[j])))
+        c_lo = min(math.cos(amin[j]), math.cos(amax[j]))
+        c_hi = 1.0 if amin[j] <= 0.0 <= amax[j] else max(math.cos(amin[j]), math.cos(amax[j]))
+        top, bottom = math.tan(emax[j]), math.tan(emin[j])
+        v0 = int(math.floor(cy - fx_ * max(top / c_lo, top / c_hi)))
+        v1 = int(math.floor(cy - fx_ * min(bottom / c_lo, bottom / c_hi)))
+        u0, u1 = max(u0, 0), min(u1, width - 1)
+        v0, v1 = max(v0, 0), min(v1, height - 1)
+        if u1 < u0 or v1 < v0:
+            continue
+        nu, nv = u1 - u0 + 1, v1 - v0 + 1
+        stride = max(1, int(math.ceil(math.sqrt(nu * nv / max_rays))))
+        vis = 0.0
+        lum_v = 0.0
+        lum_b = 0.0
+        bear = 0.0
+        rows_lo, rows_hi = height, -1
+        for v in range(v0, v1 + 1, stride):
+            for u in range(u0, u1 + 1, stride):
+                dfx = 1.0
+                dfy = (u + 0.5 - cx) / fx_
+                dfz = -(v + 0.5 - cy) / fx_
+                norm = math.sqrt(dfx * dfx + dfy * dfy + dfz * dfz)
+                dfx, dfy, dfz = dfx / norm, dfy / norm, dfz / norm
+                dx = c0 * dfx - s0 * dfy
+                dy = s0 * dfx + c0 * dfy
+                az = math.atan2(dfy, dfx)
+                t, hit, axis, sign = nearest(ox, oy, oz, dx, dy, dfz, n, bx, by, byaw, bl, bw, bh, amin, amax, az,
+                                             1e4)  # fmt: skip
+                if hit != j:
+                    continue
+                lum, _ = _pixel_luminance(t, hit, axis, sign, dx, dy, dfz, ox, oy, oz, byaw, colors, sun, ambient,
+                                          sun_int, grid, gx0, gy0, res, surf_luma, ground_shade, sky_luma, alpha)  # fmt: skip
+                # what the same pixel shows without the vehicle: its background, fogged
+                a_lo, a_hi = amin[j], amax[j]
+                amin[j], amax[j] = 1.0, -1.0
+                tb, hb, axb, sgb = nearest(ox, oy, oz, dx, dy, dfz, n, bx, by, byaw, bl, bw, bh, amin, amax, az, 1e4)
+                amin[j], amax[j] = a_lo, a_hi
+                lum_bg, _ = _pixel_luminance(tb, hb, axb, sgb, dx, dy, dfz, ox, oy, oz, byaw, colors, sun, ambient,
+                                             sun_int, grid, gx0, gy0, res, surf_luma, ground_shade, sky_luma, alpha)  # fmt: skip
+                w = stride * stride
+                vis += w
+                lum_v += w * lum
+                lum_b += w * lum_bg
+                bear += w * az
+                rows_lo = min(rows_lo, v)
+                rows_hi = max(rows_hi, v)
+        pixels[j] = vis
+        if vis > 0:
+            lb = max(lum_b / vis, 1e-6)
+            contrast[j] = (lum_v / vis - lb) / lb
+            bearing[j] = bear / vis
+            size_px[j] = rows_hi - rows_lo + stride
+
+
+@njit(cache=True)
+def radar_detect(n, bx, by, byaw, bl, bw, bh, vx, vy, ex, ey, eyaw, evx, evy, rad_x, rad_z, rng_max, hfov, vfov,
+                 rays, key, tick, hits, rng_sum, az_sum, vr_sum):  # fmt: skip
+    """CARLA radar rays (``rays`` per tick, hashed directions in the elliptic FOV cone) from ``rad_x`` ahead of the ego
+    origin at height ``rad_z``: per vehicle the number of detections and the sums of their range, azimuth (sensor
+    frame, + right) and radial velocity (negative = approaching)."""
+    c0, s0 = math.cos(eyaw), math.sin(eyaw)
+    ox, oy, oz = ex + c0 * rad_x, ey + s0 * rad_x, rad_z
+    amin = np.empty(n)
+    amax = np.empty(n)
+    emin = np.empty(n)
+    emax = np.empty(n)
+    dist = np.empty(n)
+    angular_extents(n, bx, by, byaw, bl, bw, bh, ox, oy, oz, eyaw, amin, amax, emin, emax, dist)
+    for j in range(n):
+        hits[j] = 0.0
+        rng_sum[j] = az_sum[j] = vr_sum[j] = 0.0
+    max_rx = math.tan(hfov / 2.0) * rng_max
+    max_ry = math.tan(vfov / 2.0) * rng_max
+    for i in range(rays):
+        r = uniform(key, tick, 3, i, 0)
+        th = 2.0 * math.pi * uniform(key, tick, 3, i, 1)
+        ax, ay, az_ = rng_max, max_rx * r * math.cos(th), max_ry * r * math.sin(th)
+        length = math.sqrt(ax * ax + ay * ay + az_ * az_)
+        fx, fy, fz = ax / length, ay / length, az_ / length
+        dx = c0 * fx - s0 * fy
+        dy = s0 * fx + c0 * fy
+        a = math.atan2(fy, fx)
+        t, hit, _, _ = nearest(ox, oy, oz, dx, dy, fz, n, bx, by, byaw, bl, bw, bh, amin, amax, a, length)
+        if hit < 1:
+            continue
+        hits[hit] += 1.0
+        rng_sum[hit] += t
+        az_sum[hit] += a
+        vr_sum[hit] += (vx[hit] - evx) * dx + (vy[hit] - evy) * dy

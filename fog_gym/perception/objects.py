@@ -1,0 +1,281 @@
+"""Perceived objects: what the fogged sensors detect, per sensor and fused, as a highway-env Kinematics-style array.
+
+:class:`ObjectsConfig` is the detection rig and its rules; :func:`perceive` runs the detection kernels
+(:mod:`fog_gym.perception.kernels`) for many worlds of a :class:`~fog_gym.world.traffic.native.NativeTraffic` in one
+call and fuses the results into the observation and the per-sensor detection lists.
+
+**Detection rules** (defaults):
+
+* LiDAR: ≥ ``min_points`` = 5 returns that survive CARLA's drop-off and the Hahner fog model on the vehicle. The
+  detection LiDAR is the FogDrive roof LiDAR's geometry made denser where it matters: 64 channels over
+  [−15°, +5°], 2048 beams per channel and turn (0.18°), 120 m, so a car's rear is detected to ≈ 100 m in clear air.
+* Camera: ≥ ``min_pixels`` = 10 visible pixels in its instance mask and a Weber contrast ≥ ``min_contrast`` = 5 %
+  (the contrast that defines visibility) against a ring of pixels around it, in the fogged image of a 640 × 480,
+  100° camera at the front camera's pose (a car at 100 m covers ≈ 19 pixels).
+* Radar: ≥ 1 of the radar's 900 rays per tick (FogDrive's 18 000 points/s at 20 Hz, 150 m, 120° × 30°) lands on it.
+
+**Reported values** (ego frame: x ahead, y right, metres; seeded noise from the episode, never from the fog):
+
+* LiDAR: the centroid of the surviving returns + N(0, 0.05 m) per axis; camera: bearing of the visible pixels + N(0, 0.002 rad) and range ``f · H / h`` from the box's
+  visible height ``h`` in pixels and the class's typical height ``H`` (car 1.5 m, bigger car 2.2 m, truck 3.4 m),
+  times 1 + N(0, 0.05); radar: mean range + N(0, 0.25 m) and azimuth + N(0, 0.01 rad) of its detections. Each
+  measures the vehicle's near surface: the reported position is that point moved half a typical car length
+  (:data:`HALF_LENGTH` = 2.3 m) further along its bearing, a box fit with a car's size.
+* Velocity (relative to the ego): LiDAR and camera from their own reported positions one step apart (0 when the
+  vehicle was not detected the step before); radar: the mean radial velocity + N(0, 0.1 m/s) along the bearing.
+* Fused: every vehicle some sensor detected, position and velocity the inverse-variance mean of the sensors'
+  (σ: LiDAR 0.1 m, camera 0.5 m + 5 % of the range, radar 0.5 m), one flag per sensor.
+
+**Observation** ``(max_objects, 5 + len(sensors))`` float32: row 0 the ego (presence 1, x 0, y its lateral position on
+the road, vx, vy its velocity, flags 1), then the fused objects nearest first (reported distance), unused rows
+zero. Features presence, x, y, vx, vy and one flag per sensor in :data:`SENSORS` order; normalised as
+highway-env's Kinematics observation (x ∈ ±200 m, y ∈ ±4·lanes m, vx, vy ∈ ±80 m/s mapped to [−1, 1], clipped).
+
+Example:
+    >>> ObjectsConfig(sensors=("radar", "lidar")).sensors, ObjectsConfig().features
+    (('lidar', 'radar'), ('presence', 'x', 'y', 'vx', 'vy', 'camera', 'lidar', 'radar'))
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numba import njit, prange
+
+from fog_gym.checks import finite
+from fog_gym.perception import kernels as PK
+
+#: Sensor kinds of the perceived-objects observation, in flag order.
+SENSORS: tuple[str, ...] = ("camera", "lidar", "radar")
+#: A FogDrive class's typical height [m] (the camera's range prior).
+CLASS_HEIGHT = {0: 1.5, 4: 2.2, 1: 3.4}
+#: Half a typical car's length [m]: each sensor measures the vehicle's near surface; its reported position is that
+#: point moved this much further along the bearing (a box fit with a car's size).
+HALF_LENGTH = 2.3
+MAX_SPEED = 40.0  # highway-env's Vehicle.MAX_SPEED: its Kinematics observation's ranges are multiples of it
+SIGMA = {"lidar_xy": 0.05, "camera_bearing": 0.002, "camera_range": 0.05, "radar_range": 0.25, "radar_azimuth": 0.01,
+         "radar_velocity": 0.1}  # fmt: skip
+
+
+def _positive_int(name: str, value: Any) -> int:
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+        raise ValueError(f"{name} must be an integer >= 1, got {value!r}")
+    return int(value)
+
+
+@dataclass(frozen=True)
+class ObjectsConfig:
+    """The detection rig and rules of the perceived-objects observation (see the module docstring)."""
+
+    sensors: Sequence[str] = SENSORS
+    max_objects: int = 8
+    min_points: int = 5
+    min_pixels: int = 10
+    min_contrast: float = 0.05
+    lidar_channels: int = 64
+    lidar_beams: int = 2048
+    lidar_fov: tuple[float, float] = (-15.0, 5.0)
+    lidar_range: float = 120.0
+    lidar_height: float = 2.0
+    camera_size: tuple[int, int] = (640, 480)
+    camera_fov: float = 100.0
+    camera_pose: tuple[float, float] = (1.8, 1.2)  # metres ahead of the ego origin, height
+    camera_range: float = 250.0
+    radar_rays: int = 900
+    radar_range: float = 150.0
+    radar_fov: tuple[float, float] = (120.0, 30.0)
+    radar_pose: tuple[float, float] = (2.0, 1.2)
+    max_rays: int = 64  # rays cast per vehicle and sensor at most (strided beyond)
+
+    def __post_init__(self) -> None:
+        if isinstance(self.sensors, str) or not isinstance(self.sensors, Sequence):
+            raise ValueError(f"sensors must be a non-empty subset of {SENSORS}, got {self.sensors!r}")
+        unknown = [s for s in self.sensors if s not in SENSORS]
+        if unknown or not self.sensors or len(set(self.sensors)) != len(self.sensors):
+            raise ValueError(f"sensors must be a non-empty subset of {SENSORS} without repeats, got {self.sensors!r}")
+        object.__setattr__(self, "sensors", tuple(s for s in SENSORS if s in self.sensors))
+        for name in ("max_objects", "min_points", "min_pixels", "lidar_channels", "lidar_beams", "radar_rays",
+                     "max_rays"):  # fmt: skip
+            object.__setattr__(self, name, _positive_int(name, getattr(self, name)))
+        if self.max_objects < 2:
+            raise ValueError(f"max_objects must be an integer >= 2 (the ego's row and one object), got {self.max_objects!r}")
+        if not 0.0 <= finite("min_contrast", self.min_contrast) < 1.0:
+            raise ValueError(f"min_contrast must lie in [0, 1), got {self.min_contrast!r}")
+        for name in ("lidar_range", "camera_range", "radar_range", "camera_fov"):
+            if not finite(name, getattr(self, name)) > 0:
+                raise ValueError(f"{name} must be > 0, got {getattr(self, name)!r}")
+
+    @property
+    def features(self) -> tuple[str, ...]:
+        return ("presence", "x", "y", "vx", "vy", *self.sensors)
+
+    @property
+    def sensor_mask(self) -> np.ndarray:
+        return np.array([s in self.sensors for s in SENSORS])
+
+    def lidar_elevations(self) -> np.ndarray:
+        lo, hi = self.lidar_fov
+        return np.radians(np.linspace(hi, lo, self.lidar_channels))
+
+    @property
+    def camera_focal(self) -> float:
+        return self.camera_size[0] / 2.0 / math.tan(math.radians(self.camera_fov) / 2.0)
+
+
+# outputs per world and slot: sensor index 0 camera, 1 lidar, 2 radar, 3 fused
+CAM, LID, RAD, FUSED = 0, 1, 2, 3
+
+
+@njit(cache=True)
+def _fuse_world(n, f, classes, present, pos, vel, prev_present, prev_pos, lid_count, lid_cen, cam_pix, cam_con,
+                cam_bear, cam_size, rad_hits, rad_rng, rad_az, rad_vr, mask, min_points, min_pixels, min_contrast,
+                focal, cam_x, rad_x, lidar_h, key, tick, dt, lanes, obs):  # fmt: skip
+    """One world: detection flags, reported positions and velocities per sensor and fused, and the observation."""
+    ex, ey, eh = f[0, 0], f[0, 1], f[0, 2]
+    c0, s0 = math.cos(eh), math.sin(eh)
+    for j in range(n):
+        for s in range(4):
+            present[j, s] = False
+    for j in range(1, n):
+        vid = j
+        if mask[LID] and lid_count[j] >= min_points:
+            present[j, LID] = True
+            pos[j, LID, 0] = lid_cen[j, 0] + 0.05 * PK.normal(key, tick, 5, vid, 0)
+            pos[j, LID, 1] = lid_cen[j, 1] + 0.05 * PK.normal(key, tick, 5, vid, 1)
+        if mask[CAM] and cam_pix[j] >= min_pixels and abs(cam_con[j]) >= min_contrast and cam_size[j] > 0:
+            present[j, CAM] = True
+            h_prior = 1.5 if classes[j] == 0 else (2.2 if classes[j] == 4 else 3.4)
+            d = focal * h_prior / cam_size[j] * (1.0 + 0.05 * PK.normal(key, tick, 6, vid, 0))
+            az = cam_bear[j] + 0.002 * PK.normal(key, tick, 6, vid, 1)
+            pos[j, CAM, 0] = cam_x + d * math.cos(az)
+            pos[j, CAM, 1] = d * math.sin(az)
+        if mask[RAD] and rad_hits[j] >= 1:
+            present[j, RAD] = True
+            r = rad_rng[j] / rad_hits[j] + 0.25 * PK.normal(key, tick, 7, vid, 0)
+            az = rad_az[j] / rad_hits[j] + 0.01 * PK.normal(key, tick, 7, vid, 1)
+            vr = rad_vr[j] / rad_hits[j] + 0.1 * PK.normal(key, tick, 7, vid, 2)
+            pos[j, RAD, 0] = rad_x + r * math.cos(az)
+            pos[j, RAD, 1] = r * math.sin(az)
+            vel[j, RAD, 0] = vr * math.cos(az)
+            vel[j, RAD, 1] = vr * math.sin(az)
+        for s in range(3):  # the measured surface point → the box centre: half a typical car length further
+            if present[j, s]:
+                r_s = math.hypot(pos[j, s, 0], pos[j, s, 1])
+                if r_s > 1e-6:
+                    pos[j, s, 0] += HALF_LENGTH * pos[j, s, 0] / r_s
+                    pos[j, s, 1] += HALF_LENGTH * pos[j, s, 1] / r_s
+        for s in (CAM, LID):
+            if present[j, s]:
+                if prev_present[j, s]:
+                    vel[j, s, 0] = (pos[j, s, 0] - prev_pos[j, s, 0]) / dt
+                    vel[j, s, 1] = (pos[j, s, 1] - prev_pos[j, s, 1]) / dt
+                else:
+                    vel[j, s, 0] = 0.0
+                    vel[j, s, 1] = 0.0
+        # fusion: inverse-variance means over the sensors that saw it
+        wsum = 0.0
+        px = py = vx = vy = 0.0
+        for s in range(3):
+            if present[j, s]:
+                rng_s = math.hypot(pos[j, s, 0], pos[j, s, 1])
+                sig = 0.1 if s == LID else (0.5 + 0.05 * rng_s if s == CAM else 0.5)
+                w = 1.0 / (sig * sig)
+                wsum += w
+                px += w * pos[j, s, 0]
+                py += w * pos[j, s, 1]
+                vx += w * vel[j, s, 0]
+                vy += w * vel[j, s, 1]
+        if wsum > 0:
+            present[j, FUSED] = True
+            pos[j, FUSED, 0], pos[j, FUSED, 1] = px / wsum, py / wsum
+            vel[j, FUSED, 0], vel[j, FUSED, 1] = vx / wsum, vy / wsum
+    for j in range(n):
+        for s in range(4):
+            prev_present[j, s] = present[j, s]
+            prev_pos[j, s, 0] = pos[j, s, 0]
+            prev_pos[j, s, 1] = pos[j, s, 1]
+    # observation: ego row, then fused objects nearest first
+    m, nf = obs.shape
+    for r in range(m):
+        for c in range(nf):
+            obs[r, c] = 0.0
+    y_half = 4.0 * lanes
+    obs[0, 0] = 1.0
+    obs[0, 1] = 0.0
+    obs[0, 2] = min(max(ey / y_half, -1.0), 1.0)
+    obs[0, 3] = min(max(f[0, 3] * c0 / (2 * 40.0), -1.0), 1.0)
+    obs[0, 4] = min(max(f[0, 3] * math.sin(eh) / (2 * 40.0), -1.0), 1.0)
+    col = 5
+    for s in range(3):
+        if mask[s]:
+            obs[0, col] = 1.0
+            col += 1
+    order = np.empty(n, np.int64)
+    dists = np.empty(n)
+    k = 0
+    for j in range(1, n):
+        if present[j, FUSED]:
+            order[k] = j
+            dists[k] = math.hypot(pos[j, FUSED, 0], pos[j, FUSED, 1])
+            k += 1
+    idx = np.argsort(dists[:k], kind="mergesort")
+    for r in range(min(k, m - 1)):
+        j = order[idx[r]]
+        obs[r + 1, 0] = 1.0
+        obs[r + 1, 1] = min(max(pos[j, FUSED, 0] / (5 * 40.0), -1.0), 1.0)
+        obs[r + 1, 2] = min(max(pos[j, FUSED, 1] / y_half, -1.0), 1.0)
+        obs[r + 1, 3] = min(max(vel[j, FUSED, 0] / (2 * 40.0), -1.0), 1.0)
+        obs[r + 1, 4] = min(max(vel[j, FUSED, 1] / (2 * 40.0), -1.0), 1.0)
+        col = 5
+        for s in range(3):
+            if mask[s]:
+                obs[r + 1, col] = 1.0 if present[j, s] else 0.0
+                col += 1
+
+
+@njit(cache=True, parallel=True)
+def perceive_worlds(active, floats, counts, classes, colors, heights, keys, ticks, alphas, beta_ratios, tables_i, tables_r,
+                    suns, shades, sky_luma, grid, gx0, gy0, res, surf_luma, elev, n_beams, lidar_range, lidar_h,
+                    drop, cam, rad, mask, rules, dt, lanes, present, pos, vel, prev_present, prev_pos, obs):  # fmt: skip
+    """Detect and fuse in every active world (parallel over worlds); see the module docstring."""
+    for w in prange(floats.shape[0]):
+        if not active[w]:
+            continue
+        f = floats[w]
+        n = counts[w]
+        bx, by, byaw = f[:n, 0].copy(), f[:n, 1].copy(), f[:n, 2].copy()
+        bl, bw = f[:n, 7].copy(), f[:n, 8].copy()
+        bh = heights[w, :n].copy()
+        vx = f[:n, 3] * np.cos(byaw)
+        vy = f[:n, 3] * np.sin(byaw)
+        key = keys[w]
+        tick = ticks[w]
+        lid_count = np.zeros(n)
+        lid_cen = np.zeros((n, 3))
+        if mask[LID]:
+            PK.lidar_detect(n, bx, by, byaw, bl, bw, bh, bx[0], by[0], byaw[0], lidar_h, elev, n_beams, lidar_range,
+                            key, tick, alphas[w], beta_ratios[w], tables_i[w], tables_r[w], drop[0], drop[1], drop[2],
+                            int(rules[4]), lid_count, lid_cen)  # fmt: skip
+        cam_pix = np.zeros(n)
+        cam_con = np.zeros(n)
+        cam_bear = np.zeros(n)
+        cam_size = np.zeros(n)
+        if mask[CAM]:
+            PK.camera_detect(n, bx, by, byaw, bl, bw, bh, colors[w, :n], bx[0], by[0], byaw[0], cam[0], cam[1],
+                             cam[2], int(cam[3]), int(cam[4]), alphas[w], suns[w], shades[w, 0], shades[w, 1],
+                             shades[w, 2], sky_luma, grid, gx0, gy0, res, surf_luma, int(rules[4]), cam[5], cam_pix,
+                             cam_con, cam_bear, cam_size)  # fmt: skip
+        rad_hits = np.zeros(n)
+        rad_rng = np.zeros(n)
+        rad_az = np.zeros(n)
+        rad_vr = np.zeros(n)
+        if mask[RAD]:
+            PK.radar_detect(n, bx, by, byaw, bl, bw, bh, vx, vy, bx[0], by[0], byaw[0], vx[0], vy[0], rad[0], rad[1],
+                            rad[2], rad[3], rad[4], int(rad[5]), key, tick, rad_hits, rad_rng, rad_az, rad_vr)  # fmt: skip
+        _fuse_world(n, f, classes[w], present[w], pos[w], vel[w], prev_present[w], prev_pos[w], lid_count, lid_cen,
+                    cam_pix, cam_con, cam_bear, cam_size, rad_hits, rad_rng, rad_az, rad_vr, mask, int(rules[0]),
+                    rules[1], rules[2], cam[2], cam[0], rad[0], lidar_h, key, tick, dt, lanes, obs[w])  # fmt: skip
