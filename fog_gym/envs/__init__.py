@@ -8,7 +8,9 @@
 ========================  =================================================================================
 
 Entry points live in :mod:`fog_gym.envs.presets`, the env class in :mod:`fog_gym.envs.fogdrive`, its configuration
-in :mod:`fog_gym.envs.config`.
+in :mod:`fog_gym.envs.config`; the RL presets' perceived-objects observation in :mod:`fog_gym.envs.objects` and
+their native vector env (``gym.make_vec(id, num_envs, vectorization_mode="vector_entry_point")``) in
+:mod:`fog_gym.envs.vector`.
 
 Example:
     >>> import gymnasium as gym
@@ -20,12 +22,12 @@ from __future__ import annotations
 
 from gymnasium.envs.registration import register
 
-#: Every registered id → its entry point.
+#: Every registered id → (its entry point, its native vector entry point or None).
 ENV_IDS = {
-    "FogDrive-v0": "fog_gym.envs.presets:make_fogdrive",
-    "FogDriveRL-v0": "fog_gym.envs.presets:make_fogdrive_rl",
-    "FogDriveRLHazard-v0": "fog_gym.envs.presets:make_fogdrive_rl_hazard",
+    "FogDrive-v0": ("fog_gym.envs.presets:make_fogdrive", None),
+    "FogDriveRL-v0": ("fog_gym.envs.presets:make_fogdrive_rl", "fog_gym.envs.vector:make_rl_vector"),
+    "FogDriveRLHazard-v0": ("fog_gym.envs.presets:make_fogdrive_rl_hazard", "fog_gym.envs.vector:make_rl_hazard_vector"),
 }
 
-for _id, _entry in ENV_IDS.items():
-    register(id=_id, entry_point=_entry, max_episode_steps=None)
+for _id, (_entry, _vector) in ENV_IDS.items():
+    register(id=_id, entry_point=_entry, vector_entry_point=_vector, max_episode_steps=None)

@@ -89,6 +89,7 @@ class FogDriveEnv(gym.Env):
         traffic: str | None = None,
         hazards: HazardConfig | None = None,
         static_world: str | None = None,
+        world: Any = None,
     ) -> None:
         cfg = config if config is not None else FogDriveConfig()
         if not isinstance(cfg, FogDriveConfig):
@@ -120,8 +121,10 @@ class FogDriveEnv(gym.Env):
         c = self.config
         self.metadata = {**self.metadata, "render_fps": c.keyframe_frequency}
         announce_compilation()
-        self.world = make_world(c.town, c.simulation_frequency, c.keyframe_frequency, c.episode_seconds,
-                                dict(c.highway_config), traffic=c.traffic, hazards=c.hazards)  # fmt: skip
+        # ``world``: a prebuilt world (a vector env's view of its shared traffic core); else one of its own
+        self.world = world if world is not None else make_world(c.town, c.simulation_frequency, c.keyframe_frequency,
+                                                                c.episode_seconds, dict(c.highway_config),
+                                                                traffic=c.traffic, hazards=c.hazards)  # fmt: skip
         self.cameras = CameraRig(c.rig, far=c.far_distance)
         self.action_space = self.world.action_space
         rig_layout(c.rig)  # channel or folder clashes between the rig's sensors fail here, before any work

@@ -86,6 +86,8 @@ class ObjectWorlds:
         self._surf_luma = _luma(SURFACE_RGB)
         o = objects
         self._elev = o.lidar_elevations()
+        az = np.arange(o.lidar_beams) * (2.0 * np.pi / o.lidar_beams) - np.pi
+        self._az_cos, self._az_sin = np.cos(az), np.sin(az)
         self._drop = np.array([0.45, 0.8, 0.4])  # CARLA's LiDAR drop-off defaults (LidarConfig)
         self._cam = np.array([o.camera_pose[0], o.camera_pose[1], o.camera_focal, o.camera_size[0], o.camera_size[1],
                               o.camera_range])  # fmt: skip
@@ -115,22 +117,28 @@ class ObjectWorlds:
 
     # -- episodes -------------------------------------------------------------------------------------
     def reset(self, w: int, seed: int | None = None) -> None:
-        if seed is not None:
-            self.np_random[w] = seeding.np_random(seed)[0]
-        if self.pending[w] is not None:
-            self._set_level(w, self.pending[w])
-            self.pending[w] = None
-        world_seed = int(self.np_random[w].integers(0, 2**31 - 1))
-        self.episode_seed[w] = world_seed
-        self.core.reset(w, world_seed)
-        light = Lighting.for_time_of_day("day", stream(world_seed, "scenery"))
-        self.suns[w] = light.sun_dir
-        self.shades[w] = light.ambient, light.sun_intensity, light.ground_shade
-        self.keys[w] = np.uint64(int(np.random.SeedSequence([world_seed, 0x0B5]).generate_state(1, np.uint64)[0]))
-        self.steps[w] = 0
-        self.prev_present[w] = False
+        """Start a new episode in world ``w`` (seeded, or continuing its generator)."""
+        self.reset_many([w], [seed])
+
+    def reset_many(self, worlds: list[int], seeds: list[int | None]) -> None:
+        """Start new episodes in several worlds, perceived in one call."""
         active = np.zeros(self.n, bool)
-        active[w] = True
+        for w, seed in zip(worlds, seeds):
+            if seed is not None:
+                self.np_random[w] = seeding.np_random(seed)[0]
+            if self.pending[w] is not None:
+                self._set_level(w, self.pending[w])
+                self.pending[w] = None
+            world_seed = int(self.np_random[w].integers(0, 2**31 - 1))
+            self.episode_seed[w] = world_seed
+            self.core.reset(w, world_seed)
+            light = Lighting.for_time_of_day("day", stream(world_seed, "scenery"))
+            self.suns[w] = light.sun_dir
+            self.shades[w] = light.ambient, light.sun_intensity, light.ground_shade
+            self.keys[w] = np.random.SeedSequence([world_seed, 0x0B5]).generate_state(1, np.uint64)[0]
+            self.steps[w] = 0
+            self.prev_present[w] = False
+            active[w] = True
         self._perceive(active)
 
     def step(self, actions: np.ndarray, active: np.ndarray) -> None:
@@ -143,7 +151,7 @@ class ObjectWorlds:
         PO.perceive_worlds(active, c.floats, c.counts, c.classes, c.colors, c.heights, self.keys, c.ticks,
                            self.alphas, self.beta_ratios, self.tables_i, self.tables_r, self.suns, self.shades,
                            float(_luma(SKY_HORIZON)), self._grid, *self._ground, self._surf_luma, self._elev,
-                           self.objects.lidar_beams, self.objects.lidar_range, self.objects.lidar_height, self._drop,
+                           self._az_cos, self._az_sin, self.objects.lidar_range, self.objects.lidar_height, self._drop,
                            self._cam, self._rad, self._mask, self._rules, 1.0 / self.keyframe_frequency, c.lanes,
                            self.present, self.pos, self.vel, self.prev_present, self.prev_pos, self.obs)  # fmt: skip
 

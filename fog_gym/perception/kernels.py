@@ -107,10 +107,12 @@ def ray_box(ox, oy, oz, dx, dy, dz, cx, cy, yaw, hl, hw, h):
 
 
 @njit(cache=True)
-def nearest(ox, oy, oz, dx, dy, dz, n, bx, by, byaw, bl, bw, bh, amin, amax, az, max_t):
-    """Nearest hit along a ray among boxes 1..n-1 (slot 0, the ego, is skipped) whose azimuth interval
-    [amin, amax] (sensor-relative, radians) holds the ray's azimuth ``az``, and the ground: (t, box or −1 ground
-    or −2 nothing, face axis, face sign)."""
+def nearest(ox, oy, oz, dx, dy, dz, n, bx, by, byaw, bl, bw, bh, amin, amax, emin, emax, rmin, order, az, el,
+            max_t):  # fmt: skip
+    """Nearest hit along a ray among boxes 1..n-1 (slot 0, the ego, is skipped) and the ground: (t, box or −1 ground
+    or −2 nothing, face axis, face sign). Boxes are visited nearest first (``order`` by ``rmin``, the horizontal
+    distance to their footprint: no hit can be nearer) and skipped when the ray's azimuth ``az`` or elevation ``el``
+    (radians, sensor frame) lies outside their angular extent."""
     best_t = max_t
     best = -2
     best_axis = -1
@@ -120,8 +122,11 @@ def nearest(ox, oy, oz, dx, dy, dz, n, bx, by, byaw, bl, bw, bh, amin, amax, az,
         if tg < best_t:
             best_t = tg
             best = -1
-    for j in range(1, n):
-        if az < amin[j] or az > amax[j]:
+    for q in range(order.shape[0]):
+        j = order[q]
+        if rmin[j] >= best_t:
+            break
+        if az < amin[j] or az > amax[j] or el < emin[j] or el > emax[j]:
             continue
         t, axis, sign = ray_box(ox, oy, oz, dx, dy, dz, bx[j], by[j], byaw[j], bl[j] / 2, bw[j] / 2, bh[j])
         if t < best_t:
@@ -133,15 +138,16 @@ def nearest(ox, oy, oz, dx, dy, dz, n, bx, by, byaw, bl, bw, bh, amin, amax, az,
 
 
 @njit(cache=True)
-def angular_extents(n, bx, by, byaw, bl, bw, bh, sx, sy, sz, syaw, amin, amax, emin, emax, dist):
-    """Per box: azimuth and elevation intervals seen from a sensor at (sx, sy, sz) with yaw ``syaw`` (radians,
-    azimuth positive to the right = +y) and the distance to its centre; a box around the sensor gets an empty one."""
+def angular_extents(n, bx, by, byaw, bl, bw, bh, sx, sy, sz, syaw, amin, amax, emin, emax, rmin):
+    """Per box seen from a sensor at (sx, sy, sz) with yaw ``syaw``: azimuth interval (radians, positive to the right
+    = +y; from its footprint's corners), elevation interval (conservative: from the footprint's nearest and
+    farthest horizontal distances) and ``rmin``, the horizontal distance to its footprint. Returns the box indices
+    1..n-1 sorted by ``rmin``; a box around the sensor gets an empty azimuth interval."""
     c0, s0 = math.cos(syaw), math.sin(syaw)
     for j in range(n):
         cj, sj = math.cos(byaw[j]), math.sin(byaw[j])
         a_lo, a_hi = np.inf, -np.inf
-        e_lo, e_hi = np.inf, -np.inf
-        inside = True
+        r_max = 0.0
         for cx_ in range(2):
             for cy_ in range(2):
                 lx = (bl[j] / 2) * (1 if cx_ else -1)
@@ -151,46 +157,47 @@ def angular_extents(n, bx, by, byaw, bl, bw, bh, sx, sy, sz, syaw, amin, amax, e
                 fx = c0 * wx + s0 * wy
                 fy = -s0 * wx + c0 * wy
                 a = math.atan2(fy, fx)
-                r = math.hypot(fx, fy)
-                if r < 0.05:
-                    continue
                 a_lo = min(a_lo, a)
                 a_hi = max(a_hi, a)
-                for z in (0.0, bh[j]):
-                    e = math.atan2(z - sz, r)
-                    e_lo = min(e_lo, e)
-                    e_hi = max(e_hi, e)
-        rx, ry = bx[j] - sx, by[j] - sy
-        fx = c0 * rx + s0 * ry
-        fy = -s0 * rx + c0 * ry
-        inside = abs(-sj * (sx - bx[j]) + cj * (sy - by[j])) < bw[j] / 2 and abs(cj * (sx - bx[j]) + sj * (sy - by[j])) < bl[j] / 2
-        if a_hi - a_lo > math.pi:  # straddles ±π (behind the sensor): take the wrapped interval's complement
+                r_max = max(r_max, math.hypot(fx, fy))
+        # the sensor in the box's frame, and its distance to the footprint
+        px, py = sx - bx[j], sy - by[j]
+        lx = cj * px + sj * py
+        ly = -sj * px + cj * py
+        qx = max(abs(lx) - bl[j] / 2, 0.0)
+        qy = max(abs(ly) - bw[j] / 2, 0.0)
+        r_min = math.hypot(qx, qy)
+        rmin[j] = r_min
+        if a_hi - a_lo > math.pi:  # straddles ±π (behind the sensor): all azimuths
             a_lo, a_hi = -math.pi, math.pi
-        if inside:
+        if r_min == 0.0:  # the sensor stands inside the footprint
             a_lo, a_hi = 1.0, -1.0
         amin[j], amax[j] = a_lo, a_hi
-        emin[j], emax[j] = e_lo, e_hi
-        dist[j] = math.hypot(fx, fy)
+        r_lo = max(r_min, 1e-6)
+        emin[j] = math.atan2(0.0 - sz, r_lo if sz > 0.0 else r_max)
+        emax[j] = math.atan2(bh[j] - sz, r_lo if bh[j] > sz else r_max)
+    return np.argsort(rmin[1:n]) + 1
 
 
 @njit(cache=True)
-def lidar_detect(n, bx, by, byaw, bl, bw, bh, ex, ey, eyaw, sz, elev, n_az, rng_max, key, tick, alpha, beta_ratio,
-                 table_i, table_r, drop_general, drop_limit, drop_zero, max_rays, count, centroid):  # fmt: skip
+def lidar_detect(n, bx, by, byaw, bl, bw, bh, ex, ey, eyaw, sz, elev, az_cos, az_sin, rng_max, key, tick, alpha,
+                 beta_ratio, table_i, table_r, drop_general, drop_limit, drop_zero, max_rays, count, centroid):  # fmt: skip
     """Surviving LiDAR returns per vehicle (``count``, scaled by the stride) and their centroid in the sensor frame
     (``centroid`` (V, 3)), for a LiDAR at height ``sz`` above the ego origin (ex, ey) with the ego's yaw."""
     amin = np.empty(n)
     amax = np.empty(n)
     emin = np.empty(n)
     emax = np.empty(n)
-    dist = np.empty(n)
-    angular_extents(n, bx, by, byaw, bl, bw, bh, ex, ey, sz, eyaw, amin, amax, emin, emax, dist)
+    rmin = np.empty(n)
+    order = angular_extents(n, bx, by, byaw, bl, bw, bh, ex, ey, sz, eyaw, amin, amax, emin, emax, rmin)
     c0, s0 = math.cos(eyaw), math.sin(eyaw)
     n_el = elev.shape[0]
+    n_az = az_cos.shape[0]
     step = 2.0 * math.pi / n_az
     for j in range(1, n):
         count[j] = 0.0
         centroid[j, 0] = centroid[j, 1] = centroid[j, 2] = 0.0
-        if amin[j] > amax[j] or dist[j] - math.hypot(bl[j], bw[j]) / 2 > rng_max:
+        if amin[j] > amax[j] or rmin[j] > rng_max:
             continue
         k0 = int(math.ceil((amin[j] + math.pi) / step))
         k1 = int(math.floor((amax[j] + math.pi) / step))
@@ -211,10 +218,11 @@ def lidar_detect(n, bx, by, byaw, bl, bw, bh, ex, ey, eyaw, sz, elev, n_az, rng_
             ce, se = math.cos(elev[ci]), math.sin(elev[ci])
             for k in range(k0, k1 + 1, stride):
                 a = k * step - math.pi
-                fx, fy, fz = ce * math.cos(a), ce * math.sin(a), se
+                fx, fy, fz = ce * az_cos[k % n_az], ce * az_sin[k % n_az], se
                 dx = c0 * fx - s0 * fy
                 dy = s0 * fx + c0 * fy
-                t, hit, _, _ = nearest(ex, ey, sz, dx, dy, fz, n, bx, by, byaw, bl, bw, bh, amin, amax, a, rng_max)
+                t, hit, _, _ = nearest(ex, ey, sz, dx, dy, fz, n, bx, by, byaw, bl, bw, bh, amin, amax, emin, emax, rmin,
+                                      order, a, elev[ci], rng_max)  # fmt: skip
                 if hit != j:
                     continue
                 if uniform(key, tick, 1, ci, k) < drop_general:
@@ -280,15 +288,15 @@ def camera_detect(n, bx, by, byaw, bl, bw, bh, colors, ex, ey, eyaw, cam_x, cam_
     amax = np.empty(n)
     emin = np.empty(n)
     emax = np.empty(n)
-    dist = np.empty(n)
-    angular_extents(n, bx, by, byaw, bl, bw, bh, ox, oy, oz, eyaw, amin, amax, emin, emax, dist)
+    rmin = np.empty(n)
+    order = angular_extents(n, bx, by, byaw, bl, bw, bh, ox, oy, oz, eyaw, amin, amax, emin, emax, rmin)
     cx, cy = width / 2.0, height / 2.0
     for j in range(1, n):
         pixels[j] = 0.0
         contrast[j] = 0.0
         bearing[j] = 0.0
         size_px[j] = 0.0
-        if amin[j] > amax[j] or dist[j] > rng_max or amax[j] < -math.pi / 2 or amin[j] > math.pi / 2:
+        if amin[j] > amax[j] or rmin[j] > rng_max or amax[j] < -math.pi / 2 or amin[j] > math.pi / 2:
             continue
         # the box's image rectangle: u = cx + fx tan(az), v = cy − fx tan(el) / cos(az) (conservative)
         if amin[j] <= -1.5 or amax[j] >= 1.5:
@@ -321,8 +329,9 @@ def camera_detect(n, bx, by, byaw, bl, bw, bh, colors, ex, ey, eyaw, cam_x, cam_
                 dx = c0 * dfx - s0 * dfy
                 dy = s0 * dfx + c0 * dfy
                 az = math.atan2(dfy, dfx)
-                t, hit, axis, sign = nearest(ox, oy, oz, dx, dy, dfz, n, bx, by, byaw, bl, bw, bh, amin, amax, az,
-                                             1e4)  # fmt: skip
+                el = math.asin(dfz)
+                t, hit, axis, sign = nearest(ox, oy, oz, dx, dy, dfz, n, bx, by, byaw, bl, bw, bh, amin, amax, emin, emax,
+                                             rmin, order, az, el, 1e4)  # fmt: skip
                 if hit != j:
                     continue
                 lum, _ = _pixel_luminance(t, hit, axis, sign, dx, dy, dfz, ox, oy, oz, byaw, colors, sun, ambient,
@@ -330,7 +339,8 @@ def camera_detect(n, bx, by, byaw, bl, bw, bh, colors, ex, ey, eyaw, cam_x, cam_
                 # what the same pixel shows without the vehicle: its background, fogged
                 a_lo, a_hi = amin[j], amax[j]
                 amin[j], amax[j] = 1.0, -1.0
-                tb, hb, axb, sgb = nearest(ox, oy, oz, dx, dy, dfz, n, bx, by, byaw, bl, bw, bh, amin, amax, az, 1e4)
+                tb, hb, axb, sgb = nearest(ox, oy, oz, dx, dy, dfz, n, bx, by, byaw, bl, bw, bh, amin, amax, emin, emax,
+                                           rmin, order, az, el, 1e4)  # fmt: skip
                 amin[j], amax[j] = a_lo, a_hi
                 lum_bg, _ = _pixel_luminance(tb, hb, axb, sgb, dx, dy, dfz, ox, oy, oz, byaw, colors, sun, ambient,
                                              sun_int, grid, gx0, gy0, res, surf_luma, ground_shade, sky_luma, alpha)  # fmt: skip
@@ -361,23 +371,27 @@ def radar_detect(n, bx, by, byaw, bl, bw, bh, vx, vy, ex, ey, eyaw, evx, evy, ra
     amax = np.empty(n)
     emin = np.empty(n)
     emax = np.empty(n)
-    dist = np.empty(n)
-    angular_extents(n, bx, by, byaw, bl, bw, bh, ox, oy, oz, eyaw, amin, amax, emin, emax, dist)
+    rmin = np.empty(n)
+    order = angular_extents(n, bx, by, byaw, bl, bw, bh, ox, oy, oz, eyaw, amin, amax, emin, emax, rmin)
     for j in range(n):
         hits[j] = 0.0
         rng_sum[j] = az_sum[j] = vr_sum[j] = 0.0
     max_rx = math.tan(hfov / 2.0) * rng_max
     max_ry = math.tan(vfov / 2.0) * rng_max
+    base = np.uint64(_splitmix(_splitmix(np.uint64(key)) ^ np.uint64(tick)) ^ np.uint64(RADAR_KEY))
     for i in range(rays):
-        r = uniform(key, tick, 3, i, 0)
-        th = 2.0 * math.pi * uniform(key, tick, 3, i, 1)
+        h = _splitmix(base + np.uint64(i))
+        r = (h >> np.uint64(32)) * (1.0 / 4294967296.0)
+        th = 2.0 * math.pi * ((h & np.uint64(0xFFFFFFFF)) * (1.0 / 4294967296.0))
         ax, ay, az_ = rng_max, max_rx * r * math.cos(th), max_ry * r * math.sin(th)
         length = math.sqrt(ax * ax + ay * ay + az_ * az_)
         fx, fy, fz = ax / length, ay / length, az_ / length
         dx = c0 * fx - s0 * fy
         dy = s0 * fx + c0 * fy
         a = math.atan2(fy, fx)
-        t, hit, _, _ = nearest(ox, oy, oz, dx, dy, fz, n, bx, by, byaw, bl, bw, bh, amin, amax, a, length)
+        el = math.asin(fz)
+        t, hit, _, _ = nearest(ox, oy, oz, dx, dy, fz, n, bx, by, byaw, bl, bw, bh, amin, amax, emin, emax, rmin,
+                               order, a, el, length)  # fmt: skip
         if hit < 1:
             continue
         hits[hit] += 1.0

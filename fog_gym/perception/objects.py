@@ -239,7 +239,7 @@ def _fuse_world(n, f, classes, present, pos, vel, prev_present, prev_pos, lid_co
 
 @njit(cache=True, parallel=True)
 def perceive_worlds(active, floats, counts, classes, colors, heights, keys, ticks, alphas, beta_ratios, tables_i, tables_r,
-                    suns, shades, sky_luma, grid, gx0, gy0, res, surf_luma, elev, n_beams, lidar_range, lidar_h,
+                    suns, shades, sky_luma, grid, gx0, gy0, res, surf_luma, elev, az_cos, az_sin, lidar_range, lidar_h,
                     drop, cam, rad, mask, rules, dt, lanes, present, pos, vel, prev_present, prev_pos, obs):  # fmt: skip
     """Detect and fuse in every active world (parallel over worlds); see the module docstring."""
     for w in prange(floats.shape[0]):
@@ -257,7 +257,7 @@ def perceive_worlds(active, floats, counts, classes, colors, heights, keys, tick
         lid_count = np.zeros(n)
         lid_cen = np.zeros((n, 3))
         if mask[LID]:
-            PK.lidar_detect(n, bx, by, byaw, bl, bw, bh, bx[0], by[0], byaw[0], lidar_h, elev, n_beams, lidar_range,
+            PK.lidar_detect(n, bx, by, byaw, bl, bw, bh, bx[0], by[0], byaw[0], lidar_h, elev, az_cos, az_sin, lidar_range,
                             key, tick, alphas[w], beta_ratios[w], tables_i[w], tables_r[w], drop[0], drop[1], drop[2],
                             int(rules[4]), lid_count, lid_cen)  # fmt: skip
         cam_pix = np.zeros(n)
