@@ -1,6 +1,6 @@
 """A small CenterNet-style BEV detector in pure PyTorch (CPU or GPU), trained from scratch.
 
-Design (defended in the README): the sweep becomes a 160 × 160 grid of five hand-made pillar features
+Design (see docs/experiments/detection3d.md): the sweep becomes a 160 × 160 grid of five hand-made pillar features
 (:func:`fog_gym.experiments.detection3d.bev.point_features`, PIXOR-style), a strided stem and two stages with one upsampling merge
 (an FPN-like neck) bring it to an 80 × 80 output at 1 m, and CenterPoint's heads predict a per-class centre heatmap
 (Gaussian focal loss) and, at each centre cell, the sub-cell offset, z, log size and (sin, cos) of the yaw (L1).
