@@ -137,6 +137,8 @@ class VectorEnvAdapter(VecEnv):
         self.venv.close()
 
     def get_attr(self, attr_name: str, indices: Any = None) -> list[Any]:
+        if attr_name == "render_mode":
+            return [None for _ in self._get_indices(indices)]
         values = self.venv.get_attr(attr_name)
         return [values[i] for i in self._get_indices(indices)]
 

@@ -1,0 +1,175 @@
+"""The perceived-objects observation: detection physics per sensor, fusion, the observation's format."""
+
+from __future__ import annotations
+
+import math
+
+import gymnasium as gym
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+import fog_gym  # noqa: F401
+from fog_gym.fog.lidar import BETA_PER_MOR, GAMMA, lidar_crossover_range, soft_response_table
+from fog_gym.fog.physics import parse_fog
+from fog_gym.perception import kernels as PK
+from fog_gym.perception.objects import SENSORS, ObjectsConfig
+
+
+def _boxes(*specs):
+    """Ego at the origin (slot 0), then boxes (x, y, length, width, height) facing +x."""
+    rows = [(0.0, 0.0, 4.8, 2.1, 1.5), *specs]
+    a = np.array(rows, np.float64)
+    return len(rows), a[:, 0].copy(), a[:, 1].copy(), np.zeros(len(rows)), a[:, 2].copy(), a[:, 3].copy(), a[:, 4].copy()
+
+
+def _lidar(level, *specs, cfg=ObjectsConfig()):
+    n, bx, by, byaw, bl, bw, bh = _boxes(*specs)
+    ti, tr = soft_response_table(level.alpha) if not level.is_clear else (np.zeros(101), np.zeros(101))
+    beta = 0.0 if level.is_clear else BETA_PER_MOR / level.visibility_m / (GAMMA / math.pi)
+    az = np.arange(cfg.lidar_beams) * (2 * np.pi / cfg.lidar_beams) - np.pi
+    count, cen = np.zeros(n), np.zeros((n, 3))
+    PK.lidar_detect(n, bx, by, byaw, bl, bw, bh, 0.0, 0.0, 0.0, cfg.lidar_height, cfg.lidar_elevations(), np.cos(az),
+                    np.sin(az), cfg.lidar_range, 7, 0, level.alpha, beta, ti, tr, 0.45, 0.8, 0.4, cfg.max_rays, count,
+                    cen)  # fmt: skip
+    return count, cen
+
+
+def _camera(level, *specs, color=(0.05, 0.05, 0.05), cam_z=1.2, cfg=ObjectsConfig()):
+    n, bx, by, byaw, bl, bw, bh = _boxes(*specs)
+    colors = np.tile(np.array(color, np.float64), (n, 1))
+    out = [np.zeros(n) for _ in range(4)]
+    grid = np.ones((10, 10), np.uint8)  # road everywhere the ground is seen
+    surf = 0.2126 * np.array([96.0, 82, 150, 225]) + 0.7152 * np.array([118.0, 82, 146, 225]) + 0.0722 * np.array([68.0, 86, 140, 220])
+    PK.camera_detect(n, bx, by, byaw, bl, bw, bh, colors, 0.0, 0.0, 0.0, 1.8, cam_z, cfg.camera_focal, 640, 480,
+                     level.alpha, np.array([0.0, 0.0, 1.0]), 1.0, 0.0, 1.0, 216.0, grid, -1e5, -1e5, 2e4, surf,
+                     cfg.max_rays, 1e4, *out)  # fmt: skip
+    return out
+
+
+def test_a_car_ahead_is_seen_by_the_lidar_from_80_m_in_clear_air_and_not_beyond_the_crossover_in_dense_fog():
+    clear, dense = parse_fog("clear"), parse_fog("dense")
+    assert _lidar(clear, (85.0, 0.0, 4.5, 1.9, 1.5))[0][1] >= 5
+    crossover = lidar_crossover_range(dense)
+    for x in (crossover + 2.3 + 1.0, 45.0, 60.0, 85.0):  # the car's rear beyond the crossover range
+        assert _lidar(dense, (x, 0.0, 4.5, 1.9, 1.5))[0][1] == 0
+    assert _lidar(dense, (20.0, 0.0, 4.5, 1.9, 1.5))[0][1] >= 5
+
+
+def test_lidar_returns_lie_on_the_vehicle_s_near_surface():
+    count, cen = _lidar(parse_fog("clear"), (30.0, 0.0, 4.5, 1.9, 1.5))
+    assert count[1] >= 5 and abs(cen[1, 0] - (30.0 - 2.25)) < 0.3 and abs(cen[1, 1]) < 0.5
+
+
+def test_a_vehicle_hidden_behind_another_is_seen_by_neither_lidar_nor_camera():
+    front, hidden = (20.0, 0.0, 9.0, 2.5, 3.6), (40.0, 0.0, 4.5, 1.9, 1.5)
+    count, _ = _lidar(parse_fog("clear"), front, hidden)
+    pixels = _camera(parse_fog("clear"), front, hidden)[0]
+    assert count[1] >= 5 and count[2] == 0
+    assert pixels[1] > 0 and pixels[2] == 0
+
+
+@settings(max_examples=15, deadline=None)
+@given(st.floats(min_value=30.0, max_value=250.0))
+def test_camera_contrast_is_koschmieder_s_so_a_dark_car_is_seen_to_about_V_and_a_grey_one_less_far(visibility):
+    """With the camera at the road's level every pixel of the car has the sky (or ground at the horizon) behind
+    it: contrast (J/A − 1)·exp(−αd), so the farthest distance at 5 % is V·ln(20(1 − J/A))/ln 20."""
+    level = parse_fog(visibility)
+    farthest = {}
+    for name, grey in (("dark", 0.05), ("grey", 0.45)):
+        j_over_a = grey * 255.0 / 216.0
+        d_pred = visibility * math.log(20 * (1 - j_over_a)) / math.log(20)
+        for d in (0.9 * d_pred, 1.1 * d_pred):  # the car's rear face d metres from the camera
+            pixels, contrast, _, _ = _camera(level, (d + 1.8 + 2.25, 0.0, 4.5, 4.0, 3.0), color=(grey,) * 3, cam_z=0.05)
+            expected = (j_over_a - 1) * math.exp(-level.alpha * d)
+            assert pixels[1] > 0 and abs(contrast[1] - expected) < 0.02 * abs(expected) + 1e-3
+            assert (abs(contrast[1]) >= 0.05) == (d < d_pred)
+        farthest[name] = d_pred
+    assert 0.9 * visibility < farthest["dark"] < visibility and farthest["grey"] < 0.85 * farthest["dark"]
+
+
+def _episode(fog, seed=3, steps=25, **kw):
+    env = gym.make("FogDriveRLHazard-v0", observation="objects", fog=fog, **kw)
+    obs, info = env.reset(seed=seed)
+    out = [(obs, info)]
+    for k in range(steps):
+        obs, r, term, trunc, info = env.step([1, 3, 1, 4, 1][k % 5])
+        out.append((obs, info))
+        if term or trunc:
+            break
+    return out
+
+
+def test_radar_detections_are_the_same_in_clear_air_and_every_fog():
+    ref = _episode("clear")
+    for fog in ("light", "moderate", "dense", 30.0):
+        run = _episode(fog)
+        assert len(run) == len(ref)
+        for (_, a), (_, b) in zip(ref, run):
+            for key in ("vehicle_ids", "position"):
+                np.testing.assert_array_equal(a["detections"]["radar"][key], b["detections"]["radar"][key])
+
+
+def test_the_same_seed_gives_the_same_detections_and_fog_shortens_what_lidar_and_camera_see():
+    a, b = _episode("moderate"), _episode("moderate")
+    for (oa, ia), (ob, ib) in zip(a, b):
+        np.testing.assert_array_equal(oa, ob)
+        for s in ("camera", "lidar", "radar", "fused"):
+            np.testing.assert_array_equal(ia["detections"][s]["position"], ib["detections"][s]["position"])
+    reach, seen = {}, {}
+    for fog in ("clear", "dense"):
+        run = _episode(fog, seed=0)
+        reach[fog] = {s: max((i["detections"][s]["distance"].max(initial=0.0) for _, i in run)) for s in ("camera", "lidar")}
+        seen[fog] = {s: sum(len(i["detections"][s]["vehicle_ids"]) for _, i in run) for s in ("camera", "lidar")}
+    assert reach["dense"]["lidar"] <= lidar_crossover_range(parse_fog("dense")) + 2 * 5.0 < 80.0 < reach["clear"]["lidar"]
+    assert seen["clear"]["camera"] > seen["dense"]["camera"] and seen["clear"]["lidar"] > seen["dense"]["lidar"]
+
+
+def test_the_observation_is_kinematics_style_ego_first_nearest_first_unused_rows_zero():
+    env = gym.make("FogDriveRLHazard-v0", observation="objects", sensors=("lidar", "radar"), max_objects=6)
+    obs, info = env.reset(seed=1)
+    assert env.observation_space.shape == (6, 7) and obs.dtype == np.float32 and env.observation_space.contains(obs)
+    assert obs[0, 0] == 1 and obs[0, 1] == 0 and (obs[0, 5:] == 1).all()  # the ego row
+    present = obs[1:, 0] == 1
+    rows = obs[1:][present]
+    dist = np.hypot(rows[:, 1] * 200.0, rows[:, 2] * 12.0)
+    assert np.all(np.diff(dist) >= -1e-6) and not obs[1:][~present].any()
+    fused = info["detections"]["fused"]
+    assert len(fused["vehicle_ids"]) >= present.sum() and set(info["detections"]) == {"lidar", "radar", "fused"}
+    assert set(fused) == {"vehicle_ids", "position", "true_position", "distance"}
+    # every flagged sensor saw the object: a row flagged only by radar is in the radar list, not the LiDAR one
+    assert (rows[:, 5:].sum(axis=1) >= 1).all()
+
+
+def test_reported_positions_stay_near_the_truth_in_clear_air():
+    _, info = _episode("clear", steps=3)[-1]
+    for s, tol in (("lidar", 1.5), ("radar", 3.0), ("fused", 3.0)):
+        d = info["detections"][s]
+        err = np.hypot(*(d["position"] - d["true_position"]).T)
+        assert len(err) and np.median(err) < tol, s
+
+
+@pytest.mark.parametrize("kwargs, match", [
+    ({"sensors": ()}, "sensors must be a non-empty subset"),
+    ({"sensors": ("sonar",)}, "sensors must be a non-empty subset"),
+    ({"sensors": "lidar"}, "sensors must be a non-empty subset"),
+    ({"observation": "points"}, "observation must be one of"),
+    ({"min_points": 0}, "min_points must be an integer >= 1"),
+    ({"max_objects": 0}, "max_objects must be an integer >= 1"),
+    ({"max_objects": 1}, "max_objects must be an integer >= 2"),
+    ({"min_contrast": 1.5}, "min_contrast must lie in"),
+])  # fmt: skip
+def test_bad_arguments_fail_at_construction_naming_the_argument(kwargs, match):
+    kwargs = {"observation": "objects", **kwargs}
+    with pytest.raises(ValueError, match=match):
+        gym.make("FogDriveRLHazard-v0", **kwargs)
+
+
+def test_object_arguments_are_refused_on_the_pixel_observation():
+    with pytest.raises(ValueError, match="configure observation='objects'"):
+        gym.make("FogDriveRL-v0", sensors=("radar",))
+
+
+def test_the_sensor_flags_follow_the_documented_order():
+    assert ObjectsConfig(sensors=("radar", "camera")).features[5:] == ("camera", "radar") and SENSORS[0] == "camera"
