@@ -225,8 +225,8 @@ class FogDriveEnv(gym.Env):
 
     def _observe(self) -> dict[str, np.ndarray]:
         self.scene = self.build_scene()
-        prims = self.cameras.primitives(self.scene)
-        self.frames = self.cameras.render(self.scene, prims)
+        prims = self.cameras.primitives(self.scene, in_view=False)  # every sensor's world
+        self.frames = self.cameras.render(self.scene, self.cameras.in_view(prims, self.scene))
         obs: dict[str, np.ndarray] = {}
         for name, f in self.frames.items():
             obs[name] = f.rgb

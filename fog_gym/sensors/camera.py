@@ -110,6 +110,9 @@ class CameraRig:
         cameras = tuple(rig.cameras if hasattr(rig, "cameras") else rig)
         self.far = float(far)
         self.render_radius = float(render_radius)
+        # each camera's ground-plane view (position, yaw, half horizontal FOV), for culling props out of every view
+        self._flat = all(c.pose.pitch == 0 and c.pose.roll == 0 for c in cameras)
+        self._views = [(c.pose.x, c.pose.y, np.radians(c.pose.yaw), np.radians(c.fov) / 2 + 0.02) for c in cameras]
         self.names = tuple(c.name for c in cameras)
         self.intrinsics = {c.name: c.intrinsic() for c in cameras}
         self.sensor_to_vehicle = {c.name: geometry.transform_matrix(c.pose.location, c.pose.rotation) for c in cameras}
@@ -126,12 +129,41 @@ class CameraRig:
         ego = geometry.yaw_transform(*scene.ego_pose)
         return geometry.world_to_camera(ego, self.sensor_to_vehicle[name])
 
-    def primitives(self, scene: Scene) -> Primitives:
-        """Render primitives near the ego: static props (cached per static world) + vehicles."""
+    def primitives(self, scene: Scene, in_view: bool = True) -> Primitives:
+        """Render primitives near the ego: static props (cached per static world) + vehicles; with ``in_view`` only the
+        props some camera can see (other sensors, the LiDAR's 360° sweep, take ``in_view=False``)."""
         if self._props_cache is None or self._props_cache[0] is not scene.static:
             self._props_cache = (scene.static, prop_primitives(scene.static.props))
         props = self._props_cache[1].near(np.asarray(scene.ego_pose[:2]), self.render_radius)
+        if in_view:
+            props = self._in_view(props, scene.ego_pose)
         return Primitives.concat(props, scene.primitives)
+
+    def in_view(self, prims: Primitives, scene: Scene) -> Primitives:
+        """``prims`` without the props no camera can see (vehicles are few and always kept)."""
+        n_props = len(prims) - len(scene.primitives)
+        if n_props <= 0:
+            return prims
+        props = prims.take(np.arange(len(prims)) < n_props)
+        return Primitives.concat(self._in_view(props, scene.ego_pose), scene.primitives)
+
+    def _in_view(self, prims: Primitives, ego_pose: tuple[float, float, float]) -> Primitives:
+        """``prims`` that some camera can see in the ground plane: a box is kept unless its bounding circle lies wholly
+        outside every camera's horizontal field of view (cameras with pitch or roll keep everything)."""
+        if not self._flat or len(prims) == 0:
+            return prims
+        ex, ey, eyaw = ego_pose
+        c, s = np.cos(eyaw), np.sin(eyaw)
+        radius = np.linalg.norm(prims.halves, axis=1) + 0.5
+        keep = np.zeros(len(prims), bool)
+        for px, py, yaw, half in self._views:
+            cx, cy = ex + c * px - s * py, ey + s * px + c * py
+            dx, dy = prims.centers[:, 0] - cx, prims.centers[:, 1] - cy
+            dist = np.hypot(dx, dy)
+            off = np.abs((np.arctan2(dy, dx) - (eyaw + yaw) + np.pi) % (2 * np.pi) - np.pi)
+            margin = np.arcsin(np.clip(radius / np.maximum(dist, 1e-9), 0.0, 1.0))
+            keep |= (dist <= radius) | (off <= half + margin + 1e-3)
+        return prims.take(keep)
 
     def render(self, scene: Scene, prims: Primitives | None = None) -> dict[str, CameraFrame]:
         """Every camera's buffers; ``prims`` defaults to :meth:`primitives` of the scene."""

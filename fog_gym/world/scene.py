@@ -130,8 +130,8 @@ def _parts(cls: int, L, W, H):
     ], 0.66, 0.45 * H
 
 
-def vehicle_primitives(state: VehicleState, night: bool, exclude_id: int | None = None) -> Primitives:
-    """Boxes for every vehicle (all inside its ground-truth box), as renderer primitive arrays."""
+def _layout(state: VehicleState, night: bool, exclude_id: int | None) -> tuple | None:
+    """The boxes of every vehicle in its own frame (what :func:`vehicle_primitives` places each frame)."""
     rows = []  # per part: (vehicle indices, x0, x1, y0, y1, z0, z1, colors, emissive)
     keep = np.ones(len(state), bool) if exclude_id is None else state.ids != exclude_id
     for cls in np.unique(state.classes):
@@ -162,7 +162,7 @@ def vehicle_primitives(state: VehicleState, night: bool, exclude_id: int | None 
             rows.append((idx, -hl, -hl + 0.04, yc - 0.16, yc + 0.16, lamp_z - 0.06, lamp_z + 0.06,
                          np.broadcast_to(tail, base.shape), night))  # fmt: skip
     if not rows:
-        return Primitives.empty()
+        return None
     vi = np.concatenate([r[0] for r in rows])
     lx = np.concatenate([(r[1] + r[2]) / 2 * np.ones(len(r[0])) for r in rows])
     ly = np.concatenate([(r[3] + r[4]) / 2 * np.ones(len(r[0])) for r in rows])
@@ -173,17 +173,45 @@ def vehicle_primitives(state: VehicleState, night: bool, exclude_id: int | None 
         np.concatenate([(r[4] - r[3]) / 2 * np.ones(len(r[0])) for r in rows]),
         (z1 - z0) / 2,
     ]
+    colors = np.ascontiguousarray(np.concatenate([np.asarray(r[7], np.float64) for r in rows]))
+    tags = np.array([CLASS_TAGS[int(k)] for k in state.classes], np.uint8)[vi]
+    emissive = np.concatenate([np.full(len(r[0]), r[8]) for r in rows])
+    out = (vi, lx, ly, z0, z1, np.ascontiguousarray(halves), colors, tags, emissive)
+    for a in out:
+        a.flags.writeable = False  # shared by every frame of these vehicles
+    return out
+
+
+_LAYOUTS: dict[tuple, tuple | None] = {}
+
+
+def vehicle_primitives(state: VehicleState, night: bool, exclude_id: int | None = None) -> Primitives:
+    """Boxes for every vehicle (all inside its ground-truth box), as renderer primitive arrays.
+
+    A vehicle's boxes in its own frame depend only on its class, size and colour (and the time of day), so they are
+    laid out once per set of vehicles and only placed in the world each frame."""
+    key = (state.ids.tobytes(), state.classes.tobytes(), state.sizes.tobytes(), state.colors.tobytes(), bool(night),
+           exclude_id)  # fmt: skip
+    layout = _LAYOUTS.get(key)
+    if layout is None and key not in _LAYOUTS:
+        layout = _layout(state, night, exclude_id)
+        if len(_LAYOUTS) >= 256:
+            _LAYOUTS.pop(next(iter(_LAYOUTS)))
+        _LAYOUTS[key] = layout
+    if layout is None:
+        return Primitives.empty()
+    vi, lx, ly, z0, z1, halves, colors, tags, emissive = layout
     yaw = state.yaws[vi]
     c, s = np.cos(yaw), np.sin(yaw)
     centers = np.c_[state.centers[vi, 0] + lx * c - ly * s, state.centers[vi, 1] + lx * s + ly * c, (z0 + z1) / 2]
     return Primitives(
         centers=np.ascontiguousarray(centers),
-        halves=np.ascontiguousarray(halves),
+        halves=halves,
         yaws=np.ascontiguousarray(yaw),
-        colors=np.ascontiguousarray(np.concatenate([np.asarray(r[7], np.float64) for r in rows])),
-        tags=np.array([CLASS_TAGS[int(k)] for k in state.classes], np.uint8)[vi],
+        colors=colors,
+        tags=tags,
         insts=state.ids[vi].astype(np.uint16),
-        emissive=np.concatenate([np.full(len(r[0]), r[8]) for r in rows]),
+        emissive=emissive,
     )
 
 

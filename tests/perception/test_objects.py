@@ -73,17 +73,17 @@ def test_a_vehicle_hidden_behind_another_is_seen_by_neither_lidar_nor_camera():
 @settings(max_examples=15, deadline=None)
 @given(st.floats(min_value=30.0, max_value=250.0))
 def test_camera_contrast_is_koschmieder_s_so_a_dark_car_is_seen_to_about_V_and_a_grey_one_less_far(visibility):
-    """With the camera at the road's level every pixel of the car has the sky (or ground at the horizon) behind
-    it: contrast (J/A − 1)·exp(−αd), so the farthest distance at 5 % is V·ln(20(1 − J/A))/ln 20."""
+    """A car seen against the sky (the camera half a metre below the road's level, so no pixel of the car has ground
+    behind it): contrast (J/A − 1)·exp(−αd), so the farthest distance at 5 % is V·ln(20(1 − J/A))/ln 20."""
     level = parse_fog(visibility)
     farthest = {}
     for name, grey in (("dark", 0.05), ("grey", 0.45)):
         j_over_a = grey * 255.0 / 216.0
         d_pred = visibility * math.log(20 * (1 - j_over_a)) / math.log(20)
         for d in (0.9 * d_pred, 1.1 * d_pred):  # the car's rear face d metres from the camera
-            pixels, contrast, _, _ = _camera(level, (d + 1.8 + 2.25, 0.0, 4.5, 4.0, 3.0), color=(grey,) * 3, cam_z=0.05)
+            pixels, contrast, _, _ = _camera(level, (d + 1.8 + 2.25, 0.0, 4.5, 4.0, 3.0), color=(grey,) * 3, cam_z=-0.5)
             expected = (j_over_a - 1) * math.exp(-level.alpha * d)
-            assert pixels[1] > 0 and abs(contrast[1] - expected) < 0.02 * abs(expected) + 1e-3
+            assert pixels[1] > 0 and abs(contrast[1] - expected) < 0.06 * abs(expected) + 1e-3  # rays entering low go farther
             assert (abs(contrast[1]) >= 0.05) == (d < d_pred)
         farthest[name] = d_pred
     assert 0.9 * visibility < farthest["dark"] < visibility and farthest["grey"] < 0.85 * farthest["dark"]
