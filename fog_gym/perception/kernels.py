@@ -378,23 +378,51 @@ def radar_detect(n, bx, by, byaw, bl, bw, bh, vx, vy, ex, ey, eyaw, evx, evy, ra
         rng_sum[j] = az_sum[j] = vr_sum[j] = 0.0
     max_rx = math.tan(hfov / 2.0) * rng_max
     max_ry = math.tan(vfov / 2.0) * rng_max
+    # the boxes a forward ray can reach, with their extents as tangents (monotone in the angles: no atan per ray)
+    cand = np.empty(n, np.int64)
+    ta_lo, ta_hi, te_lo, te_hi = np.empty(n), np.empty(n), np.empty(n), np.empty(n)
+    m = 0
+    for q in range(order.shape[0]):
+        j = order[q]
+        if rmin[j] > rng_max or amin[j] > amax[j] or amin[j] <= -1.5 or amax[j] >= 1.5:
+            continue
+        cand[m] = j
+        ta_lo[m], ta_hi[m] = math.tan(amin[j]), math.tan(amax[j])
+        te_lo[m], te_hi[m] = math.tan(emin[j]), math.tan(emax[j])
+        m += 1
     base = np.uint64(_splitmix(_splitmix(np.uint64(key)) ^ np.uint64(tick)) ^ np.uint64(RADAR_KEY))
     for i in range(rays):
         h = _splitmix(base + np.uint64(i))
         r = (h >> np.uint64(32)) * (1.0 / 4294967296.0)
         th = 2.0 * math.pi * ((h & np.uint64(0xFFFFFFFF)) * (1.0 / 4294967296.0))
         ax, ay, az_ = rng_max, max_rx * r * math.cos(th), max_ry * r * math.sin(th)
-        length = math.sqrt(ax * ax + ay * ay + az_ * az_)
+        horiz = math.sqrt(ax * ax + ay * ay)
+        length = math.sqrt(horiz * horiz + az_ * az_)
+        tan_a = ay / ax
+        tan_e = az_ / horiz
         fx, fy, fz = ax / length, ay / length, az_ / length
         dx = c0 * fx - s0 * fy
         dy = s0 * fx + c0 * fy
-        a = math.atan2(fy, fx)
-        el = math.asin(fz)
-        t, hit, _, _ = nearest(ox, oy, oz, dx, dy, fz, n, bx, by, byaw, bl, bw, bh, amin, amax, emin, emax, rmin,
-                               order, a, el, length)  # fmt: skip
-        if hit < 1:
+        best_t = length
+        best = -2
+        if fz < 0.0:
+            tg = -oz / fz
+            if tg < best_t:
+                best_t = tg
+                best = -1
+        for q in range(m):
+            j = cand[q]
+            if rmin[j] >= best_t:
+                break
+            if tan_a < ta_lo[q] or tan_a > ta_hi[q] or tan_e < te_lo[q] or tan_e > te_hi[q]:
+                continue
+            tj, _, _ = ray_box(ox, oy, oz, dx, dy, fz, bx[j], by[j], byaw[j], bl[j] / 2, bw[j] / 2, bh[j])
+            if tj < best_t:
+                best_t = tj
+                best = j
+        if best < 1:
             continue
-        hits[hit] += 1.0
-        rng_sum[hit] += t
-        az_sum[hit] += a
-        vr_sum[hit] += (vx[hit] - evx) * dx + (vy[hit] - evy) * dy
+        hits[best] += 1.0
+        rng_sum[best] += best_t
+        az_sum[best] += math.atan2(fy, fx)
+        vr_sum[best] += (vx[best] - evx) * dx + (vy[best] - evy) * dy

@@ -32,16 +32,20 @@ _CAR_COLORS = np.array([
 EGO_COLOR = np.array([0.75, 0.10, 0.10])
 
 
+_CLASSES = list(CLASS_SPECS)
+_CDF = np.array([CLASS_SPECS[c][0] for c in _CLASSES]).cumsum()
+_CDF /= _CDF[-1]
+
+
 def draw_vehicle(rng: np.random.Generator) -> tuple[int, tuple[float, float, float], np.ndarray]:
     """``(class, (length, width, height), colour)`` of one spawned vehicle, drawn from ``rng`` in a fixed order (class,
-    length, width, height, colour, brightness)."""
-    classes = list(CLASS_SPECS)
-    probs = np.array([CLASS_SPECS[c][0] for c in classes])
-    cls = int(classes[rng.choice(len(classes), p=probs / probs.sum())])
+    length, width, height, colour, brightness). The class is ``rng.choice(classes, p=shares)`` written out as numpy
+    computes it (one uniform against the normalised cumulative shares), which is the same draw without its checks."""
+    cls = int(_CLASSES[int(_CDF.searchsorted(rng.random(), side="right"))])
     _, lr, wr, hr = CLASS_SPECS[cls]
-    length, width, height = (float(rng.uniform(*r)) for r in (lr, wr, hr))
+    length, width, height = float(rng.uniform(*lr)), float(rng.uniform(*wr)), float(rng.uniform(*hr))
     color = _CAR_COLORS[rng.integers(len(_CAR_COLORS))] * rng.uniform(0.9, 1.05)
-    return cls, (length, width, height), np.clip(color, 0.0, 1.0)
+    return cls, (length, width, height), np.minimum(np.maximum(color, 0.0), 1.0)
 
 
 @dataclass(frozen=True)

@@ -127,15 +127,13 @@ class NativeTraffic:
         rng = seeding.np_random(seed)[0]
         c = self.config
         lanes = self.lanes
-        graph_keys, to_keys = ["0"], ["1"]
         xs: list[float] = []
         ys: list[float] = []
         rows = []  # (kind, x, y, speed, target speed, timer, delta)
 
         def create_random(speed: float | None, spacing: float, lane_id: int | None) -> tuple[float, float, float]:
-            rng.choice(graph_keys)  # _from, _to: single choices, drawn as highway-env draws them
-            rng.choice(to_keys)
-            _id = lane_id if lane_id is not None else rng.choice(lanes)
+            # _from and _to: choices among one road, which draw nothing; choice(lanes) is integers(0, lanes)
+            _id = lane_id if lane_id is not None else rng.integers(0, lanes)
             if speed is None:
                 speed = rng.uniform(0.7 * K.SPEED_LIMIT, 0.8 * K.SPEED_LIMIT)
             default_spacing = 12 + 1.0 * speed
