@@ -73,6 +73,7 @@ class ObjectWorlds:
         self.vel = np.zeros((num_worlds, v, 4, 2))
         self.prev_present = np.zeros((num_worlds, v, 4), np.bool_)
         self.prev_pos = np.zeros((num_worlds, v, 4, 2))
+        self.prev_vel = np.zeros((num_worlds, v, 4, 2))
         self.obs = np.zeros((num_worlds, m, len(objects.features)), np.float32)
         self.alphas = np.zeros(num_worlds)
         self.beta_ratios = np.zeros(num_worlds)
@@ -153,7 +154,8 @@ class ObjectWorlds:
                            float(_luma(SKY_HORIZON)), self._grid, *self._ground, self._surf_luma, self._elev,
                            self._az_cos, self._az_sin, self.objects.lidar_range, self.objects.lidar_height, self._drop,
                            self._cam, self._rad, self._mask, self._rules, 1.0 / self.keyframe_frequency, c.lanes,
-                           self.present, self.pos, self.vel, self.prev_present, self.prev_pos, self.obs)  # fmt: skip
+                           self.present, self.pos, self.vel, self.prev_present, self.prev_pos, self.prev_vel,
+                           self.obs)  # fmt: skip
 
     # -- per-world results ----------------------------------------------------------------------------
     def terminated(self, w: int) -> bool:

@@ -21,8 +21,8 @@ call and fuses the results into the observation and the per-sensor detection lis
   times 1 + N(0, 0.05); radar: mean range + N(0, 0.25 m) and azimuth + N(0, 0.01 rad) of its detections. Each
   measures the vehicle's near surface: the reported position is that point moved half a typical car length
   (:data:`HALF_LENGTH` = 2.3 m) further along its bearing, a box fit with a car's size.
-* Velocity (relative to the ego): LiDAR and camera from their own reported positions one step apart (0 when the
-  vehicle was not detected the step before); radar: the mean radial velocity + N(0, 0.1 m/s) along the bearing.
+* Velocity (relative to the ego): LiDAR and camera from an alpha-beta tracker over their own reported positions
+  (β = 0.3; 0 on the step a vehicle is first detected); radar: the mean radial velocity + N(0, 0.1 m/s) along the bearing.
 * Fused: every vehicle some sensor detected, position and velocity the inverse-variance mean of the sensors'
   (σ: LiDAR 0.1 m, camera 0.5 m + 5 % of the range, radar 0.5 m), one flag per sensor.
 
@@ -53,6 +53,9 @@ from fog_gym.perception import kernels as PK
 SENSORS: tuple[str, ...] = ("camera", "lidar", "radar")
 #: A FogDrive class's typical height [m] (the camera's range prior).
 CLASS_HEIGHT = {0: 1.5, 4: 2.2, 1: 3.4}
+#: The velocity gain of the LiDAR's and camera's alpha-beta trackers (their velocity is their reports' rate of
+#: change, predicted from the last step and corrected by β/dt times the innovation).
+TRACK_BETA = 0.3
 #: Half a typical car's length [m]: each sensor measures the vehicle's near surface; its reported position is that
 #: point moved this much further along the bearing (a box fit with a car's size).
 HALF_LENGTH = 2.3
@@ -131,7 +134,7 @@ CAM, LID, RAD, FUSED = 0, 1, 2, 3
 
 
 @njit(cache=True)
-def _fuse_world(n, f, classes, present, pos, vel, prev_present, prev_pos, lid_count, lid_cen, cam_pix, cam_con,
+def _fuse_world(n, f, classes, present, pos, vel, prev_present, prev_pos, prev_vel, lid_count, lid_cen, cam_pix, cam_con,
                 cam_bear, cam_size, rad_hits, rad_rng, rad_az, rad_vr, mask, min_points, min_pixels, min_contrast,
                 focal, cam_x, rad_x, lidar_h, key, tick, dt, lanes, obs):  # fmt: skip
     """One world: detection flags, reported positions and velocities per sensor and fused, and the observation."""
@@ -168,11 +171,12 @@ def _fuse_world(n, f, classes, present, pos, vel, prev_present, prev_pos, lid_co
                 if r_s > 1e-6:
                     pos[j, s, 0] += HALF_LENGTH * pos[j, s, 0] / r_s
                     pos[j, s, 1] += HALF_LENGTH * pos[j, s, 1] / r_s
-        for s in (CAM, LID):
+        for s in (CAM, LID):  # an alpha-beta tracker's velocity: predicted from the last step, corrected by β/dt
             if present[j, s]:
                 if prev_present[j, s]:
-                    vel[j, s, 0] = (pos[j, s, 0] - prev_pos[j, s, 0]) / dt
-                    vel[j, s, 1] = (pos[j, s, 1] - prev_pos[j, s, 1]) / dt
+                    for ax in range(2):
+                        innovation = pos[j, s, ax] - (prev_pos[j, s, ax] + prev_vel[j, s, ax] * dt)
+                        vel[j, s, ax] = prev_vel[j, s, ax] + TRACK_BETA / dt * innovation
                 else:
                     vel[j, s, 0] = 0.0
                     vel[j, s, 1] = 0.0
@@ -198,6 +202,8 @@ def _fuse_world(n, f, classes, present, pos, vel, prev_present, prev_pos, lid_co
             prev_present[j, s] = present[j, s]
             prev_pos[j, s, 0] = pos[j, s, 0]
             prev_pos[j, s, 1] = pos[j, s, 1]
+            prev_vel[j, s, 0] = vel[j, s, 0]
+            prev_vel[j, s, 1] = vel[j, s, 1]
     # observation: ego row, then fused objects nearest first
     m, nf = obs.shape
     for r in range(m):
@@ -240,7 +246,8 @@ def _fuse_world(n, f, classes, present, pos, vel, prev_present, prev_pos, lid_co
 @njit(cache=True, parallel=True)
 def perceive_worlds(active, floats, counts, classes, colors, heights, keys, ticks, alphas, beta_ratios, tables_i, tables_r,
                     suns, shades, sky_luma, grid, gx0, gy0, res, surf_luma, elev, az_cos, az_sin, lidar_range, lidar_h,
-                    drop, cam, rad, mask, rules, dt, lanes, present, pos, vel, prev_present, prev_pos, obs):  # fmt: skip
+                    drop, cam, rad, mask, rules, dt, lanes, present, pos, vel, prev_present, prev_pos, prev_vel,
+                    obs):  # fmt: skip
     """Detect and fuse in every active world (parallel over worlds); see the module docstring."""
     for w in prange(floats.shape[0]):
         if not active[w]:
@@ -276,6 +283,7 @@ def perceive_worlds(active, floats, counts, classes, colors, heights, keys, tick
         if mask[RAD]:
             PK.radar_detect(n, bx, by, byaw, bl, bw, bh, vx, vy, bx[0], by[0], byaw[0], vx[0], vy[0], rad[0], rad[1],
                             rad[2], rad[3], rad[4], int(rad[5]), key, tick, rad_hits, rad_rng, rad_az, rad_vr)  # fmt: skip
-        _fuse_world(n, f, classes[w], present[w], pos[w], vel[w], prev_present[w], prev_pos[w], lid_count, lid_cen,
+        _fuse_world(n, f, classes[w], present[w], pos[w], vel[w], prev_present[w], prev_pos[w], prev_vel[w], lid_count,
+                    lid_cen,
                     cam_pix, cam_con, cam_bear, cam_size, rad_hits, rad_rng, rad_az, rad_vr, mask, int(rules[0]),
                     rules[1], rules[2], cam[2], cam[0], rad[0], lidar_h, key, tick, dt, lanes, obs[w])  # fmt: skip
