@@ -251,6 +251,15 @@ def check_manifest(out: Path, study: str, settings: Mapping[str, Any], data: Map
                              "the same settings to resume it")  # fmt: skip
 
 
+def torch_device(name: str) -> Any:
+    """``auto`` (the GPU when present, else the CPU) or a torch device name, as a ``torch.device``."""
+    import torch
+
+    if name == "auto":
+        return torch.device("cuda" if torch.cuda.is_available() else "cpu")
+    return torch.device(name)
+
+
 def import_ray() -> Any:
     """The ``ray`` module, or a :class:`StudyError` that says how to install it."""
     try:
@@ -388,6 +397,20 @@ def wall_time_lines(runner: Mapping[str, Any], totals_only: bool = False) -> lis
 
 
 # -- the command line ------------------------------------------------------------------------------------------
+def size_arg(text: str) -> tuple[int, int]:
+    """An argparse type: ``WxH`` as ``(W, H)``, two positive integers.
+
+    >>> size_arg("320x240")
+    (320, 240)
+    """
+    from fog_gym.checks import parse_resolution
+
+    try:
+        return parse_resolution(tuple(int(v) for v in text.lower().split("x")))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected WxH, two positive integers such as 320x240, got {text!r}") from None
+
+
 def build_parser(study: type[Study]) -> argparse.ArgumentParser:
     """The study's options and the runner's: ``--out``, ``--seeds``, ``--smoke``, ``--ray``."""
     import textwrap
