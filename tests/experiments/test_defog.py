@@ -11,7 +11,8 @@ import pytest
 pytest.importorskip("torch")
 
 from fog_gym.dataset.access import FogDrive  # noqa: E402
-from fog_gym.experiments.defog.data import LEVELS, augment_hsv, choose_scenes, frames, intrinsic, load_boxes, load_image  # noqa: E402
+from fog_gym.experiments.defog.data import LEVELS, choose_scenes, frames, intrinsic, load_boxes, load_image  # noqa: E402
+from fog_gym.experiments.defog.train import augment_hsv  # noqa: E402
 from fog_gym.experiments.defog.dehazers import DEHAZERS, OracleDehazer  # noqa: E402
 from fog_gym.experiments.defog.study import Exp2Config, run_experiment2  # noqa: E402
 from fog_gym.fog import parse_fog, ray_length_factor  # noqa: E402

@@ -1,5 +1,5 @@
 """Experiment 2's data: the scenes chosen per split, the camera frames of those scenes, images at a fog level with
-their ground-truth boxes, the detectors' training set (flips and colour jitter) and the evaluation sets.
+their ground-truth boxes, and the evaluation sets (the detectors' training set is in :mod:`~.train`).
 
 Scenes are subsampled uniformly per split (paper 15 / 20 / 20 % of train / val / test); every ``every``-th sample
 of a chosen scene is used, from each camera. Dehazers work on the full-resolution frame; then every image is
@@ -15,11 +15,9 @@ from dataclasses import dataclass
 
 import cv2
 import numpy as np
-import torch
 
 from fog_gym.dataset.access import FogDrive
 from fog_gym.dataset.decode import load_channel
-from fog_gym.experiments.defog.model import STRIDE, make_targets
 
 CAMERAS = ("CAM_FRONT", "CAM_LEFT")
 LEVELS = ("light", "moderate", "dense")
@@ -84,65 +82,6 @@ def intrinsic(width: int, height: int) -> np.ndarray:
     """K of a FogDrive camera of this size (square pixels, principal point at the centre)."""
     f = width / (2.0 * math.tan(math.radians(FOV) / 2.0))
     return np.array([[f, 0.0, width / 2.0], [0.0, f, height / 2.0], [0.0, 0.0, 1.0]])
-
-
-def augment_hsv(image: np.ndarray, gains: Sequence[float], rng: np.random.Generator) -> np.ndarray:
-    """Ultralytics-style colour jitter of a uint8 RGB image: hue, saturation and value multiplied by random gains
-    in ``1 ± gains`` (hue wraps around), through lookup tables.
-
-    >>> img = np.full((2, 2, 3), 128, np.uint8)  # grey has no hue or saturation to change
-    >>> out = augment_hsv(img, (0.5, 0.5, 0.0), np.random.default_rng(0))
-    >>> bool((out == img).all())
-    True
-    """
-    r = rng.uniform(-1.0, 1.0, 3) * np.asarray(gains, np.float64) + 1.0
-    hue, sat, val = cv2.split(cv2.cvtColor(image, cv2.COLOR_RGB2HSV))
-    x = np.arange(256, dtype=np.float64)
-    lut_h = ((x * r[0]) % 180).astype(np.uint8)
-    lut_s = np.clip(x * r[1], 0, 255).astype(np.uint8)
-    lut_v = np.clip(x * r[2], 0, 255).astype(np.uint8)
-    hsv = cv2.merge((cv2.LUT(hue, lut_h), cv2.LUT(sat, lut_s), cv2.LUT(val, lut_v)))
-    return cv2.cvtColor(hsv, cv2.COLOR_HSV2RGB)
-
-
-class ImageSet(torch.utils.data.Dataset):
-    """Frames at a fog level, resized to the input size, with CenterNet targets; horizontal flips and the ``hsv``
-    colour jitter (:func:`augment_hsv`) when ``augment``."""
-
-    def __init__(self, ds: FogDrive, items: Sequence[Frame], level: str, size: tuple[int, int], augment: bool = False,
-                 seed: int = 0, hsv: Sequence[float] = (0.0, 0.0, 0.0)) -> None:  # fmt: skip
-        self.ds, self.items, self.level, self.size, self.augment = ds, list(items), level, tuple(size), augment
-        self.hsv = tuple(hsv)
-        self.rng = np.random.default_rng(seed)
-
-    def __len__(self) -> int:
-        return len(self.items)
-
-    def __getitem__(self, i: int):
-        f = self.items[i]
-        img = load_image(self.ds, f, self.level)
-        boxes, classes = load_boxes(self.ds, f)
-        h0, w0 = img.shape[:2]
-        w, h = self.size
-        img = resize(img, self.size)
-        boxes = boxes * np.array([w / w0, h / h0, w / w0, h / h0])
-        if self.augment and any(self.hsv):
-            img = augment_hsv(img, self.hsv, self.rng)
-        if self.augment and self.rng.random() < 0.5:
-            img = np.ascontiguousarray(img[:, ::-1])
-            boxes = np.stack([w - boxes[:, 2], boxes[:, 1], w - boxes[:, 0], boxes[:, 3]], 1)
-        return img, make_targets(boxes, classes, (h // STRIDE, w // STRIDE))
-
-
-def collate(batch):
-    """Images ``(B, 3, H, W)`` in [0, 1], heatmaps, and the flat indices and regression targets of every centre."""
-    imgs = torch.from_numpy(np.stack([b[0] for b in batch]).transpose(0, 3, 1, 2).copy()).float() / 255.0
-    heat = torch.from_numpy(np.stack([b[1]["heatmap"] for b in batch]))
-    bidx = torch.cat([torch.full((len(b[1]["index"]),), i, dtype=torch.long) for i, b in enumerate(batch)])
-    cidx = torch.from_numpy(np.concatenate([b[1]["index"] for b in batch]).astype(np.int64))
-    wh = torch.from_numpy(np.concatenate([b[1]["wh"] for b in batch]).reshape(-1, 2))
-    off = torch.from_numpy(np.concatenate([b[1]["offset"] for b in batch]).reshape(-1, 2))
-    return imgs, heat, bidx, cidx, wh, off
 
 
 def eval_set(ds: FogDrive, items: list[Frame], level: str, size: tuple[int, int],

@@ -16,8 +16,8 @@ from pathlib import Path
 from typing import Any
 
 from fog_gym.experiments.defog.data import CAMERAS, LEVELS, channel, choose_scenes
-from fog_gym.experiments.defog.model import STRIDE
-from fog_gym.experiments.runner import Report, Study, Unit, aggregate, run, size_arg, torch_device
+from fog_gym.experiments.dataset_study import DatasetStudy
+from fog_gym.experiments.runner import Report, Unit, aggregate, run, size_arg, torch_device
 
 
 @dataclass(frozen=True)
@@ -55,6 +55,8 @@ class Exp2Config:
             v = getattr(self, name)
             if isinstance(v, bool) or not isinstance(v, int) or v < 1:
                 raise ValueError(f"{name} must be a positive integer, got {v!r}")
+        from fog_gym.experiments.defog.model import STRIDE
+
         w, h = self.input_size
         if w % (4 * STRIDE) or h % (4 * STRIDE) or w < 32 or h < 32:
             raise ValueError(f"input_size must be (W, H), both multiples of 16 and >= 32, got {self.input_size}")
@@ -72,13 +74,12 @@ class Exp2Config:
         if bad or not self.cameras:
             raise ValueError(f"cameras must name FogDrive cameras, got {list(self.cameras)}")
 
-
     def settings(self) -> dict[str, Any]:
         """What a trained model depends on, as it reads back from JSON (not the device)."""
         return json.loads(json.dumps({k: v for k, v in asdict(self).items() if k != "device"}))
 
 
-class Exp2Study(Study):
+class Exp2Study(DatasetStudy):
     """Experiment 2 on the dataset at ``root`` (generated first when ``generate`` scenes are asked for)."""
 
     name = "exp2"
@@ -97,20 +98,11 @@ class Exp2Study(Study):
         "fog-gym exp2 --generate 40 --root out/fogdrive --out out/exp2   # generate one first\n"
         "fog-gym exp2 --smoke --root out/exp2_smoke --out out/exp2_smoke")
 
-    def __init__(self, root: str | Path, config: Exp2Config = Exp2Config(), generate: int = 0, seconds: float = 10.0,
+    def __init__(self, root: str | Path, config: Exp2Config | None = None, generate: int = 0, seconds: float = 10.0,
                  resolution: tuple[int, int] = (640, 480), gen_workers: int = 1) -> None:  # fmt: skip
-        if generate < 0 or gen_workers < 1 or not seconds > 0:
-            raise ValueError("generate must be >= 0, gen_workers >= 1 and seconds > 0")
-        self.root, self.config, self.generate, self.seconds = Path(root), config, generate, seconds
-        self.resolution, self.gen_workers = tuple(resolution), gen_workers
+        super().__init__(root, config or Exp2Config(), generate, seconds, gen_workers, resolution=tuple(resolution))
         self.scenes: dict[str, list[str]] | None = None
         self.images: dict[str, int] = {}
-
-    def settings(self) -> dict[str, Any]:
-        return self.config.settings()
-
-    def seed_list(self, k: int) -> list[int]:
-        return [self.config.seed + i for i in range(k)]
 
     def _chosen(self, ds: Any) -> dict[str, list[str]]:
         c = self.config
@@ -125,18 +117,7 @@ class Exp2Study(Study):
         return frames(ds, chosen[split], every, self.config.cameras)
 
     def prepare(self, log: Callable[[str], None], progress: bool) -> dict[str, Any]:
-        import time
-
-        from fog_gym.dataset.access import FogDrive
-
-        if self.generate:
-            from fog_gym.generate import generate, plan_scenes
-
-            t0 = time.perf_counter()
-            generate(self.root, plan_scenes(self.generate, seed=self.config.seed, seconds=self.seconds,
-                                            resolution=self.resolution), workers=self.gen_workers, progress=progress)  # fmt: skip
-            log(f"generated {self.generate} scenes in {time.perf_counter() - t0:.0f} s")
-        ds = FogDrive(self.root)
+        ds = self.open_dataset(log, progress)
         splits = ds.splits or {}
         if not all(splits.get(s) for s in ("train", "val", "test")):
             raise ValueError(f"{self.root}: Experiment 2 needs train, val and test scenes in index/splits.json")
@@ -173,8 +154,8 @@ class Exp2Study(Study):
 
             model, summary = train_aodnet_pairs(ds, train_f, c, unit.seed, device, progress)
         else:
-            from fog_gym.experiments.defog.data import ImageSet, eval_set
-            from fog_gym.experiments.defog.train import train_detector
+            from fog_gym.experiments.defog.data import eval_set
+            from fog_gym.experiments.defog.train import ImageSet, train_detector
 
             level, size = unit.params["level"], tuple(c.input_size)
             val = eval_set(ds, self._frames(ds, "val"), level, size, min_height=c.min_height)
@@ -236,21 +217,11 @@ class Exp2Study(Study):
 
     @classmethod
     def add_arguments(cls, p: argparse.ArgumentParser) -> None:
-        p.add_argument("--root", type=Path, required=True, help="FogDrive dataset root with cameras and train/val/test splits")
-        p.add_argument("--generate", type=int, default=0, metavar="SCENES",
-                       help="first generate a dataset of this many scenes into --root (must be empty)")
-        p.add_argument("--seconds", type=float, default=10.0, help="scene length when generating (default 10 s)")
+        cls.add_common_arguments(p, "with cameras and train/val/test splits", "detector", 2e-3)
         p.add_argument("--resolution", type=size_arg, default=(640, 480),
                        help="camera resolution WxH when generating (default 640x480)")
-        p.add_argument("--gen-workers", type=int, default=1, help="worker processes when generating (default 1)")
-        p.add_argument("--epochs", type=int, default=20, help="training epochs per detector (default 20)")
-        p.add_argument("--batch-size", type=int, default=16, help="batch size (default 16)")
-        p.add_argument("--lr", type=float, default=2e-3, help="peak learning rate of the one-cycle schedule (default 2e-3)")
         p.add_argument("--input-size", type=size_arg, default=(320, 240),
                        help="detector input WxH, multiples of 16 (default 320x240)")
-        p.add_argument("--every", type=int, default=2, help="use every n-th train/val sample of a scene (default 2)")
-        p.add_argument("--test-every", type=int, default=2, help="use every n-th test sample (default 2)")
-        p.add_argument("--eval-every", type=int, default=1, help="validate after every n-th epoch and the last (default 1)")
         p.add_argument("--train-fraction", type=float, default=0.15, help="share of train scenes used (paper 0.15)")
         p.add_argument("--val-fraction", type=float, default=0.2, help="share of val scenes used (paper 0.2)")
         p.add_argument("--test-fraction", type=float, default=0.2, help="share of test scenes used (paper 0.2)")
@@ -263,14 +234,11 @@ class Exp2Study(Study):
         p.add_argument("--hsv", type=float, nargs=3, default=[0.015, 0.7, 0.4], metavar=("H", "S", "V"),
                        help="colour jitter of the detectors' training images, gains of hue, saturation, value "
                             "(default Ultralytics' 0.015 0.7 0.4; 0 0 0 = flips only)")
-        p.add_argument("--device", default="auto", help="torch device: auto (GPU when present), cpu, cuda")
-        p.add_argument("--seed", type=int, default=0,
-                       help="seed of the scene choice and of the first training seed (default 0)")
 
     @classmethod
     def from_args(cls, args: argparse.Namespace) -> Exp2Study:
         if args.smoke:
-            args.generate = args.generate or (0 if (args.root / "index").exists() else 10)
+            cls.smoke_dataset(args)
             args.seconds, args.resolution, args.input_size, args.epochs = 0.6, (128, 96), (64, 48), 2
             args.train_fraction = args.val_fraction = args.test_fraction = 1.0
             args.aod_epochs, args.aod_pairs, args.every, args.test_every = 1, 32, 1, 1
@@ -283,7 +251,7 @@ class Exp2Study(Study):
         return cls(args.root, config, args.generate, args.seconds, args.resolution, args.gen_workers)
 
 
-def run_experiment2(root: str | Path, out: str | Path, config: Exp2Config = Exp2Config(), progress: bool = True,
+def run_experiment2(root: str | Path, out: str | Path, config: Exp2Config | None = None, progress: bool = True,
                     log: Callable[[str], None] | None = None, seeds: int = 1) -> dict[str, Any]:  # fmt: skip
     """Run pipelines A–D on the dataset at ``root`` into ``out`` (see the module docstring); returns
     ``results.json``'s content. Trained models are kept; other settings into the same ``out`` are refused."""

@@ -16,7 +16,8 @@ from pathlib import Path
 from typing import Any
 
 from fog_gym.experiments.detection3d.protocol import TEST_COLUMNS, TRAIN_ROWS, evaluation_subsets, training_subsets
-from fog_gym.experiments.runner import Report, Study, Unit, aggregate, run, torch_device
+from fog_gym.experiments.dataset_study import DatasetStudy
+from fog_gym.experiments.runner import Report, Unit, aggregate, run, torch_device
 
 
 @dataclass(frozen=True)
@@ -59,7 +60,7 @@ class Exp1Config:
         return json.loads(json.dumps(kept))
 
 
-class Exp1Study(Study):
+class Exp1Study(DatasetStudy):
     """Experiment 1 on the dataset at ``root`` (generated first when ``generate`` scenes are asked for)."""
 
     name = "exp1"
@@ -78,18 +79,10 @@ class Exp1Study(Study):
         "fog-gym exp1 --generate 40 --root out/lidar --out out/exp1   # generate a LiDAR-only set first\n"
         "fog-gym exp1 --smoke --root out/exp1_smoke --out out/exp1_smoke")
 
-    def __init__(self, root: str | Path, config: Exp1Config = Exp1Config(), generate: int = 0, seconds: float = 10.0,
+    def __init__(self, root: str | Path, config: Exp1Config | None = None, generate: int = 0, seconds: float = 10.0,
                  gen_workers: int = 1) -> None:  # fmt: skip
-        if generate < 0 or gen_workers < 1 or not seconds > 0:
-            raise ValueError("generate must be >= 0, gen_workers >= 1 and seconds > 0")
-        self.root, self.config, self.generate, self.seconds, self.gen_workers = Path(root), config, generate, seconds, gen_workers
+        super().__init__(root, config or Exp1Config(), generate, seconds, gen_workers, modality="lidar")
         self.test_samples: dict[str, int] = {}
-
-    def settings(self) -> dict[str, Any]:
-        return self.config.settings()
-
-    def seed_list(self, k: int) -> list[int]:
-        return [self.config.seed + i for i in range(k)]
 
     def _subsets(self, ds: Any) -> tuple[dict[str, list], dict[str, list]]:
         c = self.config
@@ -108,18 +101,7 @@ class Exp1Study(Study):
                 for lv, pairs in tests.items()}  # fmt: skip
 
     def prepare(self, log: Callable[[str], None], progress: bool) -> dict[str, Any]:
-        import time
-
-        from fog_gym.dataset.access import FogDrive
-
-        if self.generate:
-            from fog_gym.generate import generate, plan_scenes
-
-            t0 = time.perf_counter()
-            generate(self.root, plan_scenes(self.generate, seed=self.config.seed, seconds=self.seconds, modality="lidar"),
-                     workers=self.gen_workers, progress=progress)  # fmt: skip
-            log(f"generated {self.generate} LiDAR-only scenes in {time.perf_counter() - t0:.0f} s")
-        ds = FogDrive(self.root)
+        ds = self.open_dataset(log, progress)
         if ds.splits is None or not ds.splits.get("train") or not ds.splits.get("test"):
             raise ValueError(f"{self.root}: Experiment 1 needs a dataset with train and test scenes in index/splits.json")
         trains, tests = self._subsets(ds)
@@ -175,29 +157,17 @@ class Exp1Study(Study):
 
     @classmethod
     def add_arguments(cls, p: argparse.ArgumentParser) -> None:
-        p.add_argument("--root", type=Path, required=True, help="FogDrive dataset root (with train/test splits)")
-        p.add_argument("--generate", type=int, default=0, metavar="SCENES",
-                       help="first generate a LiDAR-only dataset of this many scenes into --root (must be empty)")
-        p.add_argument("--seconds", type=float, default=10.0, help="scene length when generating (default 10 s)")
-        p.add_argument("--gen-workers", type=int, default=1, help="worker processes when generating (default 1)")
-        p.add_argument("--epochs", type=int, default=20, help="training epochs per subset (default 20)")
-        p.add_argument("--batch-size", type=int, default=16, help="batch size (default 16)")
-        p.add_argument("--lr", type=float, default=1e-3, help="peak learning rate of the one-cycle schedule (default 1e-3)")
-        p.add_argument("--every", type=int, default=2, help="use every n-th training sample of a scene (default 2: 5 Hz)")
-        p.add_argument("--test-every", type=int, default=2, help="use every n-th test sample (default 2)")
-        p.add_argument("--eval-every", type=int, default=1, help="evaluate after every n-th epoch and the last (default 1)")
+        cls.add_common_arguments(p, "with train/test splits; LiDAR-only will do", "subset", 1e-3)
         p.add_argument("--fraction", type=float, default=0.2, help="share of train scenes per density subset (paper 0.2)")
         p.add_argument("--mixed-fraction", type=float, default=0.08, help="Mixed-S share per density (paper 0.08)")
         p.add_argument("--test-fraction", type=float, default=0.2, help="share of test scenes evaluated (paper 0.2)")
         p.add_argument("--rows", nargs="+", default=list(TRAIN_ROWS), help="training subsets to run (default all five)")
-        p.add_argument("--device", default="auto", help="torch device: auto (GPU when present), cpu, cuda")
         p.add_argument("--workers", type=int, default=0, help="DataLoader worker processes (default 0)")
-        p.add_argument("--seed", type=int, default=0, help="seed of the subsets and of the first training seed (default 0)")
 
     @classmethod
     def from_args(cls, args: argparse.Namespace) -> Exp1Study:
         if args.smoke:
-            args.generate = args.generate or (0 if (args.root / "index").exists() else 10)
+            cls.smoke_dataset(args)
             args.seconds, args.epochs, args.rows, args.every, args.test_every = 2.0, 2, ["Light", "Mixed-L"], 2, 2
         config = Exp1Config(epochs=args.epochs, batch_size=args.batch_size, lr=args.lr, every=args.every,
                             test_every=args.test_every, eval_every=args.eval_every, rows=tuple(args.rows),
@@ -206,7 +176,7 @@ class Exp1Study(Study):
         return cls(args.root, config, args.generate, args.seconds, args.gen_workers)
 
 
-def run_experiment1(root: str | Path, out: str | Path, config: Exp1Config = Exp1Config(), progress: bool = True,
+def run_experiment1(root: str | Path, out: str | Path, config: Exp1Config | None = None, progress: bool = True,
                     log: Callable[[str], None] | None = None, seeds: int = 1) -> dict[str, Any]:  # fmt: skip
     """Run Experiment 1 on the dataset at ``root`` into ``out`` (see the module docstring); returns ``results.json``'s
     content. Finished rows are kept; other settings into the same ``out`` are refused before any work."""
