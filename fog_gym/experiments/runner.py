@@ -415,7 +415,7 @@ def build_parser(study: type[Study]) -> argparse.ArgumentParser:
     """The study's options and the runner's: ``--out``, ``--seeds``, ``--smoke``, ``--ray``."""
     import textwrap
 
-    text = "\n\n".join(textwrap.fill(par, 100) for par in study.description.split("\n\n"))
+    text = "\n".join(textwrap.fill(line, 100) for line in study.description.split("\n"))
     parser = argparse.ArgumentParser(prog=study.command, description=text,
                                      formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
     study.add_arguments(parser)

@@ -101,7 +101,7 @@ class RLStudy(Study):
     command = "fog-gym rl-bench"
     default_out = Path("out/rl_bench")
     own_wall_times = True
-    smoke_help = ("a ≈ 3-minute check of the whole pipeline (2 conditions × 256 steps, 2 evaluation episodes, 2-s "
+    smoke_help = ("a ≈ 2-minute check of the whole pipeline (2 conditions × 256 steps, 2 evaluation episodes, 2-s "
                   "episodes); the default budget is itself a ≈ 20-minute smoke run, far too small for a finding")  # fmt: skip
     description = (
         "The fog RL benchmark: train an agent (PPO or DQN) per fog condition and training seed, evaluate every agent "
