@@ -33,16 +33,16 @@ def test_sb3_check_env_and_short_ppo_run(tmp_path):
     from stable_baselines3.common.env_checker import check_env
     from stable_baselines3.common.vec_env import SubprocVecEnv
 
-    from fog_gym.rl.sb3 import curriculum_callback
+    from fog_gym.rl.sb3 import VecFogCurriculum
 
     check_env(gym.make("FogDriveRL-v0"))
     check_env(gym.make("FogDriveRLHazard-v0", fog="dense"))
     # "fog_gym:" makes gym.make import fog_gym in the worker processes (SB3 starts them with forkserver)
-    venv = SubprocVecEnv([lambda: gym.make("fog_gym:FogDriveRL-v0", fog="clear", episode_seconds=2.0)] * 2)
+    venv = VecFogCurriculum(SubprocVecEnv([lambda: gym.make("fog_gym:FogDriveRL-v0", fog="clear", episode_seconds=2.0)] * 2),
+                            StepSchedule(episodes_per_level=1))  # fmt: skip
     model = PPO("MultiInputPolicy", venv, n_steps=32, batch_size=32, n_epochs=1, seed=0)
-    cb = curriculum_callback(StepSchedule(episodes_per_level=1))
-    model.learn(total_timesteps=128, callback=cb)
-    assert cb.episodes >= 2
+    model.learn(total_timesteps=128)
+    assert venv.episodes >= 2
     assert venv.env_method("get_wrapper_attr", "fog")[0].name != "clear"  # the schedule reached the sub-envs
     model.save(tmp_path / "ppo.zip")
     assert PPO.load(tmp_path / "ppo.zip").observation_space == model.observation_space
