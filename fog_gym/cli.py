@@ -1,4 +1,5 @@
-"""The ``fog-gym`` command: ``demo``, ``generate``, ``validate``, ``stats``, ``audit``, ``view``, ``minari`` and ``bench``.
+"""The ``fog-gym`` command: ``demo``, ``generate``, ``validate``, ``stats``, ``audit``, ``view``, ``minari``, ``bench``
+and the studies ``exp1``, ``exp2`` and ``rl-bench`` (:mod:`fog_gym.experiments.runner`).
 
 Example:
     >>> parser = build_parser()
@@ -118,10 +119,34 @@ def build_parser() -> argparse.ArgumentParser:
     st.add_argument("--plot", type=Path, default=None, metavar="PATH", help="write a bar chart PNG to PATH")
     _add_view_parser(sub)
     _add_minari_parser(sub)
-    bench = sub.add_parser("bench", help="run scripts/bench.py (per-stage milliseconds; see fog-gym bench --help)",
+    bench = sub.add_parser("bench", help="per-stage milliseconds of env, sensors, fog and recording (see fog-gym bench --help)",
                            add_help=False)
     bench.add_argument("args", nargs=argparse.REMAINDER)
+    for name, text in STUDIES.items():  # their options live with the study: fog-gym <study> --help
+        sub.add_parser(name, help=text, add_help=False).add_argument("args", nargs=argparse.REMAINDER)
     return parser
+
+
+#: The studies, each run by fog_gym.experiments.runner (seeds, resume, report); ``fog-gym <study> --help``.
+STUDIES = {
+    "exp1": "Experiment 1: does mixing fog densities in training make a 3D detector robust? (see fog-gym exp1 --help)",
+    "exp2": "Experiment 2: defog-then-detect vs train-on-fog, 2D detection (see fog-gym exp2 --help)",
+    "rl-bench": "the fog RL benchmark: agents per fog condition, train x test matrix (see fog-gym rl-bench --help)",
+}
+
+
+def _study(name: str):
+    if name == "exp1":
+        from fog_gym.experiments.detection3d.study import Exp1Study
+
+        return Exp1Study
+    if name == "exp2":
+        from fog_gym.experiments.defog.study import Exp2Study
+
+        return Exp2Study
+    from fog_gym.experiments.rl_bench.study import RLStudy
+
+    return RLStudy
 
 
 def run_demo(args: argparse.Namespace) -> list[Path]:
@@ -295,12 +320,13 @@ def main(argv: list[str] | None = None) -> int:
     argv = list(sys.argv[1:] if argv is None else argv)
     parser = build_parser()
     if argv[:1] == ["bench"]:
-        import runpy
+        from fog_gym.experiments.bench.suite import main as bench
 
-        script = Path(__file__).resolve().parent.parent / "scripts" / "bench.py"
-        if not script.exists():
-            raise _fail("bench", "needs the source checkout (scripts/bench.py); it is not part of the wheel")
-        return runpy.run_path(str(script), run_name="fog_gym_bench")["main"](argv[1:], prog="fog-gym bench")
+        return bench(argv[1:], prog="fog-gym bench")
+    if argv[:1] and argv[0] in STUDIES:
+        from fog_gym.experiments.runner import main as run_study
+
+        return run_study(_study(argv[0]), argv[1:])
     args = parser.parse_args(argv)
     handler = {"generate": _generate, "validate": _validate, "stats": _stats, "audit": _audit, "demo": _demo,
                "view": _view, "minari": _minari}  # fmt: skip

@@ -1,5 +1,6 @@
 """The built wheel works on its own: installed without ``-e`` into a fresh virtual environment, it makes a foggy
-env, records a day/night pair of episodes and validates them with the installed ``fog-gym`` command."""
+env, records a day/night pair of episodes and validates them with the installed ``fog-gym`` command, and its
+benchmarks and studies run from the wheel (no source checkout)."""
 
 import site
 import subprocess
@@ -59,6 +60,14 @@ def test_wheel_installs_without_editable_mode_and_runs(tmp_path):
     val = subprocess.run([str(env_dir / "bin" / "fog-gym"), "validate", "ds"], cwd=work, capture_output=True, text=True)
     assert val.returncode == 0, val.stdout + val.stderr
     assert val.stdout.strip().endswith("valid")
+    fog_gym_cmd = str(env_dir / "bin" / "fog-gym")
+    for command in ("bench", "exp1", "exp2", "rl-bench"):
+        helped = subprocess.run([fog_gym_cmd, command, "--help"], cwd=work, capture_output=True, text=True)
+        assert helped.returncode == 0 and helped.stdout.startswith(f"usage: fog-gym {command}"), helped.stderr[-2000:]
+    bench = subprocess.run([str(python), "-m", "fog_gym.experiments.bench.fog", "--quick"], cwd=work, capture_output=True,
+                           text=True, timeout=900)  # fmt: skip
+    assert bench.returncode == 0, bench.stderr[-3000:]
+    assert "full paired frame" in bench.stdout and "CPUs, numba" in bench.stdout
 
 
 @pytest.mark.parametrize("package", ["fog_gym.dataset", "fog_gym.render", "fog_gym.wrappers"])

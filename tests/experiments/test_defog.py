@@ -8,14 +8,13 @@ import json
 import numpy as np
 import pytest
 
-from tests.helpers import ROOT
-
 pytest.importorskip("torch")
 
 from fog_gym.dataset.access import FogDrive  # noqa: E402
-from fog_gym.experiments.defog.experiment import (  # noqa: E402
-    DEHAZERS, LEVELS, Exp2Config, OracleDehazer, choose_scenes, frames, intrinsic, load_boxes, load_image, run_experiment2,
-)
+from fog_gym.experiments.defog.data import LEVELS, choose_scenes, frames, intrinsic, load_boxes, load_image  # noqa: E402
+from fog_gym.experiments.defog.train import augment_hsv  # noqa: E402
+from fog_gym.experiments.defog.dehazers import DEHAZERS, OracleDehazer  # noqa: E402
+from fog_gym.experiments.defog.study import Exp2Config, run_experiment2  # noqa: E402
 from fog_gym.fog import parse_fog, ray_length_factor  # noqa: E402
 from fog_gym.generate import generate, plan_scenes  # noqa: E402
 
@@ -69,21 +68,41 @@ def test_experiment2_runs_every_pipeline_and_a_second_run_reuses_the_models(came
     assert list(det["A"]) == ["clean"] and all(list(det[k]) == list(LEVELS) for k in det if k != "A")
     for cells in det.values():
         for m in cells.values():
-            assert 0.0 <= m["mAP50_95"] <= m["mAP50"] <= 1.0 and m["n_gt"] > 0
+            assert 0.0 <= m["mAP50_95"]["mean"] <= m["mAP50"]["mean"] <= 1.0 and m["n_gt"]["mean"] > 0
+            assert m["mAP50"]["seeds"] == 1 and m["mAP50"]["ci95"] is None
     iq = r["image_quality"]
     assert set(iq) == set(LEVELS) and all(set(iq[lv]) == {"foggy", *DEHAZERS} for lv in LEVELS)
-    assert iq["light"]["foggy"]["PSNR"] > iq["dense"]["foggy"]["PSNR"]  # denser fog departs further from clean
-    assert {p.name for p in out.iterdir()} >= {"exp2.md", "exp2.png", "results.json", "models", "tb"}
+    assert iq["light"]["foggy"]["PSNR"]["mean"] > iq["dense"]["foggy"]["PSNR"]["mean"]  # denser fog departs further
+    assert {p.name for p in out.iterdir()} >= {"exp2.md", "exp2.png", "results.json", "models", "tb", "study.json"}
     md = (out / "exp2.md").read_text()
-    assert md.count("| D (fog→fog) |") == 3 and md.count("| C – ") == 3 * len(DEHAZERS)
+    assert md.count("| D (fog→fog) |") == 3 and md.count("| C – ") == 3 * len(DEHAZERS) and "## Wall time" in md
     assert json.loads((out / "results.json").read_text())["detection"]["B"]["dense"] == det["B"]["dense"]
     # a second run trains nothing and gives the same numbers; other settings are refused, not mixed in
     said = []
     again = run_experiment2(camera_set, out, config, progress=False, log=said.append)
-    assert sum("kept from" in s for s in said) == 5  # clean + three levels + AOD-Net
+    assert sum("kept from" in s for s in said) == 6  # clean + three levels + AOD-Net, and the evaluation
     assert again["detection"] == det
-    with pytest.raises(ValueError, match="other settings"):
+    with pytest.raises(ValueError, match="other settings \\(lr: 0.002 there, 0.01 here\\)"):
         run_experiment2(camera_set, out, Exp2Config(**{**TINY, "lr": 1e-2}), progress=False, log=lambda *_: None)
+
+
+def test_the_report_gives_the_ci_across_seeds_in_both_tables_and_the_figure(tmp_path):
+    from fog_gym.experiments.defog import report
+    from fog_gym.experiments.runner import aggregate
+
+    rng = np.random.default_rng(0)
+    score = lambda: {"mAP50": rng.uniform(0.2, 0.4), "mAP50_95": 0.1, "precision": 0.5, "recall": 0.5, "AP50/0": 0.3}  # noqa: E731
+    det = aggregate({p: {lv: {s: score() for s in (0, 1, 2)} for lv in (["clean"] if p == "A" else LEVELS)}
+                     for p in report.PIPELINE_NAMES})  # fmt: skip
+    iq = aggregate({lv: {m: {s: {"PSNR": 20.0 + s, "SSIM": 0.5} for s in (0, 1, 2)} for m in ("foggy", *DEHAZERS)}
+                    for lv in LEVELS})  # fmt: skip
+    assert iq["dense"]["DCP"]["PSNR"]["mean"] == 21.0 and iq["dense"]["DCP"]["PSNR"]["ci95"] == pytest.approx(2.484, abs=1e-3)
+    text = report.markdown(det, iq, seeds=3)
+    assert "mean ± 95 % CI across 3 seeds" in text and "| 21.00 ± 2.48 |" in text and "| 0.500 ± 0.000 |" in text
+    row = next(ln for ln in text.splitlines() if ln.startswith("| D (fog→fog) | dense"))
+    assert row.count(" ± ") == 5 and row.endswith("| – | – |")  # car AP with its CI; no truck, no bigger car
+    report.figure(det, iq, tmp_path / "exp2.png")
+    assert (tmp_path / "exp2.png").read_bytes()[:4] == b"\x89PNG"
 
 
 @pytest.mark.parametrize(
@@ -112,8 +131,6 @@ def test_scene_choice_is_a_seeded_uniform_subset():
 
 
 def test_colour_jitter_keeps_geometry_and_grey_and_is_seeded():
-    from fog_gym.experiments.defog.experiment import augment_hsv
-
     rng = np.random.default_rng(3)
     img = rng.integers(0, 256, (24, 32, 3), dtype=np.uint8)
     a = augment_hsv(img, (0.015, 0.7, 0.4), np.random.default_rng(1))
@@ -126,14 +143,3 @@ def test_colour_jitter_keeps_geometry_and_grey_and_is_seeded():
     grey = np.full((4, 4, 3), 77, np.uint8)  # no hue or saturation: only the value gain acts
     out = augment_hsv(grey, (0.5, 0.5, 0.0), np.random.default_rng(2))
     assert (out == grey).all()
-
-
-def test_the_seed_check_refuses_a_run_without_results_before_any_work(tmp_path):
-    import subprocess
-    import sys
-    from pathlib import Path
-
-    script = ROOT / "scripts" / "exp2_seed_check.py"
-    r = subprocess.run([sys.executable, str(script), "--root", str(tmp_path), "--run", str(tmp_path / "none"), "--seed", "1"],
-                       capture_output=True, text=True)  # fmt: skip
-    assert r.returncode == 2 and "results.json not found" in r.stderr

@@ -14,7 +14,7 @@ from fog_gym.dataset.layout import MODALITIES  # noqa: E402
 from fog_gym.dataset.validate import validate  # noqa: E402
 from fog_gym.experiments.detection3d.bev import BEVGrid, class_from_height, decode_cells, make_targets, point_features  # noqa: E402
 from fog_gym.experiments.detection3d.data import SweepDataset, collate  # noqa: E402
-from fog_gym.experiments.detection3d.experiment import Exp1Config, run_experiment1  # noqa: E402
+from fog_gym.experiments.detection3d.study import Exp1Config, run_experiment1  # noqa: E402
 from fog_gym.experiments.detection3d.model import BEVCenterNet, decode, detection_loss  # noqa: E402
 from fog_gym.experiments.detection3d.protocol import TEST_COLUMNS, evaluation_subsets, training_subsets  # noqa: E402
 from fog_gym.metrics.detection3d import evaluate  # noqa: E402
@@ -138,15 +138,17 @@ def test_experiment1_end_to_end_writes_every_cell(lidar_set, tmp_path):
     res = run_experiment1(lidar_set, tmp_path / "out", cfg, progress=False, log=lambda *_: None)
     for row in ("Light", "Mixed-L"):
         for col in TEST_COLUMNS:
-            cell = res["rows"][row]["best"][col]
-            assert cell["epoch"] == 1 and cell["n_gt"] > 0
+            cell = {k: v["mean"] for k, v in res["table"][row][col].items()}
+            assert cell["epoch"] == 1 and cell["n_gt"] > 0 and res["table"][row][col]["mAP"]["ci95"] is None  # one seed
             assert all(0.0 <= cell[k] <= 1.0 for k in ("mAP", "mean_TP", "ATE", "ASE", "AOE", "FDS"))
             assert cell["FDS"] == pytest.approx(0.5 * cell["mAP"] + 0.5 * cell["mean_TP"])
     assert res["rows"]["Mixed-L"]["train_sweeps"] == 3 * res["rows"]["Light"]["train_sweeps"]
     out = tmp_path / "out"
-    assert json.loads((out / "results.json").read_text())["rows"].keys() == {"Light", "Mixed-L"}
-    assert "| Mixed-L |" in (out / "exp1.md").read_text() and (out / "exp1.png").stat().st_size > 0
-    assert any((out / "tb" / "Light").iterdir())
+    assert json.loads((out / "results.json").read_text())["table"].keys() == {"Light", "Mixed-L"}
+    text = (out / "exp1.md").read_text()
+    assert "| Mixed-L |" in text and "## Wall time" in text and "| Light_s0 | rows |" in text
+    assert (out / "exp1.png").stat().st_size > 0
+    assert any((out / "tb" / "Light_s0").iterdir())
 
 
 def test_a_second_run_keeps_finished_rows_and_refuses_other_settings(lidar_set, tmp_path):
@@ -155,17 +157,32 @@ def test_a_second_run_keeps_finished_rows_and_refuses_other_settings(lidar_set, 
     messages = []
     again = run_experiment1(lidar_set, tmp_path / "out", Exp1Config(**{**cfg.__dict__, "rows": ("Dense", "Clear")}),
                             progress=False, log=messages.append)  # fmt: skip
-    assert any(m.startswith("Dense: kept from") for m in messages)
+    assert any(m.startswith("Dense_s0: kept from") for m in messages)
     assert again["rows"]["Dense"] == json.loads(json.dumps(first["rows"]["Dense"]))
-    assert set(again["rows"]) == {"Dense", "Clear"}
+    assert set(again["table"]) == {"Dense", "Clear"}
     # a row's weights do not depend on the rows trained before it in the same process
     run_experiment1(lidar_set, tmp_path / "fresh", Exp1Config(**{**cfg.__dict__, "rows": ("Dense", "Clear")}),
                     progress=False, log=lambda *_: None)  # fmt: skip
-    kept, fresh = (torch.load(tmp_path / d / "model_Clear.pt") for d in ("out", "fresh"))
+    kept, fresh = (torch.load(tmp_path / d / "models" / "Clear_s0.pt") for d in ("out", "fresh"))
     assert all(torch.equal(kept[k], fresh[k]) for k in kept)
-    with pytest.raises(ValueError, match="other settings"):
+    with pytest.raises(ValueError, match="other settings \\(lr: 0.001 there, 0.0005 here\\)"):
         run_experiment1(lidar_set, tmp_path / "out", Exp1Config(**{**cfg.__dict__, "lr": 5e-4}), progress=False,
                         log=lambda *_: None)  # fmt: skip
+
+
+def test_seeds_repeat_each_row_and_the_tables_give_their_ci(lidar_set, tmp_path):
+    cfg = Exp1Config(epochs=1, batch_size=4, every=1, test_every=1, width=8, rows=("Dense",), seed=5)
+    res = run_experiment1(lidar_set, tmp_path / "out", cfg, progress=False, log=lambda *_: None, seeds=2)
+    per_seed = res["rows"]["Dense"]["seeds"]
+    assert sorted(per_seed) == ["5", "6"] and res["runner"]["seeds"] == [5, 6]
+    for col in TEST_COLUMNS:
+        values = [per_seed[s]["best"][col]["n_pred"] for s in ("5", "6")]
+        cell = res["table"]["Dense"][col]["n_pred"]
+        assert cell["seeds"] == 2 and cell["mean"] == pytest.approx(np.mean(values))
+        assert cell["ci95"] == pytest.approx(12.706 * abs(values[0] - values[1]) / 2, rel=1e-3)  # t(0.975, 1) · SD / √2
+    a, b = (torch.load(tmp_path / "out" / "models" / f"Dense_s{s}.pt") for s in (5, 6))
+    assert not all(torch.equal(a[k], b[k]) for k in a)  # another seed, another network
+    assert " ± " in (tmp_path / "out" / "exp1.md").read_text()
 
 
 def test_bad_settings_fail_before_training(tmp_path):

@@ -1,5 +1,5 @@
 """FogDriveRLHazard-v0: stalled vehicles ahead of the ego (HazardConfig), the forward-looking bird's-eye image and
-the speed reward; the calibration script's scripted drivers."""
+the speed reward (the scripted drivers and the agent probe: tests/experiments/test_rl_bench.py)."""
 
 import gymnasium as gym
 import numpy as np
@@ -11,7 +11,6 @@ from fog_gym.envs.config import FogDriveConfig
 from fog_gym.world.hazards import HazardConfig
 from fog_gym.envs.presets import HAZARD_BEV_AHEAD
 from fog_gym.world.traffic_world import TrafficWorld
-from tests.helpers import load_module
 
 HW = {"lanes_count": 3, "vehicles_count": 10}
 
@@ -120,33 +119,6 @@ def test_forward_bird_eye_image_puts_a_point_where_documented():
         LidarBEV(Points(), metres=64.0, ahead=32.0)
 
 
-def _load_script(name):
-    return load_module(f"scripts/{name}.py")
-
-
-def test_calibration_helpers_doctests():
-    import doctest
-
-    mod = _load_script("rl_hazard_check")
-    assert doctest.testmod(mod).failed == 0
-
-
-def test_seeing_further_earns_more_and_a_blind_driver_crashes():
-    mod = _load_script("rl_hazard_check")
-    blind = mod.run_driver("blind", 25.0, 2, 2_000_000)
-    near, far = (mod.run_driver("sighted", d, 2, 2_000_000) for d in (15.0, 35.0))
-    assert blind["collision"] == 1.0 and far["collision"] == 0.0
-    assert far["return"] > near["return"] > 0.0
-
-
-def test_calibration_refuses_bad_settings_before_work(capsys):
-    mod = _load_script("rl_hazard_check")
-    for argv in (["--episodes", "1"], ["--sights", "80"], ["--speeds", "-5"]):
-        with pytest.raises(SystemExit):
-            mod.main(argv)
-    assert "must" in capsys.readouterr().err
-
-
 def test_close_hazards_never_clear_each_other_away():
     hz = HazardConfig(first=(30.0, 30.0), gap=(10.0, 10.0), span=100.0, clearance=25.0)
     world = TrafficWorld("highway", highway_config=HW, hazards=hz)
@@ -168,36 +140,3 @@ def test_fogdriverl_reward_is_highway_envs_normalised_as_documented():
         # (−1·collision + 0.1·right lane + 0.4·speed over 20–30 m/s) mapped from [−1, 0.5] to [0, 1]
         assert r == pytest.approx((1.0 + 0.1 * parts["right_lane_reward"] + 0.4 * parts["high_speed_reward"]) / 1.5)
     assert info["speed"] == pytest.approx(20.0, abs=1.0) and 0.66 <= r <= 0.74  # surviving at 20 m/s earns ≈ 0.7
-
-
-def test_agent_probe_counts_passed_vehicles_and_near_hazards_as_documented():
-    import doctest
-
-    mod = _load_script("rl_agent_probe")
-    assert doctest.testmod(mod).failed == 0
-    # a vehicle 20 m ahead that the ego closes in on at 10 m per step is passed once it is 5 m behind
-    steps = np.array([[20.0 - 10.0 * t] for t in range(4)])  # 20, 10, 0, −10
-    assert mod.passed(steps) == 1 and mod.passed(steps[:3]) == 0
-    hz = np.array([[39.0, -1.9, 4.5, 1.9], [41.0, 0.0, 4.5, 1.9]])
-    assert mod.hazard_near(hz, 40.0) and not mod.hazard_near(hz[1:], 40.0)
-
-
-@given(st.lists(st.floats(-200, 200), min_size=1, max_size=30), st.integers(1, 5))
-@settings(max_examples=50, deadline=None)
-def test_agent_probe_never_counts_more_passes_than_vehicles(col, k):
-    mod = _load_script("rl_agent_probe")
-    aheads = np.tile(np.array(col)[:, None], (1, k))
-    n = mod.passed(aheads)
-    assert n in (0, k)  # identical columns: all passed or none
-    assert n == (k if any(a > 0 and min(col[i:]) < -5 for i, a in enumerate(col)) else 0)
-
-
-def test_agent_probe_refuses_bad_settings_before_work(tmp_path, capsys):
-    mod = _load_script("rl_agent_probe")
-    for argv in ([str(tmp_path / "none.zip")], [str(tmp_path / "none.zip"), "--episodes", "0"],
-                 [str(tmp_path / "none.zip"), "--near", "-1"]):  # fmt: skip
-        with pytest.raises(SystemExit):
-            mod.main(argv + ["--out", str(tmp_path / "out")])
-    err = capsys.readouterr().err
-    assert "no such model file" in err and "must be" in err
-    assert not (tmp_path / "out").exists()

@@ -11,7 +11,7 @@
 Prints Markdown tables and writes them, the raw numbers and a figure to ``--out`` (``hazard_check.md`` / ``.json`` /
 ``.png``).
 
-Run: python scripts/rl_hazard_check.py --help
+Run: python -m fog_gym.experiments.rl_bench.hazard_check --help
 """
 
 from __future__ import annotations
@@ -24,11 +24,10 @@ from typing import Any
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_common import write_report  # noqa: E402
+from fog_gym.experiments.rl_bench.data import FASTER, IDLE, LANE_LEFT, LANE_RIGHT, SLOWER
+from fog_gym.experiments.rl_bench.data import TEST_LEVELS as LEVELS
+from fog_gym.experiments.runner import save_figure, write_report
 
-LEVELS = ("clear", "light", "moderate", "dense")
-LANE_LEFT, IDLE, LANE_RIGHT, FASTER, SLOWER = range(5)
 TARGET_SPEEDS = (0.0, 5.0, 10.0, 15.0, 20.0, 25.0, 30.0)
 
 
@@ -205,12 +204,11 @@ def figure(results: dict[str, Any], path: Path) -> None:
     b.set_title("LiDAR bird's-eye image: sight per fog level")
     fig.suptitle("FogDriveRLHazard-v0: what seeing is worth, and how far the observation sees", fontsize=10)
     fig.tight_layout()
-    fig.savefig(path)
-    plt.close(fig)
+    save_figure(fig, path)
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="rl_hazard_check.py", description=__doc__,
+    p = argparse.ArgumentParser(prog="python -m fog_gym.experiments.rl_bench.hazard_check", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
     p.add_argument("--episodes", type=int, default=20, help="episodes per driver and per fog level (default 20)")
     p.add_argument("--speeds", type=float, nargs="+", default=[10.0, 15.0, 20.0, 25.0],

@@ -1,6 +1,6 @@
-"""Helpers shared by the benchmark scripts (``bench_env.py``, ``bench_sensors.py``, ``bench_fog.py``,
-``bench_dataset.py`` and ``bench.py``, which runs them all): timing, summaries, Markdown tables, the run's
-metadata and the command-line options they share. Timings are reported, never asserted.
+"""Helpers shared by the benchmarks (:mod:`~fog_gym.experiments.bench.env`, ``.sensors``, ``.fog``, ``.dataset`` and
+``.suite``, which runs them all): timing, summaries, Markdown tables, the run's metadata and the command-line
+options they share. Timings are reported, never asserted.
 """
 
 from __future__ import annotations
@@ -163,15 +163,6 @@ def meta_line(meta: dict[str, Any]) -> str:
     return (f"{meta['cpu_count']} CPUs, numba {meta['numba']} ({meta['numba_threads']} threads, "
             f"{meta.get('numba_layer', '?')} layer) · highway-env {meta['highway_env']} · Python {meta['python']} · "
             f"{meta['platform']} · load average at start {meta['loadavg_start']}, at end {meta.get('loadavg_end')}")  # fmt: skip
-
-
-def write_report(out: Path, stem: str, text: str, results: Any) -> None:
-    """Write ``<stem>.md`` (``text``) and ``<stem>.json`` (``results``) into ``out``, each atomically."""
-    out.mkdir(parents=True, exist_ok=True)
-    for name, data in ((f"{stem}.md", text + "\n"), (f"{stem}.json", json.dumps(results, indent=1))):
-        tmp = out / f".{name}.tmp"
-        tmp.write_text(data)
-        os.replace(tmp, out / name)
 
 
 def write_json(path: Path | None, results: dict[str, Any]) -> None:

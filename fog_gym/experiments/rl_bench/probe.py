@@ -1,6 +1,6 @@
 """What trained agents do on FogDriveRLHazard-v0: do they react to the stalled vehicles they could see?
 
-For each agent (a PPO ``.zip``, e.g. ``<study>/models/clear_s0.zip`` of ``scripts/rl_benchmark.py``) and test fog,
+For each agent (a PPO or DQN ``.zip``, e.g. ``<study>/models/clear_s0.zip`` of ``fog-gym rl-bench``) and test fog,
 deterministic episodes on seeds disjoint from training and from the benchmark's evaluation (3·10⁶ + k) give:
 
 * **evasive rate near a hazard**: the fraction of steps with a lane change or ``SLOWER`` while a stalled vehicle
@@ -12,7 +12,7 @@ deterministic episodes on seeds disjoint from training and from the benchmark's 
 
 Prints a Markdown table and writes it (``probe.md``) and the raw numbers (``probe.json``) to ``--out``.
 
-Run: python scripts/rl_agent_probe.py --help
+Run: python -m fog_gym.experiments.rl_bench.probe --help
 """
 
 from __future__ import annotations
@@ -25,11 +25,11 @@ from typing import Any
 
 import numpy as np
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_common import write_report  # noqa: E402
+from fog_gym.experiments.rl_bench.data import LANE_LEFT, LANE_RIGHT, SLOWER
+from fog_gym.experiments.rl_bench.data import TEST_LEVELS as LEVELS
+from fog_gym.experiments.rl_bench.train import ALGOS
+from fog_gym.experiments.runner import write_report
 
-LEVELS = ("clear", "light", "moderate", "dense")
-LANE_LEFT, IDLE, LANE_RIGHT, FASTER, SLOWER = range(5)
 EVASIVE = (LANE_LEFT, LANE_RIGHT, SLOWER)
 PROBE_SEED = 3_000_000
 
@@ -65,14 +65,15 @@ def passed(aheads: np.ndarray) -> int:
     return n
 
 
-def probe(model_path: Path, fog: str, episodes: int, near: float, seed0: int = PROBE_SEED) -> dict[str, float]:
+def probe(model_path: Path, fog: str, episodes: int, near: float, seed0: int = PROBE_SEED,
+          algo: str = "PPO") -> dict[str, float]:  # fmt: skip
     """Behaviour of one agent over ``episodes`` deterministic episodes at ``fog`` (see the module docstring)."""
     import gymnasium as gym
-    from stable_baselines3 import PPO
 
     import fog_gym  # noqa: F401
+    from fog_gym.experiments.rl_bench.train import algo_class
 
-    model = PPO.load(model_path, device="cpu")
+    model = algo_class(algo).load(model_path, device="cpu")
     env = gym.make("FogDriveRLHazard-v0", fog=fog)
     counts = {"near": [0, 0], "far": [0, 0]}  # evasive steps, steps
     rets, crashes, speeds, passes = [], [], [], []
@@ -125,9 +126,10 @@ def summary(results: dict[str, dict[str, Any]]) -> list[str]:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    p = argparse.ArgumentParser(prog="rl_agent_probe.py", description=__doc__,
+    p = argparse.ArgumentParser(prog="python -m fog_gym.experiments.rl_bench.probe", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
-    p.add_argument("models", type=Path, nargs="+", help="PPO .zip files trained on FogDriveRLHazard-v0")
+    p.add_argument("models", type=Path, nargs="+", help="agents (.zip) trained on FogDriveRLHazard-v0")
+    p.add_argument("--algo", choices=ALGOS, default="PPO", help="their learner (default PPO)")
     p.add_argument("--fogs", nargs="+", choices=LEVELS, default=list(LEVELS), help="test fog levels (default: all)")
     p.add_argument("--episodes", type=int, default=16, help="episodes per agent and fog (default 16)")
     p.add_argument("--near", type=float, default=40.0, help="a stalled vehicle this close ahead counts (default 40 m)")
@@ -149,7 +151,7 @@ def main(argv: list[str] | None = None) -> int:
     cells = [(m, f) for m in args.models for f in args.fogs]
     results: dict[str, dict[str, Any]] = {}
     for model, fog in tqdm(cells, desc="probing agents", unit="cell", file=sys.stderr):
-        results.setdefault(model.stem, {})[fog] = probe(model, fog, args.episodes, args.near)
+        results.setdefault(model.stem, {})[fog] = probe(model, fog, args.episodes, args.near, algo=args.algo)
     lines = [f"## What the agents do ({args.episodes} episodes per cell, seeds {PROBE_SEED}+)", "",
              f"Evasive = lane change or SLOWER; near = a stalled vehicle in the ego's lane < {args.near:g} m ahead.", "",
              "| agent | fog | evasive near / elsewhere | steps near | passed per episode | return | collisions | speed [m/s] |",

@@ -1,0 +1,98 @@
+"""Fog stages on one real full-rig frame (``highway``, seed 0): Koschmieder camera fog per 1280×960 image at
+each level and for three levels in one pass, Hahner LiDAR fog on 100 k points and on the frame's sweep, the
+atmospheric-light estimate, and the full paired frame (4 cameras × 3 levels + 3 LiDAR levels) as
+``FogWrapper.fog_channels`` computes it. Each figure is the median over ``--repeats`` calls, after a warm-up
+call that compiles the kernels. It prints a Markdown table and asserts no timing.
+
+Usage::
+
+    python -m fog_gym.experiments.bench.fog            # 20 repeats
+    python -m fog_gym.experiments.bench.fog --quick    # 3 repeats
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+from tqdm import tqdm
+
+from fog_gym.experiments.bench.common import (
+    add_common_arguments, finish_meta, fmt_ms, markdown_table, meta_line, repeats_of, run_meta, summarize, timed,
+    write_json,
+)  # fmt: skip
+
+LEVELS = ("light", "moderate", "dense")
+
+
+def bench_fog(repeats: int) -> dict[str, Any]:
+    """Fog stages on one real full-rig frame: camera fog per 1280×960 image, LiDAR fog per 100 k points, and the
+    full paired frame (4 cameras × 3 levels + 3 LiDAR levels) as ``FogWrapper`` computes it."""
+    from fog_gym.envs.fogdrive import FogDriveEnv
+    from fog_gym.fog import atmospheric_light, fog_image, fog_images, fog_lidar, parse_fog
+    from fog_gym.dataset.packing import unpack_points
+    from fog_gym.wrappers import FogWrapper
+
+    env = FogWrapper(FogDriveEnv(town="highway"), list(LEVELS))
+    obs, _ = env.reset(seed=0)
+    base = env.unwrapped
+    K = base.intrinsics["CAM_FRONT"]
+    rgb, depth = base.frames["CAM_FRONT"].rgb, base.frames["CAM_FRONT"].depth
+    airlight = env.airlight["CAM_FRONT"]
+    clean_lidar = base.points["LIDAR_TOP"]
+    rng = np.random.default_rng(0)
+    r = rng.uniform(1.5, 120.0, 100_000)
+    az, el = rng.uniform(-np.pi, np.pi, r.size), rng.uniform(-0.35, 0.09, r.size)
+    cloud = np.c_[r * np.cos(el) * np.cos(az), r * np.cos(el) * np.sin(az), r * np.sin(el), np.exp(-0.004 * r)]
+    cloud = cloud.astype(np.float32)
+    alphas = [parse_fog(lv).alpha for lv in LEVELS]
+    calls: dict[str, Callable[[], Any]] = {
+        **{f"camera fog, 1 image, {lv}": (lambda a=parse_fog(lv).alpha: fog_image(rgb, depth, K, a, airlight))
+           for lv in LEVELS},
+        "camera fog, 1 image, 3 levels in one pass": lambda: fog_images(rgb, depth, K, alphas, airlight),
+        "LiDAR fog, 100 k points, dense": lambda: fog_lidar(cloud, parse_fog("dense"), rng),
+        f"LiDAR fog, this frame's sweep ({len(clean_lidar)} points), dense": lambda: fog_lidar(
+            clean_lidar, parse_fog("dense"), rng),
+        "atmospheric light estimate, 1 image (once per episode)": lambda: atmospheric_light(rgb),
+        "**full paired frame: 4 cameras × 3 levels + 3 LiDAR levels**": lambda: env.fog_channels(obs),
+    }  # fmt: skip
+    for fn in calls.values():  # warm-up (compiles)
+        fn()
+    stats = {}
+    for name, fn in tqdm(calls.items(), desc="fog stages", unit="stage", file=sys.stderr):
+        stats[name] = summarize([timed(fn)[1] for _ in range(repeats)])
+    env.close()
+    assert unpack_points(obs, "LIDAR_TOP_FOG_DENSE").shape == clean_lidar.shape
+    return {"stages": stats, "lidar_points": int(len(clean_lidar)), "targets": {"LiDAR 100k": 5.0, "paired frame": 20.0}}
+
+
+def render_fog(fog: dict[str, Any], repeats: int) -> list[str]:
+    rows = [[name, fmt_ms(stat)] for name, stat in fog["stages"].items()]
+    return [f"## Fog (full rig, highway, seed 0): ms, median (p25–p75), {repeats} repeats", "",
+            markdown_table(["stage", "ms"], rows), "",
+            "Targets: LiDAR fog on 100 k points ≤ 5 ms; full paired frame ≤ 20 ms (2-core CPU)."]  # fmt: skip
+
+
+def build_parser(prog: str = "python -m fog_gym.experiments.bench.fog") -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(prog=prog, description="Milliseconds of camera fog, LiDAR fog and the full "
+                                     "paired fog frame on one full-rig frame. It prints Markdown and asserts nothing.")
+    return add_common_arguments(parser)
+
+
+def main(argv: list[str] | None = None, prog: str = "python -m fog_gym.experiments.bench.fog") -> int:
+    args = build_parser(prog).parse_args(argv)
+    repeats = repeats_of(args)
+    meta, t0 = run_meta(repeats=repeats, quick=args.quick), time.perf_counter()
+    fog = bench_fog(repeats)
+    finish_meta(meta, t0)
+    print("\n".join(render_fog(fog, repeats)) + f"\n\n{meta_line(meta)}")
+    write_json(args.json, {"meta": meta, "fog": fog})
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

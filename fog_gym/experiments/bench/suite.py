@@ -1,0 +1,90 @@
+"""Every fog-gym benchmark in one run (what ``fog-gym bench`` and ``./dev bench`` print). It only reports numbers
+and never asserts a timing. Each concern has its own module, runnable alone (``python -m
+fog_gym.experiments.bench.<name>``):
+
+* :mod:`~fog_gym.experiments.bench.env`: FogDrive-v0 per stage (traffic, scene, cameras, point sensors, full step) for the full and
+  the RL rig against a bare highway-env step; bare highway-env profiled; the ``FogDriveRL-v0`` preset;
+* :mod:`~fog_gym.experiments.bench.sensors`: the point sensors alone and with 500 out-of-range boxes, ground truth, night vs day
+  cameras;
+* :mod:`~fog_gym.experiments.bench.fog`: camera and LiDAR fog, and the full paired fog frame;
+* :mod:`~fog_gym.experiments.bench.dataset`: the recorder against the PNG-encoder bound, ``fog-gym generate`` with 1 and 2 workers.
+
+Usage::
+
+    fog-gym bench                  # 20 timed frames per configuration, town "highway"
+    fog-gym bench --quick          # smoke run (3 frames, 3 profiled steps)
+    fog-gym bench --town merge --repeats 50 --json out/bench.json
+    fog-gym bench --night-only --night-figure docs/images/night_bench.png
+"""
+
+from __future__ import annotations
+
+import argparse
+import time
+from pathlib import Path
+
+from fog_gym.experiments.bench import dataset as bench_dataset
+from fog_gym.experiments.bench import env as bench_env
+from fog_gym.experiments.bench import fog as bench_fog
+from fog_gym.experiments.bench import sensors as bench_sensors
+from fog_gym.experiments.bench.common import add_common_arguments, finish_meta, repeats_of, run_meta, write_json
+from fog_gym.world.towns import TOWNS
+
+
+def build_parser(prog: str = "fog-gym bench") -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog=prog,
+        description="Per-stage milliseconds of FogDrive-v0 (traffic step, scene build, cameras batched and alone, "
+        "point sensors, full env.step) for the full 4×1280×960 rig and a 1×128×128 RL rig (both with LiDAR, "
+        "semantic LiDAR and radar), against a bare highway-env step; the point sensors alone on a 50-vehicle "
+        "highway, with and without 500 boxes out of range; fog, ground truth, recording, the RL preset, night vs "
+        "day cameras. It runs the env, sensors, fog and dataset benchmarks (python -m fog_gym.experiments.bench.<name>), prints Markdown "
+        "tables and asserts nothing.",
+    )
+    add_common_arguments(parser)
+    parser.add_argument("--town", choices=TOWNS, default="highway", help="fog-gym town (default highway)")
+    parser.add_argument("--night-only", action="store_true",
+                        help="only time the full rig's cameras by night against by day (same scenes)")
+    parser.add_argument("--night-figure", type=Path, default=None, metavar="PNG",
+                        help="write the night vs day camera bar chart to PNG")
+    return parser
+
+
+def main(argv: list[str] | None = None, prog: str = "fog-gym bench") -> int:
+    args = build_parser(prog).parse_args(argv)
+    repeats = repeats_of(args)
+    profile_steps = 3 if args.quick else bench_env.PROFILE_STEPS
+    meta = run_meta(town=args.town, repeats=repeats, quick=args.quick, profile_steps=profile_steps)
+    t0 = time.perf_counter()
+    night = bench_sensors.bench_night(args.town, repeats)
+    if args.night_figure is not None:
+        bench_sensors.night_figure(night, args.night_figure)
+    if args.night_only:
+        print("\n".join(bench_sensors.render_night(night, repeats)))
+        write_json(args.json, {"meta": meta, "night": night})
+        return 0
+    rigs = {key: bench_env.bench_rig(args.town, key, repeats) for key in bench_env.RIGS}
+    point_sensors = bench_sensors.bench_point_sensors(repeats)
+    fog = bench_fog.bench_fog(repeats)
+    labels = bench_sensors.bench_labels(repeats)
+    recording = bench_dataset.bench_recording(repeats)
+    rl = bench_env.bench_rl(repeats)
+    baseline = bench_env.bench_baselines(args.town, repeats, profile_steps)
+    finish_meta(meta, t0)
+    results = {"meta": meta, "rigs": rigs, "point_sensors": point_sensors, "fog": fog, "labels": labels,
+               "recording": recording, "rl": rl, "baseline": baseline, "night": night}  # fmt: skip
+
+    print(bench_env.render_stages(results))
+    print("\n" + "\n".join(bench_sensors.render_point_sensors(point_sensors, repeats)))
+    print("\n" + bench_env.render_baselines(results))
+    print("\n" + "\n".join(bench_fog.render_fog(fog, repeats)))
+    print("\n" + "\n".join(bench_sensors.render_labels(labels, repeats)))
+    print("\n" + "\n".join(bench_dataset.render_recording(recording)))
+    print("\n" + "\n".join(bench_env.render_rl(rl)))
+    print("\n" + "\n".join(bench_sensors.render_night(night, repeats)))
+    write_json(args.json, results)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
