@@ -12,7 +12,7 @@ Example:
     >>> env = gym.make("FogDriveRLHazard-v0", observation="objects", fog="dense")
     >>> obs, info = env.reset(seed=0)
     >>> obs.shape, obs.dtype, sorted(info["detections"])
-    ((8, 8), dtype('float32'), ['camera', 'fused', 'lidar', 'radar'])
+    ((8, 9), dtype('float32'), ['camera', 'fused', 'lidar', 'radar'])
 """
 
 from __future__ import annotations
@@ -197,7 +197,7 @@ class ObjectWorlds:
 
 class FogDriveObjectsEnv(gym.Env):
     """One world of :class:`ObjectWorlds` as a Gymnasium env (what ``gym.make(<RL preset>, observation="objects")``
-    returns). Observation: ``Box(-1, 1, (max_objects, 5 + len(sensors)), float32)``; actions, reward, termination
+    returns). Observation: ``Box(-1, 1, (max_objects, 6 + len(sensors)), float32)``; actions, reward, termination
     and truncation as the preset's; ``info``: speed, crashed, fog, step, hazards (hazard preset), detections."""
 
     metadata = {"render_modes": [], "render_fps": 5}

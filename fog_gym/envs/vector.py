@@ -22,7 +22,7 @@ Example:
     ...                     observation="objects", fog="dense")
     >>> obs, infos = envs.reset(seed=0)
     >>> obs.shape, envs.action_space
-    ((4, 8, 8), MultiDiscrete([5 5 5 5]))
+    ((4, 8, 9), MultiDiscrete([5 5 5 5]))
 """
 
 from __future__ import annotations

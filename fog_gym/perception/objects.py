@@ -26,14 +26,16 @@ call and fuses the results into the observation and the per-sensor detection lis
 * Fused: every vehicle some sensor detected, position and velocity the inverse-variance mean of the sensors'
   (σ: LiDAR 0.1 m, camera 0.5 m + 5 % of the range, radar 0.5 m), one flag per sensor.
 
-**Observation** ``(max_objects, 5 + len(sensors))`` float32: row 0 the ego (presence 1, x 0, y its lateral position on
-the road, vx, vy its velocity, flags 1), then the fused objects nearest first (reported distance), unused rows
-zero. Features presence, x, y, vx, vy and one flag per sensor in :data:`SENSORS` order; normalised as
-highway-env's Kinematics observation (x ∈ ±200 m, y ∈ ±4·lanes m, vx, vy ∈ ±80 m/s mapped to [−1, 1], clipped).
+**Observation** ``(max_objects, 6 + len(sensors))`` float32: row 0 the ego (presence 1, x 0, y its lateral position on
+the road, vx, vy its velocity, lane its lane across the road from −1 (leftmost) to +1 (rightmost), flags 1), then
+the fused objects nearest first (reported distance), unused rows zero. Features presence, x, y, vx, vy, lane (the
+lane the reported position falls in, relative to the ego's, / 2: −0.5 one lane left, +0.5 one lane right) and one
+flag per sensor in :data:`SENSORS` order; x, y, vx, vy normalised as highway-env's Kinematics observation
+(x ∈ ±200 m, y ∈ ±4·lanes m, vx, vy ∈ ±80 m/s mapped to [−1, 1], clipped).
 
 Example:
     >>> ObjectsConfig(sensors=("radar", "lidar")).sensors, ObjectsConfig().features
-    (('lidar', 'radar'), ('presence', 'x', 'y', 'vx', 'vy', 'camera', 'lidar', 'radar'))
+    (('lidar', 'radar'), ('presence', 'x', 'y', 'vx', 'vy', 'lane', 'camera', 'lidar', 'radar'))
 """
 
 from __future__ import annotations
@@ -114,7 +116,7 @@ class ObjectsConfig:
 
     @property
     def features(self) -> tuple[str, ...]:
-        return ("presence", "x", "y", "vx", "vy", *self.sensors)
+        return ("presence", "x", "y", "vx", "vy", "lane", *self.sensors)
 
     @property
     def sensor_mask(self) -> np.ndarray:
@@ -215,7 +217,10 @@ def _fuse_world(n, f, classes, present, pos, vel, prev_present, prev_pos, prev_v
     obs[0, 2] = min(max(ey / y_half, -1.0), 1.0)
     obs[0, 3] = min(max(f[0, 3] * c0 / (2 * 40.0), -1.0), 1.0)
     obs[0, 4] = min(max(f[0, 3] * math.sin(eh) / (2 * 40.0), -1.0), 1.0)
-    col = 5
+    ego_lane = int(round(ey / 4.0))
+    mid = (lanes - 1) / 2.0
+    obs[0, 5] = (ego_lane - mid) / mid if mid > 0 else 0.0
+    col = 6
     for s in range(3):
         if mask[s]:
             obs[0, col] = 1.0
@@ -236,7 +241,9 @@ def _fuse_world(n, f, classes, present, pos, vel, prev_present, prev_pos, prev_v
         obs[r + 1, 2] = min(max(pos[j, FUSED, 1] / y_half, -1.0), 1.0)
         obs[r + 1, 3] = min(max(vel[j, FUSED, 0] / (2 * 40.0), -1.0), 1.0)
         obs[r + 1, 4] = min(max(vel[j, FUSED, 1] / (2 * 40.0), -1.0), 1.0)
-        col = 5
+        wy = ey + s0 * pos[j, FUSED, 0] + c0 * pos[j, FUSED, 1]  # the object's lateral position on the road
+        obs[r + 1, 5] = min(max((round(wy / 4.0) - ego_lane) / 2.0, -1.0), 1.0)
+        col = 6
         for s in range(3):
             if mask[s]:
                 obs[r + 1, col] = 1.0 if present[j, s] else 0.0

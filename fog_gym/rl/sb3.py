@@ -93,7 +93,7 @@ class VectorEnvAdapter(VecEnv):
     ...                                      observation="objects", info_detections=False))
     >>> _ = venv.seed(0)
     >>> venv.reset().shape
-    (2, 8, 8)
+    (2, 8, 9)
     """
 
     def __init__(self, venv: Any) -> None:

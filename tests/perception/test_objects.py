@@ -129,8 +129,8 @@ def test_the_same_seed_gives_the_same_detections_and_fog_shortens_what_lidar_and
 def test_the_observation_is_kinematics_style_ego_first_nearest_first_unused_rows_zero():
     env = gym.make("FogDriveRLHazard-v0", observation="objects", sensors=("lidar", "radar"), max_objects=6)
     obs, info = env.reset(seed=1)
-    assert env.observation_space.shape == (6, 7) and obs.dtype == np.float32 and env.observation_space.contains(obs)
-    assert obs[0, 0] == 1 and obs[0, 1] == 0 and (obs[0, 5:] == 1).all()  # the ego row
+    assert env.observation_space.shape == (6, 8) and obs.dtype == np.float32 and env.observation_space.contains(obs)
+    assert obs[0, 0] == 1 and obs[0, 1] == 0 and (obs[0, 6:] == 1).all()  # the ego row
     present = obs[1:, 0] == 1
     rows = obs[1:][present]
     dist = np.hypot(rows[:, 1] * 200.0, rows[:, 2] * 12.0)
@@ -139,7 +139,7 @@ def test_the_observation_is_kinematics_style_ego_first_nearest_first_unused_rows
     assert len(fused["vehicle_ids"]) >= present.sum() and set(info["detections"]) == {"lidar", "radar", "fused"}
     assert set(fused) == {"vehicle_ids", "position", "true_position", "distance"}
     # every flagged sensor saw the object: a row flagged only by radar is in the radar list, not the LiDAR one
-    assert (rows[:, 5:].sum(axis=1) >= 1).all()
+    assert (rows[:, 6:].sum(axis=1) >= 1).all() and set(np.round(rows[:, 5] * 2).tolist()) <= {-2, -1, 0, 1, 2}
 
 
 def test_reported_positions_stay_near_the_truth_in_clear_air():
@@ -172,4 +172,4 @@ def test_object_arguments_are_refused_on_the_pixel_observation():
 
 
 def test_the_sensor_flags_follow_the_documented_order():
-    assert ObjectsConfig(sensors=("radar", "camera")).features[5:] == ("camera", "radar") and SENSORS[0] == "camera"
+    assert ObjectsConfig(sensors=("radar", "camera")).features[6:] == ("camera", "radar") and SENSORS[0] == "camera"
