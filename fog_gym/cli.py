@@ -1,4 +1,5 @@
-"""The ``fog-gym`` command: ``demo``, ``generate``, ``validate``, ``stats``, ``audit``, ``view``, ``minari`` and ``bench``.
+"""The ``fog-gym`` command: ``demo``, ``generate``, ``validate``, ``stats``, ``export``, ``audit``, ``view``, ``minari``
+and ``bench``.
 
 Example:
     >>> parser = build_parser()
@@ -118,6 +119,7 @@ def build_parser() -> argparse.ArgumentParser:
     st.add_argument("--plot", type=Path, default=None, metavar="PATH", help="write a bar chart PNG to PATH")
     _add_view_parser(sub)
     _add_minari_parser(sub)
+    _add_export_parser(sub)
     bench = sub.add_parser("bench", help="run scripts/bench.py (per-stage milliseconds; see fog-gym bench --help)",
                            add_help=False)
     bench.add_argument("args", nargs=argparse.REMAINDER)
@@ -303,7 +305,7 @@ def main(argv: list[str] | None = None) -> int:
         return runpy.run_path(str(script), run_name="fog_gym_bench")["main"](argv[1:], prog="fog-gym bench")
     args = parser.parse_args(argv)
     handler = {"generate": _generate, "validate": _validate, "stats": _stats, "audit": _audit, "demo": _demo,
-               "view": _view, "minari": _minari}  # fmt: skip
+               "view": _view, "minari": _minari, "export": _export}  # fmt: skip
     return handler[args.command](args)
 
 
@@ -320,7 +322,56 @@ def _generate(args: argparse.Namespace) -> int:
         tables = generate(args.root, plan, args.workers, args.resume, args.ray)
     except ValueError as e:
         raise _fail("generate", str(e)) from None
+    except OSError as e:  # disk full, permission lost: one line, the set resumes with --resume
+        raise _fail("generate", _write_failure(e) + "; fix it and run again with --resume") from None
     print(f"{len(tables['scene'])} scenes, {len(tables['sample'])} samples in {args.root}")
+    return 0
+
+
+def _write_failure(e: OSError) -> str:
+    """``<what failed> (<path>): <reason>`` for a failed write (the data path raises WriteError, already so)."""
+    from fog_gym.dataset.writer import WriteError
+
+    return str(WriteError.from_os_error("cannot write", e.filename or "?", e))
+
+
+def _add_export_parser(sub) -> None:
+    ex = sub.add_parser(
+        "export", help="export a dataset to nuScenes, KITTI or COCO at one fog level (for mmdetection3d, YOLO, ...)",
+        description="Write a FogDrive set in a format detectors read: nuScenes v1.0 tables (OUT/v1.0-trainval/, "
+        "OUT/samples/<CHANNEL>/, the devkit loads it), KITTI object (OUT/training/{image_2,velodyne,calib,label_2}; "
+        "other cameras under OUT/<CAMERA>/) or COCO (OUT/images/, OUT/annotations/instances_<split>.json), with the "
+        "cameras and LiDAR at one fog level. The set is validated first; OUT must be empty (--overwrite replaces an "
+        "earlier export, --resume completes an interrupted one). Frames, class mapping and limits: docs/exports.md.",
+    )  # fmt: skip
+    ex.add_argument("root", type=Path, help="dataset root (holds data_root/ and index/)")
+    ex.add_argument("out", type=Path, help="output folder (created; must be empty unless --overwrite or --resume)")
+    ex.add_argument("--format", required=True, choices=("nuscenes", "kitti", "coco"), help="the export format")
+    ex.add_argument("--fog", default="clear", choices=("clear", "light", "moderate", "dense"),
+                    help="the fog level of the cameras and LiDAR exported (default clear)")
+    ex.add_argument("--split", default="all", choices=("train", "val", "test", "all"),
+                    help="FogDrive split to export (default all; nuScenes and KITTI list the splits, COCO writes one "
+                    "annotation file per split)")  # fmt: skip
+    ex.add_argument("--cameras", nargs="+", default=None, metavar="CAMERA",
+                    help="cameras to export (default: all for nuscenes and coco, CAM_FRONT for kitti)")
+    mode = ex.add_mutually_exclusive_group()
+    mode.add_argument("--overwrite", action="store_true", help="replace an earlier fog-gym export in OUT")
+    mode.add_argument("--resume", action="store_true", help="complete an interrupted export in OUT (same settings)")
+
+
+def _export(args: argparse.Namespace) -> int:
+    from fog_gym.dataset.export import export
+
+    try:
+        r = export(args.root, args.out, args.format, args.fog, args.split, args.cameras, args.overwrite, args.resume)
+    except ValueError as e:
+        raise _fail("export", str(e)) from None
+    except OSError as e:
+        raise _fail("export", _write_failure(e) + "; fix it and run again with --resume") from None
+    for note in r["notes"]:
+        print(f"note: {note}")
+    print(f"{args.format} export of {r['samples']} samples ({r['fog']}) in {args.out}: {r['files']} files in "
+          f"{r['seconds']:.1f} s")  # fmt: skip
     return 0
 
 
