@@ -323,7 +323,7 @@ def _generate(args: argparse.Namespace) -> int:
     except ValueError as e:
         raise _fail("generate", str(e)) from None
     except OSError as e:  # disk full, permission lost: one line, the set resumes with --resume
-        raise _fail("generate", _write_failure(e) + "; fix it and run again with --resume") from None
+        raise _fail("generate", _write_failure(e)) from None
     print(f"{len(tables['scene'])} scenes, {len(tables['sample'])} samples in {args.root}")
     return 0
 
@@ -367,7 +367,7 @@ def _export(args: argparse.Namespace) -> int:
     except ValueError as e:
         raise _fail("export", str(e)) from None
     except OSError as e:
-        raise _fail("export", _write_failure(e) + "; fix it and run again with --resume") from None
+        raise _fail("export", _write_failure(e)) from None
     for note in r["notes"]:
         print(f"note: {note}")
     print(f"{args.format} export of {r['samples']} samples ({r['fog']}) in {args.out}: {r['files']} files in "

@@ -59,7 +59,7 @@ def read_json(path: Path) -> Any:
         raise DatasetError(f"{path}: missing") from None
     except OSError as e:
         raise DatasetError(f"{path}: unreadable ({e.strerror or e})") from None
-    except (UnicodeDecodeError, json.JSONDecodeError) as e:
+    except ValueError as e:  # not UTF-8, not JSON, or a number too long to convert
         raise DatasetError(f"{path}: not valid JSON ({e})") from None
     except RecursionError:
         raise DatasetError(f"{path}: not valid JSON (nested too deeply)") from None
@@ -139,9 +139,9 @@ class FogDrive:
         self.channels: dict[str, ChannelSpec] = read_layout(self.dataroot)
         splits_path = index / "splits.json"
         self.splits: dict[str, list[str]] | None = read_json(splits_path) if splits_path.exists() else None
-        if self.splits is not None and not (isinstance(self.splits, dict) and all(
+        if self.splits is not None and not (isinstance(self.splits, dict) and set(SPLITS) <= set(self.splits) and all(
                 isinstance(v, list) and all(isinstance(n, str) for n in v) for v in self.splits.values())):  # fmt: skip
-            raise DatasetError(f"{splits_path}: expected an object of scene-name lists {list(SPLITS)}")
+            raise DatasetError(f"{splits_path}: expected an object with scene-name lists {list(SPLITS)}")
         self._index = {name: {rec["token"]: i for i, rec in enumerate(getattr(self, name))} for name in TABLES}
         self._scene_by_name = {rec["name"]: rec for rec in self.scene}
         # joins: sample token → {channel: sample_data record}; scene token → sample records in time order
@@ -232,7 +232,9 @@ class FogDrive:
         """The scene record a sample belongs to."""
         self.get("sample", sample_token)
         if sample_token not in self._sample_scene:
-            raise KeyError(f"sample {sample_token!r} is in no scene's prev/next chain")
+            index = self.dataroot / "index"
+            raise DatasetError(f"{index / 'sample.json'}: sample {sample_token!r} is in the prev/next chain of no scene "
+                               f"of {index / 'scene.json'}")  # fmt: skip
         return self.get("scene", self._sample_scene[sample_token])
 
     # -- linear in the output -----------------------------------------------------------------------------

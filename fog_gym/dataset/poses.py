@@ -76,7 +76,7 @@ def ego_pose_problem(data: bytes) -> str | None:
     """The problem with an ego-pose file's bytes (one phrase), or None. Never raises."""
     try:
         record = json.loads(data)
-    except (UnicodeDecodeError, json.JSONDecodeError, RecursionError) as e:
+    except (ValueError, RecursionError) as e:  # not UTF-8, not JSON, nested too deeply, an over-long number
         return f"corrupt JSON ({type(e).__name__})" if data else "empty file"
     if not isinstance(record, dict):
         return "expected a JSON object"

@@ -110,18 +110,22 @@ def check_extrinsics(path: Path, keys: Iterable[str] = EXTRINSIC_KEYS) -> str | 
 
 
 def _check_file(root: Path, rec: dict, size: tuple[int, int] | None, layout: dict[str, ChannelSpec]) -> str | None:
-    channel, fmt = rec["channel"], rec["fileformat"]
+    """The problem with one indexed file, checked as its channel is stored (the set's layout), or None."""
+    channel = rec["channel"]
+    spec = layout[channel]
     path = root / rec["filename"]
+    if rec["fileformat"] != spec.fileformat:
+        return f"index/sample_data.json says fileformat {rec['fileformat']!r}, channel {channel} is stored as {spec.fileformat!r}"
     if not path.is_file():
         return "missing file"
-    if fmt == "png":
+    if spec.fileformat == "png":
         w, h = size if size is not None else (rec.get("width"), rec.get("height"))
-        return check_png(path, w, h)
-    if fmt == "npy":
-        return check_npy(path, layout[channel].columns)  # the column count its sensor declared
-    if fmt == "json":
-        return check_box_json(path, channel == "BBOX_3D")
-    return f"unknown file format {fmt!r}"
+        found = check_png(path, w, h)
+        source = MANIFEST_FILE if size is not None else "index/sample_data.json"
+        return f"{found} (as {source} says)" if found and found.startswith("image is") else found
+    if spec.fileformat == "npy":
+        return check_npy(path, spec.columns)  # the column count its sensor declared
+    return check_box_json(path, spec.encoding == "box3d")
 
 
 def validate(root: str | Path, progress: bool = False) -> list[str]:
@@ -169,14 +173,20 @@ def validate(root: str | Path, progress: bool = False) -> list[str]:
     for sc in ds.scene:
         samples = ds.get_samples_for_scene(sc["token"])
         if len(samples) != sc["nbr_samples"]:
-            problems.append(f"{sc['name']}: nbr_samples {sc['nbr_samples']} but {len(samples)} linked samples")
+            problems.append(f"{index / 'scene.json'}: scene {sc['name']!r} has nbr_samples {sc['nbr_samples']} but "
+                            f"{len(samples)} samples are linked in {index / 'sample.json'}")  # fmt: skip
         if samples and (samples[0]["token"] != sc["first_sample_token"] or samples[-1]["token"] != sc["last_sample_token"]):
-            problems.append(f"{sc['name']}: first/last sample tokens do not match the prev/next chain")
+            problems.append(f"{index / 'scene.json'}: scene {sc['name']!r}: first/last sample tokens do not match the "
+                            f"prev/next chain of {index / 'sample.json'}")  # fmt: skip
         ext = ds.get_extrinsic_config_path(sc["token"])
         found = "missing file" if not ext.is_file() else check_extrinsics(ext, extrinsic_keys)
         if found:
             problems.append(f"{sc['extrinsic_config_path']}: {found}")
         problems += _ego_pose_problems(ds, samples)
+    orphans = [s["token"] for s in ds.sample if s["token"] not in ds._sample_scene]
+    if orphans:
+        problems.append(f"{index / 'sample.json'}: {len(orphans)} samples are in the prev/next chain of no scene of "
+                        f"{index / 'scene.json'}, the first {orphans[0]!r}")  # fmt: skip
     records: Iterable[dict] = ds.sample_data
     if progress:
         from tqdm import tqdm
@@ -184,7 +194,8 @@ def validate(root: str | Path, progress: bool = False) -> list[str]:
         records = tqdm(records, desc="files", unit="file", total=len(ds.sample_data))
     for rec in records:
         if rec["channel"] not in layout:
-            problems.append(f"{rec['filename']}: unknown channel {rec['channel']!r} (not in the set's layout)")
+            problems.append(f"{index / 'sample_data.json'}: {rec['filename']} has unknown channel {rec['channel']!r} "
+                            "(not in the set's layout)")  # fmt: skip
             continue
         found = _check_file(root, rec, size, layout)
         if found:
@@ -193,8 +204,10 @@ def validate(root: str | Path, progress: bool = False) -> list[str]:
         have = {r["channel"] for r in ds.get_sample_data_for_sample(s["token"])}
         if have != channels:
             missing, extra = sorted(channels - have), sorted(have - channels)
-            problems.append(f"sample {s['token']}: {len(have)} channels" + (f", missing {missing}" if missing else "")
-                            + (f", unexpected {extra}" if extra else ""))  # fmt: skip
+            source = f" (expected: {root / MANIFEST_FILE})" if manifest else ""
+            problems.append(f"{index / 'sample_data.json'}: sample {s['token']} has {len(have)} channels"
+                            + (f", missing {missing}" if missing else "") + (f", unexpected {extra}" if extra else "")
+                            + source)  # fmt: skip
     problems += _split_problems(ds)
     return problems
 
@@ -250,11 +263,12 @@ def _split_problems(ds: FogDrive) -> list[str]:
         checks = check_splits(ds.splits, [sc["name"] for sc in ds.scene])
     except (ValueError, TypeError) as e:
         return [f"{where}: {e}"]
-    problems = [f"splits: {key}: {checks[key]}" for key in
+    files = f" ({where}, against {ds.dataroot / 'index' / 'scene.json'})"
+    problems = [f"splits: {key}: {checks[key]}{files}" for key in
                 ("duplicate_assignments", "scenes_in_no_split", "scenes_in_split_but_not_in_index") if checks[key]]  # fmt: skip
     for split, share in checks["day_share"].items():
         if ds.splits.get(split) and share != 0.5:
-            problems.append(f"splits: {split} is {share:.0%} day, not 50 %")
+            problems.append(f"splits: {split} is {share:.0%} day, not 50 %{files}")
     return problems
 
 
