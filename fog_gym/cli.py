@@ -335,15 +335,19 @@ def _write_failure(e: OSError) -> str:
     return str(WriteError.from_os_error("cannot write", e.filename or "?", e))
 
 
+EXPORT_DESCRIPTION = (
+    "Write a FogDrive set in a format detectors read: nuScenes v1.0 tables (OUT/v1.0-trainval/, OUT/samples/<CHANNEL>/, "
+    "the devkit loads it), KITTI object (OUT/training/{image_2,velodyne,calib,label_2}; other cameras under "
+    "OUT/<CAMERA>/) or COCO with YOLO labels (OUT/images/, OUT/annotations/instances_<split>.json, OUT/labels/, "
+    "OUT/dataset.yaml), with the cameras and LiDAR at one fog level. The set is validated first; OUT must be empty "
+    "(--overwrite replaces an earlier export, --resume completes an interrupted one). Frames, class mapping and "
+    "limits: docs/exports.md."
+)
+
+
 def _add_export_parser(sub) -> None:
-    ex = sub.add_parser(
-        "export", help="export a dataset to nuScenes, KITTI or COCO at one fog level (for mmdetection3d, YOLO, ...)",
-        description="Write a FogDrive set in a format detectors read: nuScenes v1.0 tables (OUT/v1.0-trainval/, "
-        "OUT/samples/<CHANNEL>/, the devkit loads it), KITTI object (OUT/training/{image_2,velodyne,calib,label_2}; "
-        "other cameras under OUT/<CAMERA>/) or COCO (OUT/images/, OUT/annotations/instances_<split>.json), with the "
-        "cameras and LiDAR at one fog level. The set is validated first; OUT must be empty (--overwrite replaces an "
-        "earlier export, --resume completes an interrupted one). Frames, class mapping and limits: docs/exports.md.",
-    )  # fmt: skip
+    help_text = "export a dataset to nuScenes, KITTI or COCO/YOLO at one fog level (for mmdetection3d, YOLO, ...)"
+    ex = sub.add_parser("export", help=help_text, description=EXPORT_DESCRIPTION)
     ex.add_argument("root", type=Path, help="dataset root (holds data_root/ and index/)")
     ex.add_argument("out", type=Path, help="output folder (created; must be empty unless --overwrite or --resume)")
     ex.add_argument("--format", required=True, choices=("nuscenes", "kitti", "coco"), help="the export format")

@@ -244,7 +244,21 @@ def test_coco_loads_in_pycocotools_and_ground_truth_scores_ap_1(fogdrive, tmp_pa
             ev.summarize()
         assert ev.stats[0] == pytest.approx(1.0) and ev.stats[1] == pytest.approx(1.0)
         assert {c["id"] for c in gt.cats.values()} == set(COCO_CATEGORY_ID.values())
+        # the same boxes in YOLO's layout: labels/<camera>/<name>.txt beside images/, listed in <split>.txt
+        listed = (out / f"{split}.txt").read_text().split()
+        assert sorted(listed) == sorted(f"./images/{img['file_name']}" for img in gt.imgs.values())
+        for img in gt.imgs.values():
+            text = (out / "labels" / img["file_name"].replace(".png", ".txt")).read_text()
+            rows = np.array([line.split() for line in text.splitlines()], float).reshape(-1, 5)
+            anns = gt.loadAnns(gt.getAnnIds(imgIds=img["id"]))
+            expected = [[a["category_id"] - 1, (a["bbox"][0] + a["bbox"][2] / 2) / img["width"],
+                         (a["bbox"][1] + a["bbox"][3] / 2) / img["height"], a["bbox"][2] / img["width"],
+                         a["bbox"][3] / img["height"]] for a in anns]  # fmt: skip
+            np.testing.assert_allclose(rows, np.reshape(expected, (-1, 5)), atol=1e-6)
     assert total == 4 * len(ds.sample)
+    config = (out / "dataset.yaml").read_text()  # YAML: train/val/test lists and the class names by YOLO id
+    assert "\ntrain: train.txt\nval: val.txt\ntest: test.txt\n" in config
+    assert config.endswith("names:\n  0: car\n  1: truck\n  2: large_vehicle\n")
 
 
 def test_class_from_height_matches_the_class_size_ranges():
@@ -302,3 +316,40 @@ def test_cli_export_writes_each_format_with_a_progress_bar(fogdrive, tmp_path):
         assert f"{fmt} export" in out.stdout
     assert "--format {nuscenes,kitti,coco}" in subprocess.run(
         [sys.executable, "-m", "fog_gym.cli", "export", "--help"], capture_output=True, text=True).stdout
+
+
+def test_the_devkit_evaluates_the_ground_truth_on_fogdrives_split_at_map_1(fogdrive, tmp_path):
+    """The nuScenes detection evaluation runs on the export's custom split; the ground truth scores mAP = 1."""
+    import contextlib
+    import io
+
+    from nuscenes.eval.common.config import config_factory
+    from nuscenes.eval.detection.evaluate import DetectionEval
+    from nuscenes.eval.detection.utils import category_to_detection_name
+
+    out = tmp_path / "nus"
+    export(fogdrive, out, "nuscenes", cameras=["CAM_FRONT"], progress=False)
+    nusc = NuScenes(version="v1.0-trainval", dataroot=str(out), verbose=False)
+    scenes = json.loads((out / "v1.0-trainval" / "splits.json").read_text())["fogdrive_train"]
+    assert sorted(scenes) == sorted(s["name"] for s in nusc.scene)  # two scenes: one day/night pair, in train
+    results = {}
+    for sample in nusc.sample:
+        results[sample["token"]] = [{
+            "sample_token": sample["token"], "translation": a["translation"], "size": a["size"],
+            "rotation": a["rotation"], "velocity": list(nusc.box_velocity(a["token"])[:2]),
+            "detection_name": category_to_detection_name(a["category_name"]), "detection_score": 1.0,
+            "attribute_name": nusc.get("attribute", a["attribute_tokens"][0])["name"] if a["attribute_tokens"] else "",
+        } for a in (nusc.get("sample_annotation", t) for t in sample["anns"])]  # fmt: skip
+    for boxes in results.values():
+        for b in boxes:
+            b["velocity"] = [0.0 if np.isnan(v) else float(v) for v in b["velocity"]]
+    path = tmp_path / "results.json"
+    path.write_text(json.dumps({"meta": {"use_lidar": True, "use_camera": False, "use_radar": False, "use_map": False,
+                                         "use_external": False}, "results": results}))  # fmt: skip
+    with contextlib.redirect_stdout(io.StringIO()):
+        ev = DetectionEval(nusc, config_factory("detection_cvpr_2019"), str(path), "fogdrive_train",
+                           str(tmp_path / "eval"), verbose=False)  # fmt: skip
+        metrics, _ = ev.evaluate()
+    summary = metrics.serialize()
+    assert summary["mean_dist_aps"]["car"] == pytest.approx(1.0)
+    assert summary["label_tp_errors"]["car"]["trans_err"] < 1e-6

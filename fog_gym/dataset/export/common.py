@@ -86,7 +86,8 @@ class Source:
         return Path(scene["extrinsic_config_path"]).parts[1]
 
     # -- data -----------------------------------------------------------------------------------------------------
-    def _load(self, token: str, channel: str) -> Any:
+    def load(self, token: str, channel: str) -> Any:
+        """One channel of a sample, decoded as the set stores it."""
         path = self.ds.get_sample_paths(token, [channel])[channel]
         return load_channel(channel, path, self.ds.channels[channel])
 
@@ -98,7 +99,7 @@ class Source:
 
     def lidar(self, token: str) -> np.ndarray:
         """The sample's LiDAR sweep at the export's fog level: (N, 4) float32 x, y, z, intensity (left-handed)."""
-        return self._load(token, self.lidar_channel)
+        return self.load(token, self.lidar_channel)
 
     def image_path(self, token: str, camera: str) -> Path:
         return self.path(token, fog_channel(camera, self.fog))
@@ -112,16 +113,16 @@ class Source:
     def depth(self, token: str, camera: str) -> np.ndarray | None:
         """The camera's planar depth [m] (never fogged), or None where the set has no depth channel."""
         channel = f"{camera}_DEPTH"
-        return self._load(token, channel) if channel in self.ds.get_sample_paths(token, [channel]) else None
+        return self.load(token, channel) if channel in self.ds.get_sample_paths(token, [channel]) else None
 
     def boxes_2d(self, token: str, camera: str) -> dict[str, np.ndarray]:
         """``bboxes`` (M, 2, 2) ``[[x0, y0], [x1, y1]]`` inclusive pixels, ``vehicle_ids``, ``vehicle_class``."""
-        return self._load(token, f"{camera}_BBOX")
+        return self.load(token, f"{camera}_BBOX")
 
     def boxes(self, token: str) -> Boxes:
         """The sample's 3D boxes with classes from the cameras' 2D boxes (every 3D box is annotated in some
         camera), or from box heights in a set without cameras (:func:`~.frames.class_from_height`)."""
-        b3 = self._load(token, "BBOX_3D")
+        b3 = self.load(token, "BBOX_3D")
         corners, ids = b3["bboxes_3d"].astype(np.float64), b3["vehicle_ids"]
         if self.boxes_from_cameras:
             known: dict[int, int] = {}

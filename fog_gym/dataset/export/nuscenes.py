@@ -12,6 +12,8 @@ limits.
 * LiDAR: ``.pcd.bin`` float32 × 5 — x, y, z, intensity × 255 (nuScenes' 0–255 range), ring index.
 * Keyframes only (FogDrive has 10 Hz samples and no sweeps between them); one ego pose per sample, shared by its
   sensors (FogDrive's sensors are synchronous).
+* FogDrive's splits are the devkit's custom splits ``fogdrive_train``, ``fogdrive_val``, ``fogdrive_test``
+  (``v1.0-trainval/splits.json``): ``DetectionEval(..., eval_set="fogdrive_val")`` evaluates on them.
 """
 
 from __future__ import annotations
@@ -189,7 +191,7 @@ class _Scene:
     def _map_points(self, k: int, fog_token: str) -> None:
         if not self.has_poses or "SEM_LIDAR_TOP" not in self.src.ds.get_sample_paths(fog_token, ["SEM_LIDAR_TOP"]):
             return
-        sem = self.src._load(fog_token, "SEM_LIDAR_TOP")
+        sem = self.src.load(fog_token, "SEM_LIDAR_TOP")
         road = reflect_points(sem[np.isin(sem[:, 5].astype(np.int64), ROAD_TAGS), :3].astype(np.float64))
         g = road @ (self.ego_to_global[k] @ self.lidar_to_ego)[:3, :3].T + (self.ego_to_global[k] @ self.lidar_to_ego)[:3, 3]
         px = np.rint(g[:, 0] / MAP_RESOLUTION).astype(np.int64)  # the devkit's MapMask.to_pixel_coords
@@ -261,5 +263,8 @@ def write_nuscenes(src: Source, sink: Sink, bar) -> list[str]:
         sc.finish(sink)
     if not src.cameras:
         notes.append("the set has no cameras: the export has the LiDAR only, and no visibility per annotation")
-    sink.write_all({f"{VERSION}/{name}.json": json.dumps(table, indent=0).encode() for name, table in tables.items()})
+    files = {f"{VERSION}/{name}.json": json.dumps(table, indent=0).encode() for name, table in tables.items()}
+    splits = {f"fogdrive_{s}": [sc["name"] for sc in src.scenes if src.split_of(sc) == s] for s in ("train", "val", "test")}
+    files[f"{VERSION}/splits.json"] = json.dumps(splits, indent=1).encode()  # the devkit's custom splits
+    sink.write_all(files)
     return notes
