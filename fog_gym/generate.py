@@ -185,7 +185,10 @@ def generate(root: str | Path, plan: list[SceneSpec], workers: int = 1, resume: 
     """Generate the plan's pending scenes in parallel, then rebuild the index; returns the index tables.
 
     The run's settings go to ``index/manifest.json`` before any rendering; ``resume`` with settings that differ
-    from the manifest is a ``ValueError`` naming them.
+    from the manifest is a ``ValueError`` naming them. A file that cannot be written (disk full, permission lost)
+    raises :class:`~fog_gym.dataset.writer.WriteError` once every worker has stopped and removed its unfinished
+    scene and temporary files; with the cause removed, ``resume=True`` completes the set byte for byte as an
+    uninterrupted run. Each sample's ego pose goes beside it (:mod:`fog_gym.dataset.poses`).
     """
     from tqdm import tqdm
 
