@@ -60,3 +60,31 @@ def parse_resolution(resolution: Any) -> tuple[int, int]:
         if isinstance(v, bool) or not isinstance(v, int) or v <= 0:
             raise ValueError(f"resolution must be a (width, height) pair of positive integers, got {resolution!r}")
     return int(w), int(h)
+
+
+def json_numbers(name: str, value: Any, limit: int = 10_000_000) -> Any:
+    """Parsed JSON that must be a number or nested lists of numbers (no booleans, strings, nulls or objects) as a
+    float64 numpy array; a ValueError naming ``name`` otherwise (also for ragged lists). Never recurses, so
+    arbitrarily deep input cannot exhaust the stack.
+
+    >>> json_numbers("k", [[1, 2], [3, 4.5]]).tolist()
+    [[1.0, 2.0], [3.0, 4.5]]
+    >>> json_numbers("k", [1, True])
+    Traceback (most recent call last):
+    ...
+    ValueError: k must be numbers
+    """
+    import numpy as np
+
+    stack, seen = [value], 0
+    while stack:
+        v = stack.pop()
+        seen += 1
+        if isinstance(v, list):
+            stack.extend(v)
+        elif isinstance(v, bool) or not isinstance(v, (int, float)) or seen > limit:
+            raise ValueError(f"{name} must be numbers")
+    try:
+        return np.asarray(value, np.float64)
+    except (ValueError, OverflowError):
+        raise ValueError(f"{name} must be a regular array of numbers") from None

@@ -1,5 +1,5 @@
-"""The ``fog-gym`` command: ``demo``, ``generate``, ``validate``, ``stats``, ``audit``, ``view``, ``minari``, ``bench``
-and the studies ``exp1``, ``exp2`` and ``rl-bench`` (:mod:`fog_gym.experiments.runner`).
+"""The ``fog-gym`` command: ``demo``, ``generate``, ``validate``, ``stats``, ``export``, ``audit``, ``view``, ``minari``,
+``bench`` and the studies ``exp1``, ``exp2`` and ``rl-bench`` (:mod:`fog_gym.experiments.runner`).
 
 Example:
     >>> parser = build_parser()
@@ -119,6 +119,7 @@ def build_parser() -> argparse.ArgumentParser:
     st.add_argument("--plot", type=Path, default=None, metavar="PATH", help="write a bar chart PNG to PATH")
     _add_view_parser(sub)
     _add_minari_parser(sub)
+    _add_export_parser(sub)
     bench = sub.add_parser("bench", help="per-stage milliseconds of env, sensors, fog and recording (see fog-gym bench --help)",
                            add_help=False)
     bench.add_argument("args", nargs=argparse.REMAINDER)
@@ -329,7 +330,7 @@ def main(argv: list[str] | None = None) -> int:
         return run_study(_study(argv[0]), argv[1:])
     args = parser.parse_args(argv)
     handler = {"generate": _generate, "validate": _validate, "stats": _stats, "audit": _audit, "demo": _demo,
-               "view": _view, "minari": _minari}  # fmt: skip
+               "view": _view, "minari": _minari, "export": _export}  # fmt: skip
     return handler[args.command](args)
 
 
@@ -346,7 +347,60 @@ def _generate(args: argparse.Namespace) -> int:
         tables = generate(args.root, plan, args.workers, args.resume, args.ray)
     except ValueError as e:
         raise _fail("generate", str(e)) from None
+    except OSError as e:  # disk full, permission lost: one line, the set resumes with --resume
+        raise _fail("generate", _write_failure(e)) from None
     print(f"{len(tables['scene'])} scenes, {len(tables['sample'])} samples in {args.root}")
+    return 0
+
+
+def _write_failure(e: OSError) -> str:
+    """``<what failed> (<path>): <reason>`` for a failed write (the data path raises WriteError, already so)."""
+    from fog_gym.dataset.writer import WriteError
+
+    return str(WriteError.from_os_error("cannot write", e.filename or "?", e))
+
+
+EXPORT_DESCRIPTION = (
+    "Write a FogDrive set in a format detectors read: nuScenes v1.0 tables (OUT/v1.0-trainval/, OUT/samples/<CHANNEL>/, "
+    "the devkit loads it), KITTI object (OUT/training/{image_2,velodyne,calib,label_2}; other cameras under "
+    "OUT/<CAMERA>/) or COCO with YOLO labels (OUT/images/, OUT/annotations/instances_<split>.json, OUT/labels/, "
+    "OUT/dataset.yaml), with the cameras and LiDAR at one fog level. The set is validated first; OUT must be empty "
+    "(--overwrite replaces an earlier export, --resume completes an interrupted one). Frames, class mapping and "
+    "limits: docs/exports.md."
+)
+
+
+def _add_export_parser(sub) -> None:
+    help_text = "export a dataset to nuScenes, KITTI or COCO/YOLO at one fog level (for mmdetection3d, YOLO, ...)"
+    ex = sub.add_parser("export", help=help_text, description=EXPORT_DESCRIPTION)
+    ex.add_argument("root", type=Path, help="dataset root (holds data_root/ and index/)")
+    ex.add_argument("out", type=Path, help="output folder (created; must be empty unless --overwrite or --resume)")
+    ex.add_argument("--format", required=True, choices=("nuscenes", "kitti", "coco"), help="the export format")
+    ex.add_argument("--fog", default="clear", choices=("clear", "light", "moderate", "dense"),
+                    help="the fog level of the cameras and LiDAR exported (default clear)")
+    ex.add_argument("--split", default="all", choices=("train", "val", "test", "all"),
+                    help="FogDrive split to export (default all; nuScenes and KITTI list the splits, COCO writes one "
+                    "annotation file per split)")  # fmt: skip
+    ex.add_argument("--cameras", nargs="+", default=None, metavar="CAMERA",
+                    help="cameras to export (default: all for nuscenes and coco, CAM_FRONT for kitti)")
+    mode = ex.add_mutually_exclusive_group()
+    mode.add_argument("--overwrite", action="store_true", help="replace an earlier fog-gym export in OUT")
+    mode.add_argument("--resume", action="store_true", help="complete an interrupted export in OUT (same settings)")
+
+
+def _export(args: argparse.Namespace) -> int:
+    from fog_gym.dataset.export import export
+
+    try:
+        r = export(args.root, args.out, args.format, args.fog, args.split, args.cameras, args.overwrite, args.resume)
+    except ValueError as e:
+        raise _fail("export", str(e)) from None
+    except OSError as e:
+        raise _fail("export", _write_failure(e)) from None
+    for note in r["notes"]:
+        print(f"note: {note}")
+    print(f"{args.format} export of {r['samples']} samples ({r['fog']}) in {args.out}: {r['files']} files in "
+          f"{r['seconds']:.1f} s")  # fmt: skip
     return 0
 
 

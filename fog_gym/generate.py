@@ -16,6 +16,7 @@ Example:
 
 from __future__ import annotations
 
+import contextlib
 import json
 import shutil
 from dataclasses import asdict, dataclass
@@ -28,7 +29,7 @@ from fog_gym.world.towns import TOWNS
 from fog_gym.fog import FOG_PRESETS
 from fog_gym.dataset.layout import DATA_ROOT, MODALITIES, SAMPLE_PERIOD_US, scene_folder_name, scene_id
 from fog_gym.dataset.manifest import MANIFEST_FILE, differences, make_manifest, read_manifest, write_manifest
-from fog_gym.dataset.writer import SceneWriter, build_index
+from fog_gym.dataset.writer import SceneWriter, WriteError, _atomic_write, build_index
 
 PROGRESS_DIR = ".generate"  # completion markers, outside data_root so the layout stays exactly D2
 
@@ -106,21 +107,28 @@ def generate_scene(root: str | Path, spec: SceneSpec | dict[str, Any]) -> str:
     env = FogWrapper(FogDriveEnv(town=spec.town, time_of_day=spec.time_of_day, resolution=spec.resolution,
                                  episode_seconds=spec.seconds), ["light", "moderate", "dense"])  # fmt: skip
     writer = SceneWriter(root, spec.folder, MODALITIES[spec.modality])
-    obs, info = env.reset(seed=spec.seed)
-    writer.write_extrinsics(info["extrinsics"])
-    writer.write_sample(0, obs, info)
-    idle = env.unwrapped.idle_action
-    index, done = 1, False
-    while not done:
-        obs, _, terminated, truncated, info = env.step(idle)
-        writer.write_sample(index, obs, info)
-        index += 1
-        done = terminated or truncated
-    writer.close()
-    env.close()
-    marker = root / PROGRESS_DIR / f"{spec.folder}.json"
-    marker.parent.mkdir(parents=True, exist_ok=True)
-    marker.write_text(json.dumps(asdict(spec)))
+    try:
+        obs, info = env.reset(seed=spec.seed)
+        writer.write_extrinsics(info["extrinsics"])
+        writer.write_sample(0, obs, info, env.unwrapped.ego_pose_record())
+        idle = env.unwrapped.idle_action
+        index, done = 1, False
+        while not done:
+            obs, _, terminated, truncated, info = env.step(idle)
+            writer.write_sample(index, obs, info, env.unwrapped.ego_pose_record())
+            index += 1
+            done = terminated or truncated
+        writer.close()
+        try:
+            _atomic_write(root / PROGRESS_DIR / f"{spec.folder}.json", json.dumps(asdict(spec)).encode())
+        except WriteError as e:
+            raise e.with_what(f"cannot mark scene {spec.folder} done") from None
+    except BaseException:
+        writer.close()
+        shutil.rmtree(folder_path, ignore_errors=True)  # an unfinished scene is redone from its seed: free its space
+        raise
+    finally:
+        env.close()
     return spec.folder
 
 
@@ -161,12 +169,14 @@ def check_root(root: Path, resume: bool) -> None:
         raise ValueError(f"dataset root {root} exists and is not a folder")
     if root.exists() and any(root.iterdir()) and not resume:
         raise ValueError(f"dataset root {root} is not empty; pass --resume to continue an interrupted run")
+    probe = root / ".write_probe"
     try:
         (root / DATA_ROOT).mkdir(parents=True, exist_ok=True)
-        probe = root / ".write_probe"
         probe.write_text("ok")
         probe.unlink()
     except OSError as e:
+        with contextlib.suppress(OSError):
+            probe.unlink()
         raise ValueError(f"dataset root {root} is not writable: {e}") from None
 
 
@@ -175,7 +185,10 @@ def generate(root: str | Path, plan: list[SceneSpec], workers: int = 1, resume: 
     """Generate the plan's pending scenes in parallel, then rebuild the index; returns the index tables.
 
     The run's settings go to ``index/manifest.json`` before any rendering; ``resume`` with settings that differ
-    from the manifest is a ``ValueError`` naming them.
+    from the manifest is a ``ValueError`` naming them. A file that cannot be written (disk full, permission lost)
+    raises :class:`~fog_gym.dataset.writer.WriteError` once every worker has stopped and removed its unfinished
+    scene and temporary files; with the cause removed, ``resume=True`` completes the set byte for byte as an
+    uninterrupted run. Each sample's ego pose goes beside it (:mod:`fog_gym.dataset.poses`).
     """
     from tqdm import tqdm
 
@@ -197,16 +210,27 @@ def generate(root: str | Path, plan: list[SceneSpec], workers: int = 1, resume: 
             ray.get(done)
             bar.update(len(done))
     elif workers <= 1:
-        for s in todo:
-            generate_scene(root, s)
-            bar.update()
+        try:
+            for s in todo:
+                generate_scene(root, s)
+                bar.update()
+        finally:
+            bar.close()
     else:
         import multiprocessing as mp
         from concurrent.futures import ProcessPoolExecutor, as_completed
 
         with ProcessPoolExecutor(workers, mp_context=mp.get_context("spawn")) as pool:
-            for fut in as_completed([pool.submit(generate_scene, str(root), s) for s in todo]):
-                fut.result()
-                bar.update()
+            futures = [pool.submit(generate_scene, str(root), s) for s in todo]
+            try:
+                for fut in as_completed(futures):
+                    fut.result()
+                    bar.update()
+            except BaseException:
+                for f in futures:  # no new scenes; the running ones end (each cleans up its files) before we leave
+                    f.cancel()
+                raise
+            finally:
+                bar.close()
     bar.close()
     return build_index(root)

@@ -78,3 +78,14 @@ def test_setup_discovers_every_subpackage(package):
     assert package in found
     folders = {p.parent for p in (ROOT / "fog_gym").rglob("__init__.py")} | {p.parent for p in (ROOT / "wrappers").rglob("__init__.py")}
     assert len(found) == len(folders)
+
+
+def test_the_dev_install_carries_the_export_readers():
+    """CI (./dev test) checks the exports with pycocotools and the nuScenes devkit: the dev extra holds the export
+    extra, and ./dev installs the devkit without its numpy<2 pin (pyproject.toml says why)."""
+    import re
+    import tomllib
+
+    extras = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]["optional-dependencies"]
+    assert set(extras["export"]) <= set(extras["dev"])
+    assert re.search(r'install --quiet --no-deps \\\n\s+"nuscenes-devkit==1\.2\.0"', (ROOT / "dev").read_text())

@@ -11,7 +11,7 @@ import gymnasium as gym
 import numpy as np
 
 from fog_gym.dataset.layout import CAMERAS, DATA_ROOT, parse_scene_folder, scene_folder_name, scene_id
-from fog_gym.dataset.writer import SceneWriter, build_index
+from fog_gym.dataset.writer import SceneWriter, WriteError, build_index
 from fog_gym.wrappers.fog import FogWrapper
 
 PAIRED_LEVELS = ["light", "moderate", "dense"]
@@ -31,7 +31,10 @@ class RecordFogDrive(gym.Wrapper):
     Writing overlaps simulation: sample k is encoded and written (its files in parallel by ``workers``
     threads, default one per core, ``BBOX_3D`` last) while the env simulates sample k + 1; ``step`` waits for
     sample k before handing sample k + 1 over, so at most one sample is in flight. The index is rebuilt, and
-    ``close`` returns, only after every write has finished; a failed write is raised at the next call.
+    ``close`` returns, only after every write has finished; a failed write is raised at the next call, as a
+    :class:`~fog_gym.dataset.writer.WriteError` (``str()``: ``<what> (<path>): <reason>``) with no temporary file
+    left behind: the samples written before it stay complete and indexed. Each sample's ego pose goes beside it
+    (``ego_pose/``, :mod:`fog_gym.dataset.poses`).
 
     >>> import tempfile, fog_gym
     >>> env = RecordFogDrive(fog_gym.FogDriveEnv(resolution=(32, 24), episode_seconds=0.2), tempfile.mkdtemp())
@@ -87,9 +90,10 @@ class RecordFogDrive(gym.Wrapper):
         assert self._writer is not None
         frozen_obs = {k: np.array(v, copy=True) for k, v in obs.items()}  # the env may reuse its buffers
         frozen_info = {k: copy.deepcopy(info[k]) for k in ("boxes_2d", "boxes_3d")}
+        ego_pose = self.env.unwrapped.ego_pose_record()  # now: the env moves on while the sample is written
         if self._background is None:
             self._background = ThreadPoolExecutor(1, thread_name_prefix="fogdrive-record")
-        self._pending = self._background.submit(self._writer.write_sample, index, frozen_obs, frozen_info)
+        self._pending = self._background.submit(self._writer.write_sample, index, frozen_obs, frozen_info, ego_pose)
 
     def _next_run(self, town: int, tod: str) -> int:
         runs = [p[2] for p in (parse_scene_folder(d.name) for d in (self.root / DATA_ROOT).iterdir()) if p and p[:2] == (town, tod)]
@@ -124,16 +128,26 @@ class RecordFogDrive(gym.Wrapper):
         return obs, reward, terminated, truncated, info
 
     def close(self) -> None:
+        """Wait for the last sample, rebuild the index, close the env. A failed write (``WriteError``: disk full,
+        permission lost) is raised after the index of the complete samples has been rebuilt, if it can be."""
+        error: BaseException | None = None
         try:
             self._flush()
-        finally:
-            if self._background is not None:
-                self._background.shutdown(wait=True)
-                self._background = None
-            if self._writer is not None:
-                self._writer.close()
+        except BaseException as e:
+            error = e
+        if self._background is not None:
+            self._background.shutdown(wait=True)
+            self._background = None
+        if self._writer is not None:
+            self._writer.close()
+            self._writer = None
+            try:
                 build_index(self.root)
+            except WriteError as e:
+                error = error or e
         super().close()
+        if error is not None:
+            raise error
 
 
 def _find_fog(env: gym.Env) -> FogWrapper | None:

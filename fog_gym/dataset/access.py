@@ -18,7 +18,10 @@ import json
 from pathlib import Path, PurePosixPath
 from typing import Any
 
-from fog_gym.dataset.layout import FOGDRIVE_CHANNELS, LAYOUT_FILE, SPLITS, TABLES, ChannelSpec, layout_from_json
+from fog_gym.dataset.layout import (
+    FOGDRIVE_CHANNELS, LAYOUT_FILE, SPLITS, TABLES, ChannelSpec, ego_pose_path, layout_from_json,
+)  # fmt: skip
+from fog_gym.dataset.poses import EgoPose, decode_ego_pose
 
 
 class DatasetError(ValueError):
@@ -54,8 +57,12 @@ def read_json(path: Path) -> Any:
         return json.loads(Path(path).read_bytes())
     except FileNotFoundError:
         raise DatasetError(f"{path}: missing") from None
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
+    except OSError as e:
+        raise DatasetError(f"{path}: unreadable ({e.strerror or e})") from None
+    except ValueError as e:  # not UTF-8, not JSON, or a number too long to convert
         raise DatasetError(f"{path}: not valid JSON ({e})") from None
+    except RecursionError:
+        raise DatasetError(f"{path}: not valid JSON (nested too deeply)") from None
 
 
 def read_layout(root: str | Path) -> dict[str, ChannelSpec]:
@@ -73,23 +80,37 @@ def read_layout(root: str | Path) -> dict[str, ChannelSpec]:
         raise DatasetError(f"{path}: {e}") from None
 
 
-_REQUIRED = {
-    "scene": ("token", "name", "nbr_samples", "first_sample_token", "last_sample_token", "extrinsic_config_path"),
-    "sample": ("token", "timestamp", "scene_token", "prev", "next"),
-    "sample_data": ("token", "sample_token", "channel", "filename", "fileformat"),
+_STR, _INT, _NUMBER = (str,), (int,), (int, float)
+#: The D6 fields of each index table and their JSON types (``width``/``height`` are optional).
+_REQUIRED: dict[str, dict[str, tuple[type, ...]]] = {
+    "scene": {"token": _STR, "name": _STR, "nbr_samples": _INT, "first_sample_token": _STR, "last_sample_token": _STR,
+              "extrinsic_config_path": _STR},  # fmt: skip
+    "sample": {"token": _STR, "timestamp": _NUMBER, "scene_token": _STR, "prev": _STR, "next": _STR},
+    "sample_data": {"token": _STR, "sample_token": _STR, "channel": _STR, "filename": _STR, "fileformat": _STR},
 }
+_OPTIONAL: dict[str, tuple[type, ...]] = {"width": _INT, "height": _INT}
 
 
 def load_table(index: Path, name: str) -> list[dict]:
-    """One index table, checked to be a list of records with the D6 fields; :class:`DatasetError` otherwise."""
+    """One index table, checked to be a list of records with the D6 fields of the right JSON types and unique
+    tokens; :class:`DatasetError` naming the file and the record otherwise."""
     path = index / f"{name}.json"
     table = read_json(path)
     if not isinstance(table, list) or not all(isinstance(r, dict) for r in table):
         raise DatasetError(f"{path}: expected a list of records")
+    tokens: set[str] = set()
     for i, rec in enumerate(table):
         missing = [k for k in _REQUIRED[name] if k not in rec]
         if missing:
             raise DatasetError(f"{path}: record {i} lacks {missing}")
+        for key, types in (*_REQUIRED[name].items(), *_OPTIONAL.items()):
+            value = rec.get(key, 0)
+            if isinstance(value, bool) or not isinstance(value, types):
+                raise DatasetError(f"{path}: record {i}: {key} must be a JSON {' or '.join(t.__name__ for t in types)}, "
+                                   f"got {type(value).__name__}")  # fmt: skip
+        if rec["token"] in tokens:
+            raise DatasetError(f"{path}: record {i}: token {rec['token']!r} appears twice")
+        tokens.add(rec["token"])
     return table
 
 
@@ -118,6 +139,9 @@ class FogDrive:
         self.channels: dict[str, ChannelSpec] = read_layout(self.dataroot)
         splits_path = index / "splits.json"
         self.splits: dict[str, list[str]] | None = read_json(splits_path) if splits_path.exists() else None
+        if self.splits is not None and not (isinstance(self.splits, dict) and set(SPLITS) <= set(self.splits) and all(
+                isinstance(v, list) and all(isinstance(n, str) for n in v) for v in self.splits.values())):  # fmt: skip
+            raise DatasetError(f"{splits_path}: expected an object with scene-name lists {list(SPLITS)}")
         self._index = {name: {rec["token"]: i for i, rec in enumerate(getattr(self, name))} for name in TABLES}
         self._scene_by_name = {rec["name"]: rec for rec in self.scene}
         # joins: sample token → {channel: sample_data record}; scene token → sample records in time order
@@ -128,6 +152,7 @@ class FogDrive:
                                    f"{rec['sample_token']!r}")
             self._sample_channels[rec["sample_token"]][rec["channel"]] = rec
         self._scene_samples: dict[str, list[dict]] = {rec["token"]: [] for rec in self.scene}
+        self._sample_scene: dict[str, str] = {}
         for rec in self.scene:
             tok, seen = rec["first_sample_token"], set()
             while tok:
@@ -137,6 +162,7 @@ class FogDrive:
                 seen.add(tok)
                 s = self.sample[self._index["sample"][tok]]
                 self._scene_samples[rec["token"]].append(s)
+                self._sample_scene[tok] = rec["token"]
                 tok = s["next"]
         if verbose:
             print(f"FogDrive: {len(self.scene)} scenes, {len(self.sample)} samples, {len(self.sample_data)} files")
@@ -172,6 +198,44 @@ class FogDrive:
 
     def load_extrinsic_config(self, scene_token: str) -> dict[str, Any]:
         return read_json(self.get_extrinsic_config_path(scene_token))
+
+    def get_ego_pose_path(self, sample_token: str) -> Path:
+        """Where a sample's ego pose is stored (:mod:`fog_gym.dataset.poses`): beside its files, named as they
+        are (the sample's index in its scene). The file exists only for sets recorded with ego poses."""
+        sample = self.get("sample", sample_token)
+        recs = self._sample_channels[sample["token"]]
+        rec = recs.get("BBOX_3D") or next(iter(recs.values()), None)
+        if rec is None:
+            raise DatasetError(f"{self.dataroot / 'index' / 'sample_data.json'}: sample {sample_token!r} has no files")
+        parts = PurePosixPath(rec["filename"]).parts
+        if len(parts) < 3 or not PurePosixPath(parts[-1]).stem.isdigit():
+            raise DatasetError(f"{self.dataroot / 'index' / 'sample_data.json'}: {rec['filename']!r} is not named "
+                               "data_root/<scene>/…/<index>.<ext>")  # fmt: skip
+        return self.dataroot / ego_pose_path(parts[1], int(PurePosixPath(parts[-1]).stem))
+
+    def get_ego_pose(self, sample_token: str) -> EgoPose | None:
+        """A sample's ego pose (world frame, CARLA's axes), or None where the set has none (recorded before
+        ego poses were kept, or by the original pipeline). A corrupt file raises :class:`DatasetError`."""
+        path = self.get_ego_pose_path(sample_token)
+        try:
+            data = path.read_bytes()
+        except FileNotFoundError:
+            return None
+        except OSError as e:
+            raise DatasetError(f"{path}: unreadable ({e.strerror or e})") from None
+        try:
+            return decode_ego_pose(data)
+        except ValueError as e:
+            raise DatasetError(f"{path}: {e}") from None
+
+    def get_scene_for_sample(self, sample_token: str) -> dict:
+        """The scene record a sample belongs to."""
+        self.get("sample", sample_token)
+        if sample_token not in self._sample_scene:
+            index = self.dataroot / "index"
+            raise DatasetError(f"{index / 'sample.json'}: sample {sample_token!r} is in the prev/next chain of no scene "
+                               f"of {index / 'scene.json'}")  # fmt: skip
+        return self.get("scene", self._sample_scene[sample_token])
 
     # -- linear in the output -----------------------------------------------------------------------------
     def get_sample_data_for_sample(self, sample_token: str, channels: list[str] | None = None) -> list[dict]:

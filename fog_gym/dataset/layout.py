@@ -68,6 +68,9 @@ BBOX_3D = "BBOX_3D"
 SCENE_LAYOUT_FILE = "channels.json"
 LAYOUT_FILE = "index/channels.json"
 _NAME_RE = re.compile(r"[A-Z][A-Z0-9_]*")
+_FOLDER_RE = re.compile(r"[a-z0-9][a-z0-9_.-]*(/[a-z0-9][a-z0-9_.-]*)*")
+#: Folders of a scene that hold no channel: the extrinsics and the ego poses.
+RESERVED_FOLDERS = ("extrinsic_config", "ego_pose")
 
 
 def check_layout(pairs) -> dict[str, ChannelSpec]:
@@ -89,8 +92,14 @@ def check_layout(pairs) -> dict[str, ChannelSpec]:
     for name, spec in items:
         if not isinstance(name, str) or not _NAME_RE.fullmatch(name):
             raise ValueError(f"name must be an upper-case channel name like 'RADAR_BACK', got {name!r}")
-        if not isinstance(spec, ChannelSpec) or ENCODINGS.get(spec.encoding) != spec.fileformat:
+        if (not isinstance(spec, ChannelSpec) or not all(isinstance(v, str) for v in spec[:3])
+                or ENCODINGS.get(spec.encoding) != spec.fileformat):  # fmt: skip
             raise ValueError(f"spec must be a ChannelSpec with an encoding/format pair of {ENCODINGS}, got {spec!r}")
+        if not _FOLDER_RE.fullmatch(spec.folder) or spec.folder.split("/")[0] in RESERVED_FOLDERS:
+            raise ValueError(f"spec.folder must be a relative folder of lower-case names, not one of {RESERVED_FOLDERS}, "
+                             f"got {spec.folder!r}")  # fmt: skip
+        if isinstance(spec.columns, bool) or not isinstance(spec.columns, int):
+            raise ValueError(f"spec.columns must be an integer, got {spec!r}")
         if (spec.encoding == "points") != (spec.columns > 0):
             raise ValueError(f"spec.columns must be > 0 for a point channel and 0 otherwise, got {spec!r}")
         if name in out:
@@ -151,6 +160,9 @@ MODALITIES: dict[str, tuple[str, ...]] = {
     "lidar": ("LIDAR_TOP", *(f"LIDAR_TOP_FOG_{lv}" for lv in FOG_LEVELS), "SEM_LIDAR_TOP", "BBOX_3D"),
 }
 EXTRINSIC_FILE = "extrinsic_config/extrinsic_config.json"
+#: The ego pose of each sample (an extra file beside the channels; readers that only know FogDrive ignore it):
+#: ``data_root/<scene>/ego_pose/000000.json`` (:func:`ego_pose_path`).
+EGO_POSE_FOLDER = "ego_pose"
 SAMPLE_PERIOD_US = 100_000  # 10 Hz keyframes
 _SCENE_RE = re.compile(r"^data_collection_T(\d+)_(day|night)_run(\d+)_([0-9a-f]+)$")
 
@@ -178,6 +190,15 @@ def parse_scene_folder(name: str) -> tuple[int, str, int, str] | None:
 def scene_name(town_number: int, time_of_day: str, run: int) -> str:
     """The human-readable scene name of D6: ``T<town>_<day|night>_scene<NNN>``."""
     return f"T{town_number}_{time_of_day}_scene{run:03d}"
+
+
+def ego_pose_path(scene_folder: str, index: int) -> str:
+    """The ego-pose file of a sample, relative to the dataset root.
+
+    >>> ego_pose_path("data_collection_T1_day_run1_00ab", 3)
+    'data_root/data_collection_T1_day_run1_00ab/ego_pose/000003.json'
+    """
+    return f"{DATA_ROOT}/{scene_folder}/{EGO_POSE_FOLDER}/{index:06d}.json"
 
 
 def channel_path(channel: str, scene_folder: str, index: int, layout: dict[str, ChannelSpec] | None = None) -> str:

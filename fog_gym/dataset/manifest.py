@@ -68,13 +68,25 @@ def read_manifest(root: str | Path) -> dict[str, Any] | None:
     if missing:
         raise DatasetError(f"{path}: lacks {missing}")
     res = data["resolution"]
-    if not (isinstance(res, list) and len(res) == 2 and all(isinstance(v, int) and v > 0 for v in res)):
+    if not (isinstance(res, list) and len(res) == 2 and all(_count(v) and v > 0 for v in res)):
         raise DatasetError(f"{path}: resolution must be [width, height], got {res!r}")
+    if not _count(data["scenes"]):
+        raise DatasetError(f"{path}: scenes must be a whole number, got {data['scenes']!r}")
+    for key in ("channels", "towns"):
+        if not (isinstance(data[key], list) and all(isinstance(v, str) for v in data[key])):
+            raise DatasetError(f"{path}: {key} must be a list of names, got {data[key]!r}")
     return data
+
+
+def _count(value: Any) -> bool:
+    return isinstance(value, int) and not isinstance(value, bool) and value >= 0
 
 
 def write_manifest(root: str | Path, manifest: dict[str, Any]) -> None:
     """Write ``index/manifest.json`` atomically."""
-    from fog_gym.dataset.writer import _atomic_write
+    from fog_gym.dataset.writer import WriteError, _atomic_write
 
-    _atomic_write(Path(root) / MANIFEST_FILE, (json.dumps(manifest, indent=1) + "\n").encode())
+    try:
+        _atomic_write(Path(root) / MANIFEST_FILE, (json.dumps(manifest, indent=1) + "\n").encode())
+    except WriteError as e:
+        raise e.with_what("cannot write the generation manifest") from None

@@ -1,8 +1,8 @@
 """Checking a FogDrive dataset (``fog-gym validate``) and measuring its footprint (``fog-gym stats``).
 
 :func:`validate` never raises on a bad dataset: every unreadable, truncated, empty or wrongly shaped file (RGB,
-depth and semantic PNG, ``.npy`` point clouds, box JSON, extrinsics, index JSON) and every index entry that points
-at a missing file or outside the root becomes one line naming the file and the problem. Where the dataset has a
+depth and semantic PNG, ``.npy`` point clouds, box JSON, extrinsics, ego poses, index JSON) and every index entry
+that points at a missing file or outside the root becomes one line naming the file and the problem. Where the dataset has a
 generation manifest (``index/manifest.json``, written by ``fog-gym generate``) the files are also checked against
 it: image sizes, channel set and scene count. Channels are checked as the set's layout stores them
 (``index/channels.json``, written for a rig with added sensors; the FogDrive channels otherwise).
@@ -25,8 +25,12 @@ import cv2
 import numpy as np
 
 from fog_gym.dataset.access import TABLES, DatasetError, FogDrive, load_table, read_json, safe_relative_path
-from fog_gym.dataset.decode import decode_png
-from fog_gym.dataset.layout import DATA_ROOT, FOGDRIVE_CHANNELS, ChannelSpec, extrinsic_key, layout_cameras
+from fog_gym.checks import json_numbers
+from fog_gym.dataset.decode import box_json_problem, decode_png, png_problem, read_npy
+from fog_gym.dataset.layout import (
+    DATA_ROOT, FOGDRIVE_CHANNELS, ChannelSpec, extrinsic_key, layout_cameras,
+)  # fmt: skip
+from fog_gym.dataset.poses import ego_pose_problem
 from fog_gym.dataset.manifest import MANIFEST_FILE, read_manifest
 
 EXTRINSIC_KEYS = ("extrinsic_front", "extrinsic_right", "extrinsic_left", "extrinsic_back")
@@ -48,7 +52,7 @@ def dataset_root_problem(root: str | Path) -> str | None:
 
 
 def check_png(path: Path, width: int | None = None, height: int | None = None) -> str | None:
-    """The problem with one PNG of the layout (8-bit, 3 channels, the expected size), or None."""
+    """The problem with one PNG of the layout (intact, 8-bit, 3 channels, the expected size), or None."""
     try:
         data = np.fromfile(path, np.uint8)
     except OSError as e:
@@ -57,7 +61,7 @@ def check_png(path: Path, width: int | None = None, height: int | None = None) -
         return "empty file"
     img = decode_png(data, cv2.IMREAD_UNCHANGED)
     if img is None:
-        return "truncated or corrupt PNG"
+        return png_problem(data) or "corrupt PNG (the decoder refused it)"
     if img.dtype != np.uint8 or img.ndim != 3 or img.shape[2] != 3:
         return f"expected an 8-bit RGB PNG without alpha, got {img.dtype} with shape {img.shape}"
     if width is not None and (img.shape[1], img.shape[0]) != (width, height):
@@ -68,49 +72,22 @@ def check_png(path: Path, width: int | None = None, height: int | None = None) -
 def check_npy(path: Path, columns: int) -> str | None:
     """The problem with one point-cloud ``.npy`` (float32, (N, columns), finite), or None."""
     try:
-        with open(path, "rb") as f:
-            a = np.load(f, allow_pickle=False)
-    except (OSError, ValueError, EOFError) as e:
-        return f"truncated or corrupt .npy ({e})" if Path(path).stat().st_size else "empty file"
-    if a.dtype != np.float32 or a.ndim != 2 or a.shape[1] != columns:
-        return f"expected float32 (N, {columns}), got {a.dtype} {a.shape}"
-    if not np.isfinite(a).all():
-        return "contains NaN or infinite values"
+        read_npy(path, columns)
+    except OSError as e:
+        return f"unreadable ({e.strerror or e})"
+    except ValueError as e:
+        return str(e)
     return None
-
-
-def _array(value: Any, shape_tail: tuple[int, ...], name: str) -> np.ndarray:
-    a = np.asarray(value, np.float64)
-    if a.size == 0:
-        return a.reshape((0, *shape_tail))
-    if a.shape[1:] != shape_tail:
-        raise ValueError(f"{name} has shape {a.shape}, expected (N, {', '.join(map(str, shape_tail))})")
-    return a
 
 
 def check_box_json(path: Path, three_d: bool) -> str | None:
     """The problem with one box JSON (2D: ``bboxes`` (M, 2, 2), ``vehicle_ids``, ``vehicle_class``; 3D:
     ``bboxes_3d`` (N, 8, 3), ``vehicle_ids``), or None."""
     try:
-        data = json.loads(Path(path).read_bytes())
-    except (OSError, UnicodeDecodeError, json.JSONDecodeError) as e:
-        return f"corrupt JSON ({e})" if Path(path).stat().st_size else "empty file"
-    if not isinstance(data, dict):
-        return "expected a JSON object"
-    keys = ("bboxes_3d", "vehicle_ids") if three_d else ("bboxes", "vehicle_ids", "vehicle_class")
-    missing = [k for k in keys if k not in data]
-    if missing:
-        return f"missing keys {missing}"
-    try:
-        boxes = _array(data[keys[0]], (8, 3) if three_d else (2, 2), keys[0])
-        per_box = [np.asarray(data[k], np.float64) for k in keys[1:]]
-    except (ValueError, TypeError) as e:
-        return f"wrongly shaped boxes ({e})"
-    if any(a.ndim != 1 or len(a) != len(boxes) for a in per_box if a.size or len(boxes)):
-        return f"{', '.join(keys)} must have one entry per box"
-    if not np.isfinite(boxes).all():
-        return "boxes contain NaN or infinite values"
-    return None
+        data = Path(path).read_bytes()
+    except OSError as e:
+        return f"unreadable ({e.strerror or e})"
+    return box_json_problem(data, three_d)
 
 
 def check_extrinsics(path: Path, keys: Iterable[str] = EXTRINSIC_KEYS) -> str | None:
@@ -124,27 +101,31 @@ def check_extrinsics(path: Path, keys: Iterable[str] = EXTRINSIC_KEYS) -> str | 
         return "expected a JSON object"
     for key in keys:
         try:
-            m = np.asarray(data.get(key), np.float64)
-        except (ValueError, TypeError):
+            m = json_numbers(key, data[key]) if key in data else None
+        except ValueError:
             return f"{key} is not a 4×4 matrix"
-        if m.shape != (4, 4) or not np.isfinite(m).all():
+        if m is None or m.shape != (4, 4) or not np.isfinite(m).all():
             return f"{key} is missing or not a finite 4×4 matrix"
     return None
 
 
 def _check_file(root: Path, rec: dict, size: tuple[int, int] | None, layout: dict[str, ChannelSpec]) -> str | None:
-    channel, fmt = rec["channel"], rec["fileformat"]
+    """The problem with one indexed file, checked as its channel is stored (the set's layout), or None."""
+    channel = rec["channel"]
+    spec = layout[channel]
     path = root / rec["filename"]
+    if rec["fileformat"] != spec.fileformat:
+        return f"index/sample_data.json says fileformat {rec['fileformat']!r}, channel {channel} is stored as {spec.fileformat!r}"
     if not path.is_file():
         return "missing file"
-    if fmt == "png":
+    if spec.fileformat == "png":
         w, h = size if size is not None else (rec.get("width"), rec.get("height"))
-        return check_png(path, w, h)
-    if fmt == "npy":
-        return check_npy(path, layout[channel].columns)  # the column count its sensor declared
-    if fmt == "json":
-        return check_box_json(path, channel == "BBOX_3D")
-    return f"unknown file format {fmt!r}"
+        found = check_png(path, w, h)
+        source = MANIFEST_FILE if size is not None else "index/sample_data.json"
+        return f"{found} (as {source} says)" if found and found.startswith("image is") else found
+    if spec.fileformat == "npy":
+        return check_npy(path, spec.columns)  # the column count its sensor declared
+    return check_box_json(path, spec.encoding == "box3d")
 
 
 def validate(root: str | Path, progress: bool = False) -> list[str]:
@@ -192,13 +173,20 @@ def validate(root: str | Path, progress: bool = False) -> list[str]:
     for sc in ds.scene:
         samples = ds.get_samples_for_scene(sc["token"])
         if len(samples) != sc["nbr_samples"]:
-            problems.append(f"{sc['name']}: nbr_samples {sc['nbr_samples']} but {len(samples)} linked samples")
+            problems.append(f"{index / 'scene.json'}: scene {sc['name']!r} has nbr_samples {sc['nbr_samples']} but "
+                            f"{len(samples)} samples are linked in {index / 'sample.json'}")  # fmt: skip
         if samples and (samples[0]["token"] != sc["first_sample_token"] or samples[-1]["token"] != sc["last_sample_token"]):
-            problems.append(f"{sc['name']}: first/last sample tokens do not match the prev/next chain")
+            problems.append(f"{index / 'scene.json'}: scene {sc['name']!r}: first/last sample tokens do not match the "
+                            f"prev/next chain of {index / 'sample.json'}")  # fmt: skip
         ext = ds.get_extrinsic_config_path(sc["token"])
         found = "missing file" if not ext.is_file() else check_extrinsics(ext, extrinsic_keys)
         if found:
             problems.append(f"{sc['extrinsic_config_path']}: {found}")
+        problems += _ego_pose_problems(ds, samples)
+    orphans = [s["token"] for s in ds.sample if s["token"] not in ds._sample_scene]
+    if orphans:
+        problems.append(f"{index / 'sample.json'}: {len(orphans)} samples are in the prev/next chain of no scene of "
+                        f"{index / 'scene.json'}, the first {orphans[0]!r}")  # fmt: skip
     records: Iterable[dict] = ds.sample_data
     if progress:
         from tqdm import tqdm
@@ -206,7 +194,8 @@ def validate(root: str | Path, progress: bool = False) -> list[str]:
         records = tqdm(records, desc="files", unit="file", total=len(ds.sample_data))
     for rec in records:
         if rec["channel"] not in layout:
-            problems.append(f"{rec['filename']}: unknown channel {rec['channel']!r} (not in the set's layout)")
+            problems.append(f"{index / 'sample_data.json'}: {rec['filename']} has unknown channel {rec['channel']!r} "
+                            "(not in the set's layout)")  # fmt: skip
             continue
         found = _check_file(root, rec, size, layout)
         if found:
@@ -215,9 +204,38 @@ def validate(root: str | Path, progress: bool = False) -> list[str]:
         have = {r["channel"] for r in ds.get_sample_data_for_sample(s["token"])}
         if have != channels:
             missing, extra = sorted(channels - have), sorted(have - channels)
-            problems.append(f"sample {s['token']}: {len(have)} channels" + (f", missing {missing}" if missing else "")
-                            + (f", unexpected {extra}" if extra else ""))  # fmt: skip
+            source = f" (expected: {root / MANIFEST_FILE})" if manifest else ""
+            problems.append(f"{index / 'sample_data.json'}: sample {s['token']} has {len(have)} channels"
+                            + (f", missing {missing}" if missing else "") + (f", unexpected {extra}" if extra else "")
+                            + source)  # fmt: skip
     problems += _split_problems(ds)
+    return problems
+
+
+def _ego_pose_problems(ds: FogDrive, samples: list[dict]) -> list[str]:
+    """Ego-pose files of a scene recorded with them (:mod:`fog_gym.dataset.poses`): one per sample, each valid.
+    A scene without an ``ego_pose/`` folder (recorded before poses were kept, or by the original pipeline) is
+    fine."""
+    problems: list[str] = []
+    for k, s in enumerate(samples):
+        try:
+            path = ds.get_ego_pose_path(s["token"])
+        except DatasetError as e:
+            return [str(e)]
+        if k == 0 and not path.parent.is_dir():
+            return []
+        rel = path.relative_to(ds.dataroot)
+        try:
+            data = path.read_bytes()
+        except FileNotFoundError:
+            problems.append(f"{rel}: missing file (the scene has ego poses for other samples)")
+            continue
+        except OSError as e:
+            problems.append(f"{rel}: unreadable ({e.strerror or e})")
+            continue
+        found = ego_pose_problem(data)
+        if found:
+            problems.append(f"{rel}: {found}")
     return problems
 
 
@@ -245,11 +263,12 @@ def _split_problems(ds: FogDrive) -> list[str]:
         checks = check_splits(ds.splits, [sc["name"] for sc in ds.scene])
     except (ValueError, TypeError) as e:
         return [f"{where}: {e}"]
-    problems = [f"splits: {key}: {checks[key]}" for key in
+    files = f" ({where}, against {ds.dataroot / 'index' / 'scene.json'})"
+    problems = [f"splits: {key}: {checks[key]}{files}" for key in
                 ("duplicate_assignments", "scenes_in_no_split", "scenes_in_split_but_not_in_index") if checks[key]]  # fmt: skip
     for split, share in checks["day_share"].items():
         if ds.splits.get(split) and share != 0.5:
-            problems.append(f"splits: {split} is {share:.0%} day, not 50 %")
+            problems.append(f"splits: {split} is {share:.0%} day, not 50 %{files}")
     return problems
 
 

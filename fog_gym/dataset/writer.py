@@ -12,6 +12,8 @@ Example:
 
 from __future__ import annotations
 
+import contextlib
+import errno as errno_module
 import hashlib
 import json
 import os
@@ -27,8 +29,10 @@ import numpy as np
 
 from fog_gym.dataset.layout import (
     BBOX_3D, DATA_ROOT, FOGDRIVE_CHANNELS, EXTRINSIC_FILE, LAYOUT_FILE, SAMPLE_PERIOD_US, SCENE_LAYOUT_FILE, ChannelSpec,
-    channel_path, check_layout, is_fogdrive_layout, layout_from_json, layout_to_json, parse_scene_folder, scene_name,
+    channel_path, check_layout, ego_pose_path, is_fogdrive_layout, layout_from_json, layout_to_json, parse_scene_folder,
+    scene_name,
 )  # fmt: skip
+from fog_gym.dataset.poses import encode_ego_pose
 from fog_gym.encoding import encode_depth, semantic_to_carla_rgb
 
 # PNG is lossless at every setting. Measured on one full frame (24 PNGs at 1280×960, 2-core CPU): zlib level 1
@@ -37,18 +41,118 @@ from fog_gym.encoding import encode_depth, semantic_to_carla_rgb
 PNG_PARAMS = [cv2.IMWRITE_PNG_COMPRESSION, 1, cv2.IMWRITE_PNG_FILTER, cv2.IMWRITE_PNG_FILTER_NONE]
 
 
+EGO_POSE = "EGO_POSE"  # the key of a sample's ego-pose file among its encoded files (not a channel)
+
+
 def token_for(*parts: object) -> str:
     """A deterministic uuid4-formatted token for ``parts``."""
     digest = hashlib.sha256("|".join(str(p) for p in parts).encode()).digest()
     return str(uuid.UUID(bytes=digest[:16], version=4))
 
 
-def _atomic_write(path: Path, data: bytes) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
+class WriteError(OSError):
+    """A file of the data path could not be written (disk full, permission lost, …): ``what`` failed at ``path``
+    because of ``reason``. ``str()`` is the one line the commands print: ``<what> (<path>): <reason>``. Its
+    temporary file is already removed."""
+
+    def __init__(self, what: str, path: str | Path, reason: str, errno: int | None = None) -> None:
+        super().__init__(errno, reason, str(path))
+        self.what, self.path, self.reason = what, str(path), reason
+
+    def __str__(self) -> str:
+        return f"{self.what} ({self.path}): {self.reason}"
+
+    def __reduce__(self):  # picklable across worker processes despite the custom signature
+        return (WriteError, (self.what, self.path, self.reason, self.errno))
+
+    def with_what(self, what: str) -> WriteError:
+        """The same failure described as ``what`` (the caller knows what the file was)."""
+        return WriteError(what, self.path, self.reason, self.errno)
+
+    @classmethod
+    def from_os_error(cls, what: str, path: str | Path, error: OSError) -> WriteError:
+        if isinstance(error, WriteError):
+            return error
+        return cls(what, getattr(error, "filename", None) or path, error.strerror or str(error), error.errno)
+
+
+#: Fault injection for tests: ``FOG_GYM_FAIL_WRITES="<ERRNO NAME>:<n>"`` (e.g. ``ENOSPC:40``) makes every file write
+#: of this process from its n-th on (counting from 0) fail half-way with that error, as a full disk or a lost
+#: permission would. Worker processes inherit the variable and count their own writes. Unset: no effect.
+FAULT_VARIABLE = "FOG_GYM_FAIL_WRITES"
+_fault_state = {"spec": None, "count": 0}
+
+
+def _injected_fault() -> OSError | None:
+    spec = os.environ.get(FAULT_VARIABLE)
+    if spec != _fault_state["spec"]:
+        _fault_state.update(spec=spec, count=0)
+    if not spec:
+        return None
+    name, _, after = spec.partition(":")
+    number = getattr(errno_module, name, None)
+    if not isinstance(number, int) or not after.isdigit():
+        raise ValueError(f"{FAULT_VARIABLE} must look like ENOSPC:40, got {spec!r}")
+    _fault_state["count"] += 1
+    return OSError(number, os.strerror(number)) if _fault_state["count"] > int(after) else None
+
+
+def _write_temporary(path: Path, data: bytes) -> Path:
+    """Write ``data`` beside ``path`` under a temporary name; return that name. On failure nothing is left."""
     tmp = path.with_name(f".{path.name}.tmp")
-    with open(tmp, "wb") as f:
-        f.write(data)
-    os.replace(tmp, path)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fault = _injected_fault()
+        with open(tmp, "wb") as f:
+            if fault is not None:
+                f.write(data[: len(data) // 2])
+                raise fault
+            f.write(data)
+    except BaseException as e:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        if isinstance(e, OSError):
+            raise WriteError.from_os_error("cannot write a file", path, e) from None
+        raise
+    return tmp
+
+
+def _replace(tmp: Path, path: Path) -> None:
+    try:
+        os.replace(tmp, path)
+    except OSError as e:
+        with contextlib.suppress(OSError):
+            tmp.unlink()
+        raise WriteError.from_os_error("cannot write a file", path, e) from None
+
+
+def _atomic_write(path: Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` through a temporary file renamed into place; on any failure the temporary file
+    is removed and :class:`WriteError` raised (an interrupt is re-raised after the same clean-up)."""
+    path = Path(path)
+    _replace(_write_temporary(path, data), path)
+
+
+def atomic_write_all(files: Mapping[Path, bytes]) -> None:
+    """Write several files so that either all are replaced or none: every temporary file is written first, then
+    all are renamed into place. On a failure no temporary file is left and no file has changed."""
+    done: list[tuple[Path, Path]] = []
+    try:
+        for path, data in files.items():
+            done.append((_write_temporary(Path(path), data), Path(path)))
+    except BaseException:
+        for tmp, _ in done:
+            with contextlib.suppress(OSError):
+                tmp.unlink()
+        raise
+    for k, (tmp, path) in enumerate(done):
+        try:
+            _replace(tmp, path)
+        except BaseException:
+            for later, _ in done[k + 1 :]:
+                with contextlib.suppress(OSError):
+                    later.unlink()
+            raise
 
 
 def encode_png(rgb: np.ndarray) -> bytes:
@@ -78,8 +182,11 @@ def default_workers() -> int:
 class SceneWriter:
     """Writes one scene's samples in the FogDrive layout under ``root``.
 
-    ``write_sample`` takes a paired-fog observation (clean + ``*_FOG_{LIGHT,MODERATE,DENSE}``) and the env's
-    ``info`` (``boxes_2d``, ``boxes_3d``); ``write_extrinsics`` the ``info["extrinsics"]`` dict.
+    ``write_sample`` takes a paired-fog observation (clean + ``*_FOG_{LIGHT,MODERATE,DENSE}``), the env's
+    ``info`` (``boxes_2d``, ``boxes_3d``) and, where known, the ego pose (``translation``, ``yaw``, ``velocity``,
+    ``lidar_to_ego``: :mod:`fog_gym.dataset.poses`; written as ``ego_pose/<index>.json`` before ``BBOX_3D``);
+    ``write_extrinsics`` the ``info["extrinsics"]`` dict. A file that cannot be written raises
+    :class:`WriteError` naming the sample, the file and the reason, with no temporary file left behind.
 
     ``channels`` is the scene's layout: a ``{channel: ChannelSpec}`` mapping (a rig's,
     :func:`fog_gym.sensors.rig_layout`) or FogDrive channel names (default: all 35). A layout with channels that
@@ -122,22 +229,31 @@ class SceneWriter:
             self._pool = None
 
     def _path(self, channel: str, index: int) -> Path:
+        if channel == EGO_POSE:
+            return self.root / ego_pose_path(self.folder, index)
         return self.root / channel_path(channel, self.folder, index, self.layout)
 
     def _write_layout(self) -> None:
         if not self._layout_written:
             data = json.dumps(layout_to_json(self.layout), indent=1).encode()
-            _atomic_write(self.root / DATA_ROOT / self.folder / SCENE_LAYOUT_FILE, data)
+            try:
+                _atomic_write(self.root / DATA_ROOT / self.folder / SCENE_LAYOUT_FILE, data)
+            except WriteError as e:
+                raise e.with_what(f"cannot write the channel layout of scene {self.folder}") from None
             self._layout_written = True
 
     def write_extrinsics(self, extrinsics: dict[str, np.ndarray]) -> None:
         self._write_layout()
         data = {k: np.asarray(v).tolist() for k, v in extrinsics.items()}
-        _atomic_write(self.root / DATA_ROOT / self.folder / EXTRINSIC_FILE, json.dumps(data).encode())
+        try:
+            _atomic_write(self.root / DATA_ROOT / self.folder / EXTRINSIC_FILE, json.dumps(data).encode())
+        except WriteError as e:
+            raise e.with_what(f"cannot write the extrinsics of scene {self.folder}") from None
 
-    def encode_jobs(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> dict[str, Callable[[], bytes]]:
-        """One zero-argument encoder per channel of the writer, in write order (``BBOX_3D`` last); each returns
-        the file's bytes."""
+    def encode_jobs(self, obs: dict[str, np.ndarray], info: dict[str, Any],
+                    ego_pose: Mapping[str, Any] | None = None) -> dict[str, Callable[[], bytes]]:  # fmt: skip
+        """One zero-argument encoder per channel of the writer (and ``EGO_POSE`` where ``ego_pose`` is given), in
+        write order (``BBOX_3D`` last); each returns the file's bytes."""
         from fog_gym.dataset.packing import unpack_points
 
         def png(key: str, convert: Callable[[np.ndarray], np.ndarray] | None = None) -> Callable[[], bytes]:
@@ -168,34 +284,43 @@ class SceneWriter:
                 jobs[channel] = box2d(channel.removesuffix("_BBOX"))
             else:  # clean or fogged RGB
                 jobs[channel] = png(channel)
+        if ego_pose is not None:
+            pose = encode_ego_pose(**ego_pose)  # checked now, before any file of the sample is written
+            jobs[EGO_POSE] = lambda: pose
         b3 = info["boxes_3d"]
         jobs["BBOX_3D"] = lambda: json.dumps({
             "bboxes_3d": np.asarray(b3["corners"]).tolist(), "vehicle_ids": np.asarray(b3["vehicle_ids"]).tolist(),
         }).encode()  # fmt: skip
         return jobs
 
-    def encode_sample(self, obs: dict[str, np.ndarray], info: dict[str, Any]) -> dict[str, bytes]:
+    def encode_sample(self, obs: dict[str, np.ndarray], info: dict[str, Any],
+                      ego_pose: Mapping[str, Any] | None = None) -> dict[str, bytes]:  # fmt: skip
         """The file contents of the writer's channels for one sample (no I/O, one after another), ``BBOX_3D``
         last."""
-        return {channel: job() for channel, job in self.encode_jobs(obs, info).items()}
+        return {channel: job() for channel, job in self.encode_jobs(obs, info, ego_pose).items()}
 
     def write_files(self, index: int, files: dict[str, bytes]) -> None:
         """Write encoded files; ``BBOX_3D`` goes last so its presence marks the sample complete."""
         self._write_layout()
-        for channel, data in files.items():
-            if channel != "BBOX_3D":
-                _atomic_write(self._path(channel, index), data)
-        _atomic_write(self._path("BBOX_3D", index), files["BBOX_3D"])
+        try:
+            for channel, data in files.items():
+                if channel != "BBOX_3D":
+                    _atomic_write(self._path(channel, index), data)
+            _atomic_write(self._path("BBOX_3D", index), files["BBOX_3D"])
+        except WriteError as e:
+            raise e.with_what(f"cannot write sample {index} of scene {self.folder}") from None
 
-    def write_sample(self, index: int, obs: dict[str, np.ndarray], info: dict[str, Any]) -> None:
-        """Encode and write one sample; with ``workers > 1`` its files in parallel, ``BBOX_3D`` after all."""
+    def write_sample(self, index: int, obs: dict[str, np.ndarray], info: dict[str, Any],
+                     ego_pose: Mapping[str, Any] | None = None) -> None:  # fmt: skip
+        """Encode and write one sample; with ``workers > 1`` its files in parallel, ``BBOX_3D`` after all.
+        Every thread's failed file is cleaned up before the first error is raised."""
         self._write_layout()
         if self.workers == 1:
-            self.write_files(index, self.encode_sample(obs, info))
+            self.write_files(index, self.encode_sample(obs, info, ego_pose))
             return
         if self._pool is None:
             self._pool = ThreadPoolExecutor(self.workers, thread_name_prefix="fogdrive-writer")
-        jobs = self.encode_jobs(obs, info)
+        jobs = self.encode_jobs(obs, info, ego_pose)
         last = jobs.pop("BBOX_3D")
 
         def write(channel: str, job: Callable[[], bytes]) -> None:
@@ -203,9 +328,12 @@ class SceneWriter:
 
         futures = [self._pool.submit(write, channel, job) for channel, job in jobs.items()]
         errors = [e for e in (f.exception() for f in futures) if e is not None]  # waits for every file
-        if errors:
-            raise errors[0]  # the sample stays incomplete: BBOX_3D is not written
-        _atomic_write(self._path("BBOX_3D", index), last())
+        try:
+            if errors:
+                raise errors[0]  # the sample stays incomplete: BBOX_3D is not written
+            _atomic_write(self._path("BBOX_3D", index), last())
+        except WriteError as e:
+            raise e.with_what(f"cannot write sample {index} of scene {self.folder}") from None
 
 
 def _png_size(path: Path) -> tuple[int, int]:
@@ -292,13 +420,20 @@ def build_index(root: str | Path, split_seed: int = 0) -> dict[str, Any]:
 
     tables = {"scene": scenes, "sample": samples, "sample_data": sample_data}
     splits = make_splits([sc["name"] for sc in scenes], seed=split_seed)
-    for name, table in tables.items():
-        _atomic_write(root / "index" / f"{name}.json", json.dumps(table).encode())
-    _atomic_write(root / "index" / "splits.json", json.dumps(splits).encode())
+    files = {root / "index" / f"{name}.json": json.dumps(table).encode() for name, table in tables.items()}
+    files[root / "index" / "splits.json"] = json.dumps(splits).encode()
     layout_path = root / LAYOUT_FILE
-    if is_fogdrive_layout(dataset_layout):  # FogDrive's own channels: no layout file, the format's default
-        layout_path.unlink(missing_ok=True)
-    else:
+    fogdrive_layout = is_fogdrive_layout(dataset_layout)
+    if not fogdrive_layout:
         check_layout(dataset_layout)
-        _atomic_write(layout_path, (json.dumps(layout_to_json(dataset_layout), indent=1) + "\n").encode())
+        files[layout_path] = (json.dumps(layout_to_json(dataset_layout), indent=1) + "\n").encode()
+    try:
+        atomic_write_all(files)  # all tables or none: a full disk cannot leave a mixed index
+        if fogdrive_layout:  # FogDrive's own channels: no layout file, the format's default
+            try:
+                layout_path.unlink(missing_ok=True)
+            except OSError as e:
+                raise WriteError.from_os_error("cannot write the index", layout_path, e) from None
+    except WriteError as e:
+        raise e.with_what(f"cannot write the index of {root}") from None
     return {**tables, "splits": splits}

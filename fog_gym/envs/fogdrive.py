@@ -303,6 +303,18 @@ class FogDriveEnv(gym.Env):
         """Each camera's 3×3 intrinsic matrix K (pixel centres at +0.5; CARLA's pinhole)."""
         return self.cameras.intrinsics
 
+    def ego_pose_record(self) -> dict[str, Any]:
+        """The ego's pose at the current frame as the dataset writer stores it (:mod:`fog_gym.dataset.poses`):
+        ``translation`` and ``yaw`` of the ego origin (ground under its centre) and its ``velocity``, in the world
+        frame (CARLA's axes), and ``lidar_to_ego``, the 4×4 mount of the LiDAR whose frame the 3D boxes use."""
+        if self.scene is None:
+            raise RuntimeError("call reset() before ego_pose_record()")
+        x, y, yaw = self.scene.ego_pose
+        v = self.scene.vehicles
+        velocity = v.velocities[v.ids == self.scene.ego_id][0]
+        return {"translation": (x, y, 0.0), "yaw": yaw, "velocity": tuple(float(c) for c in velocity),
+                "lidar_to_ego": self._label_lidar_to_vehicle.copy()}  # fmt: skip
+
     @property
     def instance_buffers(self) -> dict[str, np.ndarray]:
         """Per-camera instance ids of the latest frame (vehicle id; 0 = static world and sky)."""
