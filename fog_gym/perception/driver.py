@@ -83,12 +83,13 @@ class DetectionDriver:
 
 
 def sensor_reach(sensors: tuple[str, ...], fog: Any, episodes: int = 8, seed: int = 3_000_000,
-                 percentile: float = 95.0) -> float:  # fmt: skip
+                 percentile: float = 95.0, env_id: str = "FogDriveRLHazard-v0", **kwargs: Any) -> float:  # fmt: skip
     """How far a sensor set sees in fog ``fog`` on the hazard preset: the ``percentile`` of the distances at which
-    its fused list holds a vehicle, over ``episodes`` episodes driven at the ego's initial speed."""
+    its fused list holds a vehicle, over ``episodes`` episodes driven at the ego's initial speed (``kwargs``: more
+    arguments of the env)."""
     import gymnasium as gym
 
-    env = gym.make("FogDriveRLHazard-v0", observation="objects", sensors=sensors, fog=fog)
+    env = gym.make(env_id, observation="objects", sensors=sensors, fog=fog, **kwargs)
     dists: list[float] = []
     for e in range(episodes):
         _, info = env.reset(seed=seed + e)
@@ -100,11 +101,13 @@ def sensor_reach(sensors: tuple[str, ...], fog: Any, episodes: int = 8, seed: in
     return float(np.percentile(dists, percentile)) if dists else 0.0
 
 
-def drive(sensors: tuple[str, ...], fog: Any, reach: float, episodes: int = 32, seed: int = 2_000_000) -> dict[str, float]:
-    """:class:`DetectionDriver` on the hazard preset: mean return, collision rate and mean speed over ``episodes``."""
+def drive(sensors: tuple[str, ...], fog: Any, reach: float, episodes: int = 32, seed: int = 2_000_000,
+          env_id: str = "FogDriveRLHazard-v0", **kwargs: Any) -> dict[str, float]:  # fmt: skip
+    """:class:`DetectionDriver` on the hazard preset: mean return, collision rate and mean speed over ``episodes``
+    (seeds ``seed + k``; ``kwargs``: more arguments of the env)."""
     import gymnasium as gym
 
-    env = gym.make("FogDriveRLHazard-v0", observation="objects", sensors=sensors, fog=fog)
+    env = gym.make(env_id, observation="objects", sensors=sensors, fog=fog, **kwargs)
     driver = DetectionDriver(reach)
     returns, crashes, speeds = [], [], []
     for e in range(episodes):

@@ -245,3 +245,43 @@ def test_agent_probe_refuses_bad_settings_before_work(tmp_path, capsys):
     err = capsys.readouterr().err
     assert "no such model file" in err and "must be" in err
     assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.parametrize("kwargs, message", [
+    ({"sensor_sets": ("sonar",)}, "sensor_sets must"), ({"sensor_sets": ("lidar", "lidar")}, "sensor_sets must"),
+    ({"sensor_sets": ("lidar",)}, "observation=objects"),
+    ({"sensor_sets": ("lidar",), "env_kwargs": {"observation": "objects", "sensors": ["radar"]}}, "must not set sensors"),
+    ({"algo_kwargs": {"n_steps": object()}}, "algo_kwargs must be JSON"),
+])  # fmt: skip
+def test_bad_sensor_study_settings_are_refused_naming_the_setting(kwargs, message):
+    with pytest.raises(ValueError, match=message):
+        RLConfig(**kwargs)
+
+
+def test_a_sensor_study_has_one_driver_per_set_and_fog_then_agents_per_set_condition_and_seed():
+    config = RLConfig(env_id="FogDriveRLHazard-v0", env_kwargs={"observation": "objects"}, conditions=("clear", "dense"),
+                      sensor_sets=("lidar", "radar"), steps=64, episodes=2, envs=1)  # fmt: skip
+    units = RLStudy(config).units([0])
+    drivers = [u.key for u in units if u.stage == "driver"]
+    assert drivers == [f"driver_{s}_{t}_2" for s in ("lidar", "radar") for t in ("clear", "light", "moderate", "dense")]
+    train = [u for u in units if u.stage == "train"]
+    assert [u.key for u in train] == ["lidar_clear_s0", "lidar_dense_s0", "radar_clear_s0", "radar_dense_s0"]
+    assert train[2].params == {"condition": "clear", "sensors": "radar"}
+    # a study without sensor sets keeps the settings (and so the folders) it had before sensor sets existed
+    assert "sensor_sets" not in RLStudy(RLConfig(steps=64)).settings()
+    assert RLStudy(config).settings()["sensor_sets"] == ["lidar", "radar"]
+
+
+def test_the_sensor_study_env_sees_only_its_sensor_set_and_the_learner_takes_the_overrides(tmp_path):
+    pytest.importorskip("stable_baselines3")
+    from fog_gym.experiments.rl_bench.train import new_model
+
+    kwargs = {"observation": "objects", "sensors": rl_data.SENSOR_SETS["radar"]}
+    venv = rl_data.vec_env("native", "FogDriveRLHazard-v0", 2, "clear", 0, kwargs)
+    obs = venv.reset()
+    # features: presence, x, y, vx, vy, lane and one flag per sensor of the set
+    assert obs.shape[0] == 2 and obs.shape[-1] == 6 + 1
+    model = new_model("PPO", "MlpPolicy", venv, 64, 2, 0, "cpu", str(tmp_path),
+                      overrides={"n_steps": 16, "batch_size": 32, "n_epochs": 2})  # fmt: skip
+    assert (model.n_steps, model.batch_size, model.n_epochs) == (16, 32, 2)
+    venv.close()

@@ -6,9 +6,8 @@ Conditions: clear, light, moderate, dense (fixed fog), mixed (a seeded level per
 (visibility sliding from clear to 50 m linearly in α). The curricula are spread over the run's expected episodes
 (:data:`EPISODE_STEPS`) and applied by :class:`fog_gym.rl.sb3.VecFogCurriculum`.
 
-The vector env is made by one function, :func:`subproc_vec_env` (SB3's ``SubprocVecEnv``), looked up by name in
-:data:`VEC_ENVS`: a native Gymnasium vector env (``gym.make_vec(..., vectorization_mode="vector_entry_point")``
-behind an SB3 adapter) is one more entry with the same signature.
+The vector env is made by one function looked up by name in :data:`VEC_ENVS`: :func:`subproc_vec_env` (SB3's
+``SubprocVecEnv``) or :func:`native_vec_env` (fog-gym's native vector env behind its SB3 adapter).
 
 Example:
     >>> fog, schedule = schedule_for("curriculum", 0, 50_000, "FogDriveRLHazard-v0", 20.0)
@@ -81,8 +80,30 @@ def subproc_vec_env(env_id: str, n: int, fog: Any, seed: int, kwargs: Mapping[st
     return cls([env_fn(env_id, fog, seed + r, kwargs) for r in range(n)])
 
 
+def native_vec_env(env_id: str, n: int, fog: Any, seed: int, kwargs: Mapping[str, Any]):
+    """fog-gym's native vector env (``n`` worlds in this process, :mod:`fog_gym.envs.vector`) behind the SB3 adapter;
+    sub-env i of the first reset is seeded ``seed + i``."""
+    import gymnasium as gym
+
+    import fog_gym  # noqa: F401
+    from fog_gym.rl.sb3 import VectorEnvAdapter
+
+    venv = VectorEnvAdapter(gym.make_vec(env_id, num_envs=n, vectorization_mode="vector_entry_point", fog=fog,
+                                         info_detections=False, **kwargs))  # fmt: skip
+    venv.seed(seed)
+    return venv
+
+
 #: Vector-env factories by name: ``(env_id, n, fog, seed, kwargs) -> SB3 VecEnv``.
-VEC_ENVS: dict[str, Callable[..., Any]] = {"subproc": subproc_vec_env}
+VEC_ENVS: dict[str, Callable[..., Any]] = {"subproc": subproc_vec_env, "native": native_vec_env}
+#: Sensor sets of the perceived-objects observation (``--sensor-sets``): name → the env's ``sensors``.
+SENSOR_SETS: dict[str, list[str]] = {"camera": ["camera"], "lidar": ["lidar"], "radar": ["radar"],
+                                     "fused": ["camera", "lidar", "radar"]}  # fmt: skip
+
+
+def agent_name(condition: str, seed: int, sensors: str | None = None) -> str:
+    """An agent's name: ``<condition>_s<seed>``, or ``<sensors>_<condition>_s<seed>`` in a study over sensor sets."""
+    return f"{sensors}_{condition}_s{seed}" if sensors else f"{condition}_s{seed}"
 
 
 def vec_env(kind: str, env_id: str, n: int, fog: Any, seed: int, kwargs: Mapping[str, Any]):

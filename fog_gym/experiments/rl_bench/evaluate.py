@@ -8,7 +8,7 @@ from typing import Any
 
 import numpy as np
 
-from fog_gym.experiments.rl_bench.data import EVAL_SEED, POLICY_HZ, vec_env
+from fog_gym.experiments.rl_bench.data import EVAL_SEED, POLICY_HZ, SENSOR_SETS, vec_env
 from fog_gym.experiments.rl_bench.train import algo_class
 
 #: (key, label, format) of every metric, in the report's order.
@@ -16,13 +16,16 @@ METRICS = (("collision", "collision rate", "{:.0%}"), ("return", "return", "{:.1
            ("speed", "mean speed [m/s]", "{:.1f}"), ("distance", "distance driven [m]", "{:.0f}"))  # fmt: skip
 
 
-def evaluate(config: Any, model_path: Path, fog: str, episodes: int | None = None) -> dict[str, list[float]]:
+def evaluate(config: Any, model_path: Path, fog: str, episodes: int | None = None,
+             sensors: str | None = None) -> dict[str, list[float]]:  # fmt: skip
     """``episodes`` (default ``config.episodes``) deterministic episodes of the agent at ``model_path`` in
-    ``config.envs`` parallel envs (at most one per episode); per-episode metrics (:data:`METRICS`)."""
+    ``config.envs`` parallel envs (at most one per episode; observing sensor set ``sensors`` where given);
+    per-episode metrics (:data:`METRICS`)."""
     episodes = config.episodes if episodes is None else episodes
     model = algo_class(config.algo).load(model_path, device=config.device)
     n = min(config.envs, episodes)
-    venv = vec_env(config.vec_env, config.env_id, n, fog, EVAL_SEED, config.make_kwargs())
+    kwargs = config.make_kwargs() if sensors is None else {**config.make_kwargs(), "sensors": SENSOR_SETS[sensors]}
+    venv = vec_env(config.vec_env, config.env_id, n, fog, EVAL_SEED, kwargs)
     venv.seed(EVAL_SEED)
     obs = venv.reset()
     dt = 1.0 / POLICY_HZ

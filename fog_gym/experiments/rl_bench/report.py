@@ -217,3 +217,141 @@ def condition_curves(out: Path, cond: str, seeds: Sequence[int], env: str, path:
     ax.legend(fontsize=7)
     fig.tight_layout()
     save_figure(fig, path)
+
+
+# -- a study over sensor sets (the perceived-objects observation) ---------------------------------------------------
+
+
+def complete(table: dict[str, Any]) -> dict[str, Any]:
+    """The rows of ``table`` that have every test fog (an interrupted study reports what it has)."""
+    return {cond: row for cond, row in table.items() if all(t in row for t in TEST_LEVELS)}
+
+
+def _cell(c: dict[str, Any], fmt: str, scale: float = 1.0) -> str:
+    ci = "n/a" if c["ci95"] is None else fmt.format(c["ci95"] * scale)
+    return f"{fmt.format(c['mean'] * scale)} ± {ci}"
+
+
+def best_condition(table: dict[str, Any], test: str) -> str | None:
+    """The training condition with the highest mean return tested at ``test`` (None for an empty table)."""
+    rows = [c for c in CONDITIONS if c in table and test in table[c]]
+    return max(rows, key=lambda c: table[c][test]["return"]["mean"]) if rows else None
+
+
+def sensor_statements(sset: str, table: dict[str, Any], drivers: dict[str, Any]) -> list[str]:
+    """What one sensor set's matrix says: the fog effect, the best condition in dense fog and its cost in clear air,
+    the curricula against dense-only and mixed training, and the agents against the scripted driver.
+
+    >>> cell = lambda r, ci: {"return": {"mean": r, "ci95": ci}, "collision": {"mean": 0.1, "ci95": 0.05}}
+    >>> t = {"clear": {"clear": cell(40, 2), "dense": cell(20, 2)}, "dense": {"clear": cell(30, 2), "dense": cell(25, 2)}}
+    >>> sensor_statements("lidar", t, {"clear": {"return": 50.0}})[1]
+    '- Best in dense fog: trained dense (return 25.0 ± 2.0); it costs 10.0 in clear air against the best there (clear, 40.0).'
+    """
+    out = [f"- Fog effect (tested clear vs dense, same agents): " + "; ".join(
+        f"{cond} {table[cond]['clear']['return']['mean']:.1f} vs {table[cond]['dense']['return']['mean']:.1f} — "
+        f"{_verdict(table[cond]['clear']['return'], table[cond]['dense']['return'])}"
+        for cond in CONDITIONS if cond in table and "clear" in table[cond] and "dense" in table[cond])]  # fmt: skip
+    best_d, best_c = best_condition(table, "dense"), best_condition(table, "clear")
+    if best_d is not None and best_c is not None:
+        d, cost = table[best_d]["dense"]["return"], table[best_c]["clear"]["return"]["mean"] - table[best_d]["clear"]["return"]["mean"]
+        out.append(f"- Best in dense fog: trained {best_d} (return {_cell(d, '{:.1f}')}); it costs {cost:.1f} in clear air "
+                   f"against the best there ({best_c}, {table[best_c]['clear']['return']['mean']:.1f}).")  # fmt: skip
+    for cur in ("curriculum", "success", "continuous"):
+        if cur not in table or "dense" not in table[cur]:
+            continue
+        parts = [f"vs {ref} {table[ref]['dense']['return']['mean']:.1f} — "
+                 f"{_verdict(table[cur]['dense']['return'], table[ref]['dense']['return'])}"
+                 for ref in ("dense", "mixed") if ref in table and "dense" in table[ref]]  # fmt: skip
+        if parts:
+            out.append(f"- {cur} tested dense: {table[cur]['dense']['return']['mean']:.1f}, " + ", ".join(parts))
+    gaps = []
+    for test in TEST_LEVELS:
+        best = best_condition(table, test)
+        drv = drivers.get(test)
+        if best is not None and drv and drv["return"] > 0:
+            gaps.append(f"{test} {table[best][test]['return']['mean'] / drv['return']:.0%} ({best})")
+    if gaps:
+        out.append("- Best agent / scripted driver (return): " + ", ".join(gaps))
+    return out
+
+
+def render_sensor_study(tables: dict[str, Any], drivers: dict[str, Any], meta: dict[str, Any]) -> str:
+    """The Markdown of a study over sensor sets: the drivers' bound, then per set its return and collision-rate
+    matrices (mean over training seeds ± 95 % CI across seeds) and :func:`sensor_statements`."""
+    lines = [f"# {meta['env']} with perceived objects: fog × training condition × sensor set", "",
+             f"{meta['seeds']} training seed(s) × {meta['steps']} steps per agent ({meta.get('algo', 'PPO')}), "
+             f"{meta['episodes']} evaluation episodes per agent and test fog (seeds {EVAL_SEED}+). Cells: mean over "
+             "training seeds ± 95 % CI across seeds (n/a for one seed).", ""]  # fmt: skip
+    if meta.get("smoke"):
+        lines += [f"**{meta['smoke']}**", ""]
+    lines += ["## The scripted detection driver (return, collision rate)", "",
+              "| sensors | " + " | ".join(TEST_LEVELS) + " |", "|---|" + "---|" * len(TEST_LEVELS)]  # fmt: skip
+    for sset in meta["sensor_sets"]:
+        d = drivers.get(sset, {})
+        lines.append(f"| {sset} | " + " | ".join(f"{d[t]['return']:.1f} ({d[t]['collisions']:.0%})" if t in d else "—"
+                                                 for t in TEST_LEVELS) + " |")  # fmt: skip
+    for sset in meta["sensor_sets"]:
+        table = tables.get(sset, {})
+        lines += ["", f"## {sset}", ""]
+        for metric, label, fmt, scale in (("return", "return", "{:.1f}", 1.0), ("collision", "collision rate [%]", "{:.0f}", 100.0)):
+            lines += [f"**{label}**", "", "| trained on \\ tested on | " + " | ".join(TEST_LEVELS) + " |",
+                      "|---|" + "---|" * len(TEST_LEVELS)]  # fmt: skip
+            for cond in [c for c in CONDITIONS if c in table]:
+                lines.append(f"| {cond} | " + " | ".join(_cell(table[cond][t][metric], fmt, scale) if t in table[cond]
+                                                         else "—" for t in TEST_LEVELS) + " |")  # fmt: skip
+            lines.append("")
+        lines += sensor_statements(sset, table, drivers.get(sset, {}))
+    return "\n".join(lines)
+
+
+def result_json(tables: dict[str, Any], drivers: dict[str, Any], meta: dict[str, Any]) -> dict[str, Any]:
+    """The machine-readable result: env, algo, steps, seeds, the drivers' return and collision rate per sensor set and
+    fog, and every cell's mean and 95 % CI (``[lo, hi]``, null for one seed) of return and collision rate."""
+
+    def ci(c: dict[str, Any]) -> list[float] | None:
+        return None if c["ci95"] is None else [c["mean"] - c["ci95"], c["mean"] + c["ci95"]]
+
+    cells = [{"sensor": sset, "train": cond, "test": test,
+              "return_mean": row[test]["return"]["mean"], "return_ci": ci(row[test]["return"]),
+              "collision_mean": row[test]["collision"]["mean"], "collision_ci": ci(row[test]["collision"])}
+             for sset in meta["sensor_sets"] for cond, row in tables.get(sset, {}).items() for test in TEST_LEVELS
+             if test in row]  # fmt: skip
+    return {"env": meta["env"], "algo": meta.get("algo", "PPO"), "steps": meta["steps"], "seeds": meta["seeds"],
+            "drivers": {s: {t: {"return": d["return"], "collisions": d["collisions"]} for t, d in drivers.get(s, {}).items()}
+                        for s in meta["sensor_sets"]},
+            "cells": cells}  # fmt: skip
+
+
+def sensor_fog_effect(tables: dict[str, Any], drivers: dict[str, Any], env: str, path: Path) -> None:
+    """Per sensor set: the best-in-dense condition's return and collision rate against the test fog (± 95 % CI
+    across seeds), the clear-trained agents', and the scripted driver's (dashed)."""
+    import matplotlib.pyplot as plt
+
+    from fog_gym.experiments.runner import save_figure
+
+    sets = [s for s in tables if s is not None]
+    fig, axes = plt.subplots(2, max(1, len(sets)), figsize=(3.4 * max(1, len(sets)), 6), dpi=120, squeeze=False)
+    x = np.arange(len(TEST_LEVELS))
+    for col, sset in enumerate(sets):
+        table = complete(tables[sset])
+        rows = [c for c in dict.fromkeys(("clear", best_condition(table, "dense"))) if c in table]
+        for r, (metric, label, scale) in enumerate((("return", "return", 1.0), ("collision", "collisions [%]", 100.0))):
+            ax = axes[r, col]
+            for k, cond in enumerate(rows):
+                cells = [table[cond][t][metric] for t in TEST_LEVELS]
+                ax.errorbar(x + 0.05 * k, [c["mean"] * scale for c in cells],
+                            yerr=[0.0 if c["ci95"] is None else c["ci95"] * scale for c in cells], marker="o", ms=4,
+                            capsize=3, label=f"trained {cond}")  # fmt: skip
+            d = drivers.get(sset, {})
+            if all(t in d for t in TEST_LEVELS):
+                key = "return" if metric == "return" else "collisions"
+                ax.plot(x, [d[t][key] * scale for t in TEST_LEVELS], "k--", lw=1, label="scripted driver")
+            ax.set_xticks(x, TEST_LEVELS, fontsize=7)
+            ax.set_title(f"{sset}: {label}", fontsize=9)
+            if metric == "collision":
+                ax.set_ylim(-5, 105)
+            if col == 0:
+                ax.legend(fontsize=6)
+    fig.suptitle(f"{env}: tested fog (mean over training seeds ± 95 % CI)", fontsize=9)
+    fig.tight_layout()
+    save_figure(fig, path)

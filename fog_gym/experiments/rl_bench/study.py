@@ -17,7 +17,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from fog_gym.experiments.rl_bench.data import CONDITIONS, DEFAULT_CONDITIONS, TEST_LEVELS, VEC_ENVS
+from fog_gym.experiments.rl_bench.data import (CONDITIONS, DEFAULT_CONDITIONS, EVAL_SEED, SENSOR_SETS, TEST_LEVELS,
+                                              VEC_ENVS, agent_name)  # fmt: skip
 from fog_gym.experiments.rl_bench.train import ALGOS
 from fog_gym.experiments.runner import Report, Study, Unit, aggregate
 
@@ -46,6 +47,11 @@ class RLConfig:
     checkpoint: int = 10_000
     device: str = "auto"
     torch_threads: int | None = None
+    #: sensor sets of the perceived-objects observation (:data:`~.data.SENSOR_SETS`): one agent per set, condition
+    #: and seed, and the scripted detection driver per set and test fog (empty: the env's own observation)
+    sensor_sets: tuple[str, ...] = ()
+    #: keyword arguments of the learner replacing the study's defaults (``--algo-kwarg``)
+    algo_kwargs: Mapping[str, Any] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         import gymnasium as gym
@@ -81,6 +87,19 @@ class RLConfig:
             raise ValueError(f"episode_seconds must be > 0, got {self.episode_seconds}")
         if self.torch_threads is not None and self.torch_threads < 1:
             raise ValueError(f"torch_threads must be >= 1, got {self.torch_threads}")
+        object.__setattr__(self, "sensor_sets", tuple(self.sensor_sets))
+        bad = [s for s in self.sensor_sets if s not in SENSOR_SETS]
+        if bad or len(set(self.sensor_sets)) < len(self.sensor_sets):
+            raise ValueError(f"sensor_sets must be distinct names of {tuple(SENSOR_SETS)}, got {list(self.sensor_sets)}")
+        if self.sensor_sets and self.env_kwargs.get("observation") != "objects":
+            raise ValueError("sensor_sets need the perceived-objects observation: --env-kwarg observation=objects")
+        if "sensors" in self.env_kwargs and self.sensor_sets:
+            raise ValueError("env_kwargs must not set sensors when sensor_sets does")
+        try:
+            json.dumps(dict(self.algo_kwargs))
+        except TypeError as e:
+            raise ValueError(f"algo_kwargs must be JSON values (they are part of the study's settings): {e}") from None
+        object.__setattr__(self, "algo_kwargs", dict(self.algo_kwargs))
 
     def make_kwargs(self) -> dict[str, Any]:
         """Keyword arguments of ``gym.make`` besides ``fog``."""
@@ -123,8 +142,11 @@ class RLStudy(Study):
 
     def settings(self) -> dict[str, Any]:
         c = self.config
-        return {"env": c.env_id, "env_kwargs": dict(c.env_kwargs), "algo": c.algo, "policy": c.policy,
-                "vec_env": c.vec_env, "steps": c.steps, "episode_seconds": c.episode_seconds, "envs": c.envs}  # fmt: skip
+        out = {"env": c.env_id, "env_kwargs": dict(c.env_kwargs), "algo": c.algo, "policy": c.policy,
+               "vec_env": c.vec_env, "steps": c.steps, "episode_seconds": c.episode_seconds, "envs": c.envs}  # fmt: skip
+        if c.sensor_sets or c.algo_kwargs:  # studies without them keep the settings (and folders) they had
+            out.update(sensor_sets=list(c.sensor_sets), algo_kwargs=dict(c.algo_kwargs))
+        return out
 
     def smoke_note(self, seeds: Sequence[int]) -> str:
         c = self.config
@@ -140,11 +162,15 @@ class RLStudy(Study):
 
     def units(self, seeds: Sequence[int]) -> list[Unit]:
         c = self.config
-        agents = [(cond, s) for s in seeds for cond in c.conditions]
-        train = [Unit("train", f"{cond}_s{s}", s, {"condition": cond}, cpus=c.envs) for cond, s in agents]
-        evals = [Unit("eval", f"{cond}_s{s}_{t}_{c.episodes}", s, {"condition": cond, "test": t},
-                      cpus=min(c.envs, c.episodes)) for cond, s in agents for t in TEST_LEVELS]  # fmt: skip
-        return train + evals
+        sets = c.sensor_sets or (None,)
+        agents = [(ss, cond, s) for s in seeds for ss in sets for cond in c.conditions]
+        train = [Unit("train", agent_name(cond, s, ss), s, {"condition": cond, "sensors": ss}, cpus=c.envs)
+                 for ss, cond, s in agents]  # fmt: skip
+        evals = [Unit("eval", f"{agent_name(cond, s, ss)}_{t}_{c.episodes}", s, {"condition": cond, "test": t,
+                      "sensors": ss}, cpus=min(c.envs, c.episodes)) for ss, cond, s in agents for t in TEST_LEVELS]  # fmt: skip
+        drivers = [Unit("driver", f"driver_{ss}_{t}_{c.episodes}", 0, {"sensors": ss, "test": t}, cpus=1)
+                   for ss in c.sensor_sets for t in TEST_LEVELS]  # fmt: skip
+        return drivers + train + evals
 
     def artefacts(self, unit: Unit) -> list[str]:
         return [f"models/{unit.key}.zip"] if unit.stage == "train" else []
@@ -154,16 +180,26 @@ class RLStudy(Study):
 
         if self.config.device == "cpu" or not torch.cuda.is_available():
             torch.set_num_threads(self.threads)  # the env workers need the cores; more threads only spin against them
+        sensors = unit.params.get("sensors")
+        if unit.stage == "driver":
+            from fog_gym.perception.driver import drive, sensor_reach
+
+            kw = {k: v for k, v in self.config.make_kwargs().items() if k != "observation"}
+            sset, test, c = tuple(SENSOR_SETS[sensors]), unit.params["test"], self.config
+            reach = sensor_reach(sset, test, env_id=c.env_id, **kw)
+            return drive(sset, test, reach, c.episodes, EVAL_SEED, env_id=c.env_id, **kw)
         if unit.stage == "train":
             from fog_gym.experiments.rl_bench.train import train_agent
 
-            return train_agent(self.config, unit.params["condition"], unit.seed, out, progress)
+            return train_agent(self.config, unit.params["condition"], unit.seed, out, progress, sensors)
         from fog_gym.experiments.rl_bench.evaluate import evaluate
 
-        agent = f"{unit.params['condition']}_s{unit.seed}"
-        return evaluate(self.config, out / "models" / f"{agent}.zip", unit.params["test"])
+        agent = agent_name(unit.params["condition"], unit.seed, sensors)
+        return evaluate(self.config, out / "models" / f"{agent}.zip", unit.params["test"], sensors=sensors)
 
     def describe(self, unit: Unit, result: dict[str, Any]) -> str:
+        if unit.stage == "driver":
+            return f"driver return {result['return']:.1f}, collisions {result['collisions']:.0%}"
         if unit.stage == "train":
             rate = result.get("steps_per_s")
             return f"{result['steps']} steps" + (f" ({rate:.0f} steps/s)" if rate else "")
@@ -174,30 +210,51 @@ class RLStudy(Study):
         from fog_gym.experiments.rl_bench.evaluate import METRICS
 
         c = self.config
-        results: dict[str, Any] = {}
+        results: dict[Any, Any] = {}
+        drivers: dict[str, dict[str, Any]] = {}
         eval_s: dict[str, float] = {}
         for r in records.values():
-            if r["stage"] == "eval":
-                cond = r["params"]["condition"]
-                results.setdefault(cond, {}).setdefault(r["params"]["test"], {})[r["seed"]] = r["result"]
-                agent = f"{cond}_s{r['seed']}"
+            params = r["params"]
+            if r["stage"] == "driver":
+                drivers.setdefault(params["sensors"], {})[params["test"]] = r["result"]
+            elif r["stage"] == "eval":
+                cond, sset = params["condition"], params.get("sensors")
+                results.setdefault(sset, {}).setdefault(cond, {}).setdefault(params["test"], {})[r["seed"]] = r["result"]
+                agent = agent_name(cond, r["seed"], sset)
                 eval_s[agent] = eval_s.get(agent, 0.0) + r["wall_s"]
-        table = aggregate(results, [m for m, *_ in METRICS])
+        metrics = [m for m, *_ in METRICS]
+        tables = {sset: aggregate(res, metrics) for sset, res in results.items()}
         meta = {"env": c.env_id, "env_kwargs": dict(c.env_kwargs), "algo": c.algo, "seeds": len(seeds),
                 "steps": c.steps, "episodes": c.episodes, "envs": c.envs, "conditions": list(c.conditions),
+                "sensor_sets": list(c.sensor_sets), "algo_kwargs": dict(c.algo_kwargs),
                 "smoke": self.smoke_note(seeds)}  # fmt: skip
-        agents = [f"{cond}_s{s}" for cond in c.conditions for s in seeds]
+        sets = list(c.sensor_sets) or [None]
+        agents = [agent_name(cond, s, ss) for ss in sets for cond in c.conditions for s in seeds]
         times = rep.wall_times(out, agents, eval_s)
-        text = rep.render_matrix(table, meta) + "\n\n" + "\n".join(rep.render_wall_times(times))
-        figures = {
-            "heatmap.png": lambda p: rep.heatmap(table, p),
-            "fog_effect.png": lambda p: rep.fog_effect(table, c.env_id, p),
-            "curves.png": lambda p: rep.learning_curves(out, c.conditions, seeds, c.env_id, p),
-        }
-        for cond in c.conditions:
-            if any(rep.episode_curve(out, cond, s) is not None for s in seeds):
-                figures[f"curves/{cond}.png"] = lambda p, cond=cond: rep.condition_curves(out, cond, seeds, c.env_id, p)
-        data = {"meta": meta, "table": table, "wall_times": times}
+        figures: dict[str, Any] = {}
+        if not c.sensor_sets:
+            table = tables.get(None, {})
+            text = rep.render_matrix(table, meta) + "\n\n" + "\n".join(rep.render_wall_times(times))
+            figures.update({"heatmap.png": lambda p: rep.heatmap(table, p),
+                            "fog_effect.png": lambda p: rep.fog_effect(table, c.env_id, p),
+                            "curves.png": lambda p: rep.learning_curves(out, c.conditions, seeds, c.env_id, p)})  # fmt: skip
+            for cond in c.conditions:
+                if any(rep.episode_curve(out, cond, s) is not None for s in seeds):
+                    figures[f"curves/{cond}.png"] = lambda p, cond=cond: rep.condition_curves(out, cond, seeds, c.env_id, p)
+            data = {"meta": meta, "table": table, "wall_times": times}
+            return Report(text, data, "matrix.md", "matrix.json", figures)
+        text = rep.render_sensor_study(tables, drivers, meta) + "\n\n" + "\n".join(rep.render_wall_times(times))
+        for ss in c.sensor_sets:
+            table = rep.complete(tables.get(ss, {}))
+            conds = [f"{ss}_{cond}" for cond in c.conditions]
+            if table:
+                figures[f"heatmap_{ss}.png"] = lambda p, table=table: rep.heatmap(table, p)
+                figures[f"fog_effect_{ss}.png"] = lambda p, table=table, ss=ss: rep.fog_effect(table, f"{c.env_id}, {ss}", p)
+            figures[f"curves_{ss}.png"] = lambda p, conds=conds, ss=ss: rep.learning_curves(out, conds, seeds,
+                                                                                          f"{c.env_id}, {ss}", p)  # fmt: skip
+        figures["fog_effect.png"] = lambda p: rep.sensor_fog_effect(tables, drivers, c.env_id, p)
+        data = {"meta": meta, "tables": tables, "drivers": drivers, "wall_times": times,
+                "result": rep.result_json(tables, drivers, meta)}  # fmt: skip
         return Report(text, data, "matrix.md", "matrix.json", figures)
 
     @classmethod
@@ -224,6 +281,12 @@ class RLStudy(Study):
         p.add_argument("--checkpoint", type=int, default=d.checkpoint, help="checkpoint every N steps (default 10000)")
         p.add_argument("--episode-seconds", type=float, default=None,
                        help="episode length in seconds (default 20, FogDriveRL-v0's; shorter only for smoke runs)")
+        p.add_argument("--sensor-sets", nargs="+", choices=sorted(SENSOR_SETS), default=[],
+                       help="one agent per sensor set of the perceived-objects observation (needs --env-kwarg "
+                            "observation=objects), and the scripted detection driver per set and test fog")
+        p.add_argument("--algo-kwarg", action="append", default=[], metavar="KEY=VALUE", type=_kwarg,
+                       help="learner argument replacing the study's default (repeatable; VALUE read as JSON), "
+                            "e.g. n_steps=128 batch_size=512 n_epochs=5")
 
     @classmethod
     def from_args(cls, args: argparse.Namespace) -> RLStudy:
@@ -234,7 +297,8 @@ class RLStudy(Study):
         config = RLConfig(env_id=args.env, env_kwargs=dict(args.env_kwarg), conditions=tuple(conditions),
                           algo=args.algo, policy=args.policy, vec_env=args.vec_env, steps=steps or 2048,
                           episodes=episodes or 8, envs=args.envs, episode_seconds=seconds or 20.0,
-                          checkpoint=args.checkpoint, device=args.device, torch_threads=args.torch_threads)  # fmt: skip
+                          checkpoint=args.checkpoint, device=args.device, torch_threads=args.torch_threads,
+                          sensor_sets=tuple(args.sensor_sets), algo_kwargs=dict(args.algo_kwarg))  # fmt: skip
         return cls(config)
 
 
