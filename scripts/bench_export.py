@@ -14,13 +14,11 @@ import argparse
 import json
 import os
 import shutil
-import sys
 import tempfile
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_common import load_average, markdown_table  # noqa: E402
+from fog_gym.experiments.bench.common import load_average, markdown_table
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -18,7 +18,7 @@ from typing import Any
 import numpy as np
 
 from fog_gym.dataset.access import SPLITS, FogDrive
-from fog_gym.dataset.decode import decode_bbox_json, load_channel
+from fog_gym.dataset.decode import load_channel
 from fog_gym.dataset.layout import FOGDRIVE_CHANNELS, ChannelSpec
 
 try:  # the torch extra; everything but FogDriveDataset works without it

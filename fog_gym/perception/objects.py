@@ -140,7 +140,7 @@ def _fuse_world(n, f, classes, present, pos, vel, prev_present, prev_pos, prev_v
                 cam_bear, cam_size, rad_hits, rad_rng, rad_az, rad_vr, mask, min_points, min_pixels, min_contrast,
                 focal, cam_x, rad_x, lidar_h, key, tick, dt, lanes, obs):  # fmt: skip
     """One world: detection flags, reported positions and velocities per sensor and fused, and the observation."""
-    ex, ey, eh = f[0, 0], f[0, 1], f[0, 2]
+    ey, eh = f[0, 1], f[0, 2]
     c0, s0 = math.cos(eh), math.sin(eh)
     for j in range(n):
         for s in range(4):

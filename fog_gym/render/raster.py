@@ -86,8 +86,6 @@ def _setup_faces(
             # quick reject: whole box beyond far or behind camera (bounding sphere)
             hx, hy, hz = halves[p, 0], halves[p, 1], halves[p, 2]
             radius = np.sqrt(hx * hx + hy * hy + hz * hz)
-            pcx = R[0, 0] * centers[p, 0] + R[0, 1] * centers[p, 1] + R[0, 2] * centers[p, 2] + T[0]
-            pcy = R[1, 0] * centers[p, 0] + R[1, 1] * centers[p, 1] + R[1, 2] * centers[p, 2] + T[1]
             pcz = R[2, 0] * centers[p, 0] + R[2, 1] * centers[p, 1] + R[2, 2] * centers[p, 2] + T[2]
             if pcz + radius < NEAR or pcz - radius > far:
                 continue

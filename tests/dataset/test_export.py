@@ -262,7 +262,7 @@ def test_coco_loads_in_pycocotools_and_ground_truth_scores_ap_1(fogdrive, tmp_pa
 
 
 def test_class_from_height_matches_the_class_size_ranges():
-    from fog_gym.world.traffic_world import CLASS_SPECS
+    from fog_gym.world.fleet import CLASS_SPECS
 
     for cls, (_, _, _, (lo, hi)) in CLASS_SPECS.items():
         assert class_from_height(np.array([lo, (lo + hi) / 2, hi])).tolist() == [cls] * 3

@@ -109,8 +109,6 @@ def test_box_crossing_near_plane_is_clipped_not_exploded():
     """A long box that starts behind the camera and ends in front covers only what it should."""
     rig = front_rig()
     scene = make_scene()
-    M = rig.world_to_camera(scene, "CAM_FRONT")
-    K = rig.intrinsics["CAM_FRONT"]
     prims = {
         "centers": np.array([[2.0, 2.5, 0.75]]), "halves": np.array([[5.0, 1.0, 0.75]]), "yaws": np.array([0.0]),
         "colors": np.array([[0.5, 0.5, 0.5]]), "tags": np.array([14], np.uint8), "insts": np.array([9], np.uint16),

@@ -70,7 +70,7 @@ def write_coco(src: Source, sink: Sink, bar) -> list[str]:
         "categories": list(COCO_CATEGORIES)}).encode() for s in splits}  # fmt: skip
     files.update({f"{s}.txt": "".join(lists[s]).encode() for s in splits})
     names = "".join(f"  {c['id'] - 1}: {c['name']}\n" for c in COCO_CATEGORIES)
-    files["dataset.yaml"] = (f"# Ultralytics YOLO: yolo detect train data=<absolute path of this file>\n"
+    files["dataset.yaml"] = ("# Ultralytics YOLO: yolo detect train data=<absolute path of this file>\n"
                              + "".join(f"{s}: {s}.txt\n" for s in splits) + f"names:\n{names}").encode()  # fmt: skip
     sink.write_all(files)
     return []

@@ -247,7 +247,7 @@ def sensor_statements(sset: str, table: dict[str, Any], drivers: dict[str, Any])
     >>> sensor_statements("lidar", t, {"clear": {"return": 50.0}})[1]
     '- Best in dense fog: trained dense (return 25.0 ± 2.0); it costs 10.0 in clear air against the best there (clear, 40.0).'
     """
-    out = [f"- Fog effect (tested clear vs dense, same agents): " + "; ".join(
+    out = ["- Fog effect (tested clear vs dense, same agents): " + "; ".join(
         f"{cond} {table[cond]['clear']['return']['mean']:.1f} vs {table[cond]['dense']['return']['mean']:.1f} — "
         f"{_verdict(table[cond]['clear']['return'], table[cond]['dense']['return'])}"
         for cond in CONDITIONS if cond in table and "clear" in table[cond] and "dense" in table[cond])]  # fmt: skip
