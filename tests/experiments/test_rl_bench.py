@@ -205,6 +205,18 @@ def test_ray_tasks_give_the_local_runs_results(tmp_path):
     assert tables[0] == tables[1]
 
 
+def test_local_jobs_give_the_one_process_runs_results(tmp_path):
+    pytest.importorskip("stable_baselines3")
+    argv = ["--conditions", "clear", "success", *TINY]
+    assert runner.main(RLStudy, [*argv, "--out", str(tmp_path / "one")]) == 0
+    assert runner.main(RLStudy, [*argv, "--jobs", "2", "--out", str(tmp_path / "two")]) == 0
+    for path in sorted((tmp_path / "one" / "eval").glob("*.json")):
+        one, two = (json.loads((tmp_path / d / "eval" / path.name).read_text()) for d in ("one", "two"))
+        assert two["result"] == one["result"], path.name
+    tables = [json.loads((tmp_path / d / "matrix.json").read_text())["table"] for d in ("one", "two")]
+    assert tables[0] == tables[1]
+
+
 # -- the hazard task's diagnostics --------------------------------------------------------------------------------
 def test_seeing_further_earns_more_and_a_blind_driver_crashes():
     blind = hazard_check.run_driver("blind", 25.0, 2, 2_000_000)

@@ -129,6 +129,16 @@ def test_ray_without_the_extra_is_refused_before_any_work(tmp_path, monkeypatch)
     assert study.ran == [] and not (tmp_path / "out").exists()
 
 
+@pytest.mark.parametrize("jobs, ray, message", [(0, None, "jobs must be a positive integer"),
+                                                 (True, None, "jobs must be a positive integer"),
+                                                 (2, "auto", "exclude each other")])  # fmt: skip
+def test_bad_jobs_are_refused_before_any_work(jobs, ray, message, tmp_path):
+    study = Toy()
+    with pytest.raises(ValueError, match=message):
+        runner.run(study, tmp_path / "out", jobs=jobs, ray_address=ray, progress=False)
+    assert study.ran == [] and not (tmp_path / "out").exists()
+
+
 @pytest.mark.parametrize("seeds", [0, -1, True, 1.5])
 def test_seeds_must_be_a_positive_integer(seeds, tmp_path):
     with pytest.raises(ValueError, match="seeds must be a positive integer"):
