@@ -67,14 +67,14 @@ class ObjectWorlds:
         self.steps = np.zeros(num_worlds, np.int64)
         self.suns = np.zeros((num_worlds, 3))
         self.shades = np.zeros((num_worlds, 3))
-        v, m = self.core.capacity, objects.max_objects
+        v = self.core.capacity
         self.present = np.zeros((num_worlds, v, 4), np.bool_)
         self.pos = np.zeros((num_worlds, v, 4, 2))
         self.vel = np.zeros((num_worlds, v, 4, 2))
         self.prev_present = np.zeros((num_worlds, v, 4), np.bool_)
         self.prev_pos = np.zeros((num_worlds, v, 4, 2))
         self.prev_vel = np.zeros((num_worlds, v, 4, 2))
-        self.obs = np.zeros((num_worlds, m, len(objects.features)), np.float32)
+        self.obs = np.zeros((num_worlds, *objects.shape), np.float32)
         self.alphas = np.zeros(num_worlds)
         self.beta_ratios = np.zeros(num_worlds)
         self.tables_i = np.zeros((num_worlds, 101))
@@ -94,7 +94,8 @@ class ObjectWorlds:
                               o.camera_range])  # fmt: skip
         self._rad = np.array([o.radar_pose[0], o.radar_pose[1], o.radar_range, math.radians(o.radar_fov[0]),
                               math.radians(o.radar_fov[1]), o.radar_rays])  # fmt: skip
-        self._rules = np.array([o.min_points, o.min_pixels, o.min_contrast, 0.0, o.max_rays], np.float64)
+        self._rules = np.array([o.min_points, o.min_pixels, o.min_contrast, PO.LAYOUTS.index(o.layout), o.max_rays],
+                               np.float64)  # fmt: skip
         self._mask = o.sensor_mask
         for w in range(num_worlds):
             self._set_level(w, self.levels[w])
@@ -197,7 +198,7 @@ class ObjectWorlds:
 
 class FogDriveObjectsEnv(gym.Env):
     """One world of :class:`ObjectWorlds` as a Gymnasium env (what ``gym.make(<RL preset>, observation="objects")``
-    returns). Observation: ``Box(-1, 1, (max_objects, 6 + len(sensors)), float32)``; actions, reward, termination
+    returns). Observation: ``Box(-1, 1, (max_objects, 6 + len(sensors)), float32)`` (``layout="lanes"``: ``(4, 5)``); actions, reward, termination
     and truncation as the preset's; ``info``: speed, crashed, fog, step, hazards (hazard preset), detections."""
 
     metadata = {"render_modes": [], "render_fps": 5}

@@ -55,7 +55,7 @@ RL_TRAFFIC = {"vehicles_count": 20, "lanes_count": 3}
 #: Values of the RL presets' ``observation`` argument.
 OBSERVATIONS: tuple[str, ...] = ("pixels", "objects")
 #: The RL presets' arguments of the perceived-objects observation (:class:`~fog_gym.perception.objects.ObjectsConfig`).
-OBJECT_ARGS: tuple[str, ...] = ("sensors", "max_objects", "min_points", "min_pixels", "min_contrast")
+OBJECT_ARGS: tuple[str, ...] = ("sensors", "max_objects", "min_points", "min_pixels", "min_contrast", "layout")
 
 
 def objects_config(kwargs: dict[str, Any]) -> Any:
@@ -80,7 +80,7 @@ def make_fogdrive_rl(fog: Any = "clear", town: str = "highway", camera_size: Seq
     :class:`~fog_gym.wrappers.LidarBEV`'s ``ahead``); ``kwargs`` go to :class:`fog_gym.envs.fogdrive.FogDriveEnv`.
 
     ``observation="objects"`` gives the perceived-objects observation instead (:mod:`fog_gym.envs.objects`;
-    ``sensors``, ``max_objects``, ``min_points``, ``min_pixels``, ``min_contrast`` configure it; highway town only)."""
+    ``sensors``, ``max_objects``, ``min_points``, ``min_pixels``, ``min_contrast``, ``layout`` configure it; highway town only)."""
     from fog_gym.wrappers import FogWrapper, LidarBEV, ResizeCameras, SelectKeys, StackFrames
 
     check_observation(observation)

@@ -53,6 +53,12 @@ from fog_gym.perception import kernels as PK
 
 #: Sensor kinds of the perceived-objects observation, in flag order.
 SENSORS: tuple[str, ...] = ("camera", "lidar", "radar")
+#: Layouts of the observation: the fused objects nearest first, or the nearest of them ahead and behind per lane.
+LAYOUTS: tuple[str, ...] = ("list", "lanes")
+#: The ``"lanes"`` layout's columns of a lane row (rows: ego, lane to the left, own lane, lane to the right).
+LANE_FEATURES: tuple[str, ...] = ("exists", "ahead", "ahead_dv", "behind", "behind_dv")
+#: How far the ``"lanes"`` layout looks ahead and behind [m] (an object further away counts as none).
+LANE_AHEAD, LANE_BEHIND = 100.0, 50.0
 #: A FogDrive class's typical height [m] (the camera's range prior).
 CLASS_HEIGHT = {0: 1.5, 4: 2.2, 1: 3.4}
 #: The velocity gain of the LiDAR's and camera's alpha-beta trackers (their velocity is their reports' rate of
@@ -95,8 +101,11 @@ class ObjectsConfig:
     radar_fov: tuple[float, float] = (120.0, 30.0)
     radar_pose: tuple[float, float] = (2.0, 1.2)
     max_rays: int = 64  # rays cast per vehicle and sensor at most (strided beyond)
+    layout: str = "list"  # the observation's layout: "list" (objects nearest first) or "lanes" (see LAYOUTS)
 
     def __post_init__(self) -> None:
+        if self.layout not in LAYOUTS:
+            raise ValueError(f"layout must be one of {LAYOUTS}, got {self.layout!r}")
         if isinstance(self.sensors, str) or not isinstance(self.sensors, Sequence):
             raise ValueError(f"sensors must be a non-empty subset of {SENSORS}, got {self.sensors!r}")
         unknown = [s for s in self.sensors if s not in SENSORS]
@@ -116,7 +125,15 @@ class ObjectsConfig:
 
     @property
     def features(self) -> tuple[str, ...]:
+        """The observation's columns (the ``"lanes"`` layout's ego row reads them as described in the module)."""
+        if self.layout == "lanes":
+            return LANE_FEATURES
         return ("presence", "x", "y", "vx", "vy", "lane", *self.sensors)
+
+    @property
+    def shape(self) -> tuple[int, int]:
+        """The observation's shape: ``(max_objects, 6 + len(sensors))``, or ``(4, 5)`` for the ``"lanes"`` layout."""
+        return (4, len(LANE_FEATURES)) if self.layout == "lanes" else (self.max_objects, len(self.features))
 
     @property
     def sensor_mask(self) -> np.ndarray:
@@ -138,10 +155,8 @@ CAM, LID, RAD, FUSED = 0, 1, 2, 3
 @njit(cache=True)
 def _fuse_world(n, f, classes, present, pos, vel, prev_present, prev_pos, prev_vel, lid_count, lid_cen, cam_pix, cam_con,
                 cam_bear, cam_size, rad_hits, rad_rng, rad_az, rad_vr, mask, min_points, min_pixels, min_contrast,
-                focal, cam_x, rad_x, lidar_h, key, tick, dt, lanes, obs):  # fmt: skip
+                focal, cam_x, rad_x, lidar_h, key, tick, dt, lanes, layout, obs):  # fmt: skip
     """One world: detection flags, reported positions and velocities per sensor and fused, and the observation."""
-    ey, eh = f[0, 1], f[0, 2]
-    c0, s0 = math.cos(eh), math.sin(eh)
     for j in range(n):
         for s in range(4):
             present[j, s] = False
@@ -206,7 +221,17 @@ def _fuse_world(n, f, classes, present, pos, vel, prev_present, prev_pos, prev_v
             prev_pos[j, s, 1] = pos[j, s, 1]
             prev_vel[j, s, 0] = vel[j, s, 0]
             prev_vel[j, s, 1] = vel[j, s, 1]
-    # observation: ego row, then fused objects nearest first
+    if layout == 1:
+        _lane_rows(n, f, present, pos, vel, lanes, obs)
+    else:
+        _list_rows(n, f, present, pos, vel, mask, lanes, obs)
+
+
+@njit(cache=True)
+def _list_rows(n, f, present, pos, vel, mask, lanes, obs):
+    """The ``"list"`` observation: ego row, then the fused objects nearest first."""
+    ey, eh = f[0, 1], f[0, 2]
+    c0, s0 = math.cos(eh), math.sin(eh)
     m, nf = obs.shape
     for r in range(m):
         for c in range(nf):
@@ -248,6 +273,46 @@ def _fuse_world(n, f, classes, present, pos, vel, prev_present, prev_pos, prev_v
             if mask[s]:
                 obs[r + 1, col] = 1.0 if present[j, s] else 0.0
                 col += 1
+
+
+@njit(cache=True)
+def _lane_rows(n, f, present, pos, vel, lanes, obs):
+    """The ``"lanes"`` observation: ego row, then per lane (left, own, right) the nearest fused object ahead and
+    behind along the road, from the same fused list as the ``"list"`` layout (see the module docstring)."""
+    for r in range(obs.shape[0]):
+        for c in range(obs.shape[1]):
+            obs[r, c] = 0.0
+    ey, eh, speed = f[0, 1], f[0, 2], f[0, 3]
+    c0, s0 = math.cos(eh), math.sin(eh)
+    ego_lane = min(max(int(round(ey / 4.0)), 0), lanes - 1)
+    mid = (lanes - 1) / 2.0
+    obs[0, 0] = 1.0
+    obs[0, 1] = min(max((ey - 4.0 * ego_lane) / 2.0, -1.0), 1.0)
+    obs[0, 2] = min(max(speed / MAX_SPEED, -1.0), 1.0)
+    obs[0, 3] = (ego_lane - mid) / mid if mid > 0 else 0.0
+    for d in range(3):
+        lane = ego_lane + d - 1
+        if lane < 0 or lane >= lanes:
+            continue
+        row = d + 1
+        obs[row, 0] = 1.0
+        best_a, best_b = LANE_AHEAD, LANE_BEHIND
+        for j in range(1, n):
+            if not present[j, FUSED]:
+                continue
+            px, py = pos[j, FUSED, 0], pos[j, FUSED, 1]
+            along = c0 * px - s0 * py  # along the road
+            if int(round((ey + s0 * px + c0 * py) / 4.0)) != lane:
+                continue
+            dv = c0 * vel[j, FUSED, 0] - s0 * vel[j, FUSED, 1]  # its speed along the road relative to the ego's
+            if along > 0.0 and along < best_a:
+                best_a = along
+                obs[row, 1] = 1.0 - along / LANE_AHEAD
+                obs[row, 2] = min(max(dv / MAX_SPEED, -1.0), 1.0)
+            elif along <= 0.0 and -along < best_b:
+                best_b = -along
+                obs[row, 3] = 1.0 - (-along) / LANE_BEHIND
+                obs[row, 4] = min(max(dv / MAX_SPEED, -1.0), 1.0)
 
 
 @njit(cache=True, parallel=True)
@@ -293,4 +358,4 @@ def perceive_worlds(active, floats, counts, classes, colors, heights, keys, tick
         _fuse_world(n, f, classes[w], present[w], pos[w], vel[w], prev_present[w], prev_pos[w], prev_vel[w], lid_count,
                     lid_cen,
                     cam_pix, cam_con, cam_bear, cam_size, rad_hits, rad_rng, rad_az, rad_vr, mask, int(rules[0]),
-                    rules[1], rules[2], cam[2], cam[0], rad[0], lidar_h, key, tick, dt, lanes, obs[w])  # fmt: skip
+                    rules[1], rules[2], cam[2], cam[0], rad[0], lidar_h, key, tick, dt, lanes, int(rules[3]), obs[w])  # fmt: skip

@@ -159,6 +159,7 @@ def test_reported_positions_stay_near_the_truth_in_clear_air():
     ({"max_objects": 0}, "max_objects must be an integer >= 1"),
     ({"max_objects": 1}, "max_objects must be an integer >= 2"),
     ({"min_contrast": 1.5}, "min_contrast must lie in"),
+    ({"layout": "grid"}, "layout must be one of"),
 ])  # fmt: skip
 def test_bad_arguments_fail_at_construction_naming_the_argument(kwargs, match):
     kwargs = {"observation": "objects", **kwargs}
@@ -173,3 +174,61 @@ def test_object_arguments_are_refused_on_the_pixel_observation():
 
 def test_the_sensor_flags_follow_the_documented_order():
     assert ObjectsConfig(sensors=("radar", "camera")).features[6:] == ("camera", "radar") and SENSORS[0] == "camera"
+
+
+def _lanes_from_fused(worlds, w=0):
+    """The "lanes" layout recomputed in numpy from world ``w``'s fused list (reported positions and velocities)."""
+    from fog_gym.perception.objects import FUSED, LANE_AHEAD, LANE_BEHIND, MAX_SPEED
+
+    c = worlds.core
+    n = int(c.counts[w])
+    ey, eh, speed = c.floats[w, 0, 1], c.floats[w, 0, 2], c.floats[w, 0, 3]
+    lanes = c.lanes
+    ego_lane = int(np.clip(round(ey / 4.0), 0, lanes - 1))
+    out = np.zeros((4, 5))
+    out[0, :4] = 1.0, np.clip((ey - 4.0 * ego_lane) / 2.0, -1, 1), np.clip(speed / MAX_SPEED, -1, 1), ego_lane - 1.0
+    seen = np.flatnonzero(worlds.present[w, 1:n, FUSED]) + 1
+    p, v = worlds.pos[w, seen, FUSED], worlds.vel[w, seen, FUSED]
+    cs, sn = math.cos(eh), math.sin(eh)
+    along, lane = p[:, 0] * cs - p[:, 1] * sn, np.round((ey + p[:, 0] * sn + p[:, 1] * cs) / 4.0)
+    dv = np.clip((v[:, 0] * cs - v[:, 1] * sn) / MAX_SPEED, -1, 1)
+    for row, d in enumerate((-1, 0, 1), start=1):
+        if not 0 <= ego_lane + d < lanes:
+            continue
+        out[row, 0] = 1.0
+        ahead = np.flatnonzero((lane == ego_lane + d) & (along > 0) & (along < LANE_AHEAD))
+        behind = np.flatnonzero((lane == ego_lane + d) & (along <= 0) & (-along < LANE_BEHIND))
+        if len(ahead):
+            k = ahead[np.argmin(along[ahead])]
+            out[row, 1:3] = 1.0 - along[k] / LANE_AHEAD, dv[k]
+        if len(behind):
+            k = behind[np.argmax(along[behind])]
+            out[row, 3:5] = 1.0 + along[k] / LANE_BEHIND, dv[k]
+    return out
+
+
+def test_the_lanes_layout_is_the_nearest_fused_object_ahead_and_behind_per_lane():
+    env = gym.make("FogDriveRLHazard-v0", observation="objects", layout="lanes", fog="light").unwrapped
+    obs, _ = env.reset(seed=5)
+    assert env.observation_space.shape == (4, 5) and ObjectsConfig(layout="lanes").features[1] == "ahead"
+    lanes_seen = set()
+    for k in range(40):
+        np.testing.assert_allclose(obs, _lanes_from_fused(env.worlds), atol=1e-5)
+        assert env.observation_space.contains(obs)
+        lanes_seen.add(round(float(obs[0, 3]) + 1))
+        obs, _, term, trunc, _ = env.step([0, 3, 2, 1, 2, 3, 0, 0][k % 8])
+        if term or trunc:
+            obs, _ = env.reset()
+    # the edge lanes have no neighbour beyond the road: its row is all zero
+    assert 0 in lanes_seen or 2 in lanes_seen
+
+
+def test_the_layout_changes_the_observation_only_never_what_is_detected():
+    a, b = _episode("dense", layout="lanes"), _episode("dense")
+    assert len(a) == len(b)
+    for (oa, ia), (_, ib) in zip(a, b):
+        for s in ("camera", "lidar", "radar", "fused"):
+            np.testing.assert_array_equal(ia["detections"][s]["position"], ib["detections"][s]["position"])
+        edge = round(float(oa[0, 3]) + 1)
+        if edge in (0, 2):
+            assert not oa[1 if edge == 0 else 3].any()

@@ -38,13 +38,15 @@ POLICY_HZ = 5.0
 EPISODE_STEPS = {"FogDriveRL-v0": 100, "FogDriveRLHazard-v0": 30}
 
 
-def schedule_for(condition: str, seed: int, steps: int, env_id: str, episode_seconds: float):
+def schedule_for(condition: str, seed: int, steps: int, env_id: str, episode_seconds: float,
+                 episode_steps: int | None = None):  # fmt: skip
     """``(initial fog, schedule or None)`` of a training condition. The step curriculum reaches dense fog after
-    60 % of the run's expected episodes, the continuous one after 80 %."""
+    60 % of the run's expected episodes, the continuous one after 80 %; the expected episodes are ``steps`` over the
+    mean training-episode length ``episode_steps`` (default: the task's, :data:`EPISODE_STEPS`)."""
     from fog_gym.fog.schedules import ContinuousSchedule, MixedSampler, StepSchedule, SuccessSchedule
 
     full = max(1, round(episode_seconds * POLICY_HZ))
-    length = min(EPISODE_STEPS.get(env_id, full), full)
+    length = min(episode_steps or EPISODE_STEPS.get(env_id, full), full)
     episodes = max(4, steps // length)
     if condition in ("clear", "light", "moderate", "dense"):
         return condition, None

@@ -52,6 +52,8 @@ class RLConfig:
     sensor_sets: tuple[str, ...] = ()
     #: keyword arguments of the learner replacing the study's defaults (``--algo-kwarg``)
     algo_kwargs: Mapping[str, Any] = field(default_factory=dict)
+    #: the mean training-episode length the curricula are spread over (None: the task's, ``data.EPISODE_STEPS``)
+    episode_steps: int | None = None
 
     def __post_init__(self) -> None:
         import gymnasium as gym
@@ -100,6 +102,9 @@ class RLConfig:
         except TypeError as e:
             raise ValueError(f"algo_kwargs must be JSON values (they are part of the study's settings): {e}") from None
         object.__setattr__(self, "algo_kwargs", dict(self.algo_kwargs))
+        if self.episode_steps is not None and (isinstance(self.episode_steps, bool) or not isinstance(self.episode_steps, int)
+                                               or self.episode_steps < 1):  # fmt: skip
+            raise ValueError(f"episode_steps must be a positive integer, got {self.episode_steps!r}")
 
     def make_kwargs(self) -> dict[str, Any]:
         """Keyword arguments of ``gym.make`` besides ``fog``."""
@@ -146,6 +151,8 @@ class RLStudy(Study):
                "vec_env": c.vec_env, "steps": c.steps, "episode_seconds": c.episode_seconds, "envs": c.envs}  # fmt: skip
         if c.sensor_sets or c.algo_kwargs:  # studies without them keep the settings (and folders) they had
             out.update(sensor_sets=list(c.sensor_sets), algo_kwargs=dict(c.algo_kwargs))
+        if c.episode_steps is not None:
+            out["episode_steps"] = c.episode_steps
         return out
 
     def smoke_note(self, seeds: Sequence[int]) -> str:
@@ -156,7 +163,7 @@ class RLStudy(Study):
                 "or more).")  # fmt: skip
 
     def announce(self, seeds: Sequence[int]) -> str:
-        n = len(seeds) * len(self.config.conditions)
+        n = len(seeds) * len(self.config.conditions) * max(1, len(self.config.sensor_sets))
         note = self.smoke_note(seeds)
         return f"{n} agents × {self.config.steps} steps on {self.config.env_id}. {note}".strip()
 
@@ -164,10 +171,13 @@ class RLStudy(Study):
         c = self.config
         sets = c.sensor_sets or (None,)
         agents = [(ss, cond, s) for s in seeds for ss in sets for cond in c.conditions]
-        train = [Unit("train", agent_name(cond, s, ss), s, {"condition": cond, "sensors": ss}, cpus=c.envs)
+        def params(ss: str | None, **kw: Any) -> dict[str, Any]:
+            return {**kw, "sensors": ss} if ss else kw  # studies without sensor sets keep the records they had
+
+        train = [Unit("train", agent_name(cond, s, ss), s, params(ss, condition=cond), cpus=c.envs)
                  for ss, cond, s in agents]  # fmt: skip
-        evals = [Unit("eval", f"{agent_name(cond, s, ss)}_{t}_{c.episodes}", s, {"condition": cond, "test": t,
-                      "sensors": ss}, cpus=min(c.envs, c.episodes)) for ss, cond, s in agents for t in TEST_LEVELS]  # fmt: skip
+        evals = [Unit("eval", f"{agent_name(cond, s, ss)}_{t}_{c.episodes}", s, params(ss, condition=cond, test=t),
+                      cpus=min(c.envs, c.episodes)) for ss, cond, s in agents for t in TEST_LEVELS]  # fmt: skip
         drivers = [Unit("driver", f"driver_{ss}_{t}_{c.episodes}", 0, {"sensors": ss, "test": t}, cpus=1)
                    for ss in c.sensor_sets for t in TEST_LEVELS]  # fmt: skip
         return drivers + train + evals
@@ -184,7 +194,8 @@ class RLStudy(Study):
         if unit.stage == "driver":
             from fog_gym.perception.driver import drive, sensor_reach
 
-            kw = {k: v for k, v in self.config.make_kwargs().items() if k != "observation"}
+            # the driver reads the "list" layout; the layout changes the observation only, never the detections
+            kw = {k: v for k, v in self.config.make_kwargs().items() if k not in ("observation", "layout")}
             sset, test, c = tuple(SENSOR_SETS[sensors]), unit.params["test"], self.config
             reach = sensor_reach(sset, test, env_id=c.env_id, **kw)
             return drive(sset, test, reach, c.episodes, EVAL_SEED, env_id=c.env_id, **kw)
@@ -226,7 +237,7 @@ class RLStudy(Study):
         tables = {sset: aggregate(res, metrics) for sset, res in results.items()}
         meta = {"env": c.env_id, "env_kwargs": dict(c.env_kwargs), "algo": c.algo, "seeds": len(seeds),
                 "steps": c.steps, "episodes": c.episodes, "envs": c.envs, "conditions": list(c.conditions),
-                "sensor_sets": list(c.sensor_sets), "algo_kwargs": dict(c.algo_kwargs),
+                "sensor_sets": list(c.sensor_sets), "algo_kwargs": dict(c.algo_kwargs), "episode_steps": c.episode_steps,
                 "smoke": self.smoke_note(seeds)}  # fmt: skip
         sets = list(c.sensor_sets) or [None]
         agents = [agent_name(cond, s, ss) for ss in sets for cond in c.conditions for s in seeds]
@@ -284,6 +295,9 @@ class RLStudy(Study):
         p.add_argument("--sensor-sets", nargs="+", choices=sorted(SENSOR_SETS), default=[],
                        help="one agent per sensor set of the perceived-objects observation (needs --env-kwarg "
                             "observation=objects), and the scripted detection driver per set and test fog")
+        p.add_argument("--episode-steps", type=int, default=None, metavar="N",
+                       help="mean training-episode length the curricula are spread over (default: the task's "
+                            "measured one; the step curriculum reaches dense fog after 60 %% of steps / N episodes)")
         p.add_argument("--algo-kwarg", action="append", default=[], metavar="KEY=VALUE", type=_kwarg,
                        help="learner argument replacing the study's default (repeatable; VALUE read as JSON), "
                             "e.g. n_steps=128 batch_size=512 n_epochs=5")
@@ -298,7 +312,8 @@ class RLStudy(Study):
                           algo=args.algo, policy=args.policy, vec_env=args.vec_env, steps=steps or 2048,
                           episodes=episodes or 8, envs=args.envs, episode_seconds=seconds or 20.0,
                           checkpoint=args.checkpoint, device=args.device, torch_threads=args.torch_threads,
-                          sensor_sets=tuple(args.sensor_sets), algo_kwargs=dict(args.algo_kwarg))  # fmt: skip
+                          sensor_sets=tuple(args.sensor_sets), algo_kwargs=dict(args.algo_kwarg),
+                          episode_steps=args.episode_steps)  # fmt: skip
         return cls(config)
 
 

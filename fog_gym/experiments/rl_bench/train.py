@@ -64,7 +64,7 @@ def train_agent(config: Any, condition: str, seed: int, out: Path, progress: boo
     ckpt_dir = out / "checkpoints" / name
     ckpt_dir.mkdir(parents=True, exist_ok=True)
     (out / "monitor").mkdir(parents=True, exist_ok=True)
-    fog, schedule = schedule_for(condition, seed, steps, config.env_id, config.episode_seconds)
+    fog, schedule = schedule_for(condition, seed, steps, config.env_id, config.episode_seconds, config.episode_steps)
     venv = vec_env(config.vec_env, config.env_id, n_envs, fog, 1000 * seed, kwargs)
     state_path = ckpt_dir / "schedule.pkl"
     if schedule is not None:  # resumed: the curriculum (schedule, success history, counters) continues from the checkpoint
