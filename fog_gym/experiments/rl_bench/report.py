@@ -15,14 +15,18 @@ from fog_gym.experiments.rl_bench.data import CONDITIONS, EVAL_SEED, TEST_LEVELS
 from fog_gym.experiments.rl_bench.evaluate import METRICS
 
 
+def _header(meta: dict[str, Any], title: str, per: str, extra: str = "") -> list[str]:
+    """A report's title, budget line and smoke warning."""
+    lines = [f"# {title}", "",
+             f"{meta['seeds']} training seed(s) × {meta['steps']} steps per {per} ({meta.get('algo', 'PPO')}), "
+             f"{meta['episodes']} evaluation episodes per agent and test fog (seeds {EVAL_SEED}+). Cells: mean over "
+             f"training seeds ± 95 % CI across seeds (n/a for one seed){extra}.", ""]  # fmt: skip
+    return lines + ([f"**{meta['smoke']}**", ""] if meta.get("smoke") else [])
+
+
 def render_matrix(table: dict[str, Any], meta: dict[str, Any]) -> str:
     """The Markdown matrices of every metric and the separation statements (:func:`significance`)."""
-    lines = [f"# {meta['env']} fog benchmark: train × test matrix", "",
-             f"{meta['seeds']} training seed(s) × {meta['steps']} steps per condition ({meta.get('algo', 'PPO')}), "
-             f"{meta['episodes']} evaluation episodes per agent and test fog (seeds {EVAL_SEED}+). Cells: mean over "
-             "training seeds ± 95 % CI across seeds (n/a for one seed) [episode-level SD].", ""]  # fmt: skip
-    if meta.get("smoke"):
-        lines += [f"**{meta['smoke']}**", ""]
+    lines = _header(meta, f"{meta['env']} fog benchmark: train × test matrix", "condition", " [episode-level SD]")
     for metric, label, fmt in METRICS:
         lines += [f"## {label}", "", "| trained on \\ tested on | " + " | ".join(TEST_LEVELS) + " |",
                   "|---|" + "---|" * len(TEST_LEVELS)]  # fmt: skip
@@ -278,12 +282,7 @@ def sensor_statements(sset: str, table: dict[str, Any], drivers: dict[str, Any])
 def render_sensor_study(tables: dict[str, Any], drivers: dict[str, Any], meta: dict[str, Any]) -> str:
     """The Markdown of a study over sensor sets: the drivers' bound, then per set its return and collision-rate
     matrices (mean over training seeds ± 95 % CI across seeds) and :func:`sensor_statements`."""
-    lines = [f"# {meta['env']} with perceived objects: fog × training condition × sensor set", "",
-             f"{meta['seeds']} training seed(s) × {meta['steps']} steps per agent ({meta.get('algo', 'PPO')}), "
-             f"{meta['episodes']} evaluation episodes per agent and test fog (seeds {EVAL_SEED}+). Cells: mean over "
-             "training seeds ± 95 % CI across seeds (n/a for one seed).", ""]  # fmt: skip
-    if meta.get("smoke"):
-        lines += [f"**{meta['smoke']}**", ""]
+    lines = _header(meta, f"{meta['env']} with perceived objects: fog × training condition × sensor set", "agent")
     lines += ["## The scripted detection driver (return, collision rate)", "",
               "| sensors | " + " | ".join(TEST_LEVELS) + " |", "|---|" + "---|" * len(TEST_LEVELS)]  # fmt: skip
     for sset in meta["sensor_sets"]:
