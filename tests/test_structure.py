@@ -153,3 +153,21 @@ def test_env_and_wrappers_do_not_import_each_other(graph):
     wrappers_to_env = [(m, d) for m, deps in graph.items() if _under(m, ("fog_gym.wrappers",))
                        for d in deps if d in ("fog_gym.envs.fogdrive", "fog_gym.envs.presets", "fog_gym.envs.presets")]  # fmt: skip
     assert env_to_wrappers == [] and wrappers_to_env == []
+
+
+def test_at_most_ten_modules_live_directly_under_the_package():
+    top = sorted(p.name for p in (ROOT / "fog_gym").glob("*.py") if p.name not in ("__init__.py", "_version.py"))
+    assert len(top) <= 10, top
+
+
+def test_no_module_is_longer_than_600_lines():
+    long = sorted((name, n) for name, p in _modules().items() if (n := len(p.read_text().splitlines())) > 600)
+    assert long == []
+
+
+def test_tests_mirror_the_package_folders():
+    """Every subpackage with tests has them in the mirrored folder, not as a name prefix at the top of ``tests/``."""
+    folders = {p.parent.name for p in (ROOT / "fog_gym").glob("*/__init__.py")} | {"wrappers"}
+    prefixed = sorted(p.name for p in (ROOT / "tests").glob("test_*.py")
+                      if any(p.name.startswith(f"test_{f.rstrip('s')}") for f in folders))  # fmt: skip
+    assert prefixed == []

@@ -6,6 +6,7 @@ segmentation PNG → uint8 tag ids (red channel), ``.npy`` → float32 points, b
 lists (one entry per sample).
 
 Example:
+    >>> from fog_gym.dataset.decode import decode_bbox_json
     >>> decode_bbox_json(b'{"bboxes": [[[1, 2], [3, 4]]], "vehicle_ids": [7], "vehicle_class": [0]}')["bboxes"].shape
     (1, 2, 2)
 """

@@ -117,6 +117,21 @@ def test_ppo_trains_on_the_vector_env_through_the_sb3_adapter():
     assert model.num_timesteps >= 256 and venv.episodes >= 1
 
 
+def test_dqn_trains_on_the_vector_env_and_stores_every_sub_env_s_transitions():
+    from stable_baselines3 import DQN
+
+    from fog_gym.rl.sb3 import VectorEnvAdapter
+
+    venv = VectorEnvAdapter(_make_vec(4, observation="objects", info_detections=False))
+    model = DQN("MlpPolicy", venv, learning_starts=32, batch_size=16, buffer_size=1000, seed=0, device="cpu")
+    model.learn(128)
+    buf = model.replay_buffer
+    assert model.num_timesteps == 128 and buf.pos == 128 // 4  # one row per vector step, 4 sub-envs per row
+    stored = buf.observations[: buf.pos].reshape(-1, *venv.observation_space.shape)
+    assert all(venv.observation_space.contains(o) for o in stored)
+    assert set(np.unique(buf.actions[: buf.pos])) <= set(range(venv.action_space.n))
+
+
 @settings(max_examples=10, deadline=None)
 @given(st.one_of(st.integers(max_value=0), st.booleans(), st.floats(), st.text(max_size=3)))
 def test_bad_num_envs_fail_before_any_world_is_built(n):

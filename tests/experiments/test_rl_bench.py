@@ -261,13 +261,27 @@ def test_agent_probe_refuses_bad_settings_before_work(tmp_path, capsys):
 
 @pytest.mark.parametrize("kwargs, message", [
     ({"sensor_sets": ("sonar",)}, "sensor_sets must"), ({"sensor_sets": ("lidar", "lidar")}, "sensor_sets must"),
-    ({"sensor_sets": ("lidar",)}, "observation=objects"),
+    ({"sensor_sets": ("lidar",)}, "--observation objects"),
     ({"sensor_sets": ("lidar",), "env_kwargs": {"observation": "objects", "sensors": ["radar"]}}, "must not set sensors"),
     ({"algo_kwargs": {"n_steps": object()}}, "algo_kwargs must be JSON"),
 ])  # fmt: skip
 def test_bad_sensor_study_settings_are_refused_naming_the_setting(kwargs, message):
     with pytest.raises(ValueError, match=message):
         RLConfig(**kwargs)
+
+
+def test_observation_and_layout_flags_are_the_env_kwargs_they_stand_for():
+    from fog_gym.experiments.runner import build_parser
+
+    def parse(argv):
+        return RLStudy.from_args(build_parser(RLStudy).parse_args(argv)).config
+
+    short = parse(["--observation", "objects", "--layout", "lanes"])
+    long = parse(["--env-kwarg", "observation=objects", "--env-kwarg", "layout=lanes"])
+    assert short == long and short.env_kwargs == {"observation": "objects", "layout": "lanes"}
+    assert parse(["--observation", "pixels"]).env_kwargs == {"observation": "pixels"}
+    with pytest.raises(ValueError, match="--observation pixels contradicts --env-kwarg observation=objects"):
+        parse(["--observation", "pixels", "--env-kwarg", "observation=objects"])
 
 
 def test_a_sensor_study_has_one_driver_per_set_and_fog_then_agents_per_set_condition_and_seed():

@@ -94,7 +94,7 @@ class RLConfig:
         if bad or len(set(self.sensor_sets)) < len(self.sensor_sets):
             raise ValueError(f"sensor_sets must be distinct names of {tuple(SENSOR_SETS)}, got {list(self.sensor_sets)}")
         if self.sensor_sets and self.env_kwargs.get("observation") != "objects":
-            raise ValueError("sensor_sets need the perceived-objects observation: --env-kwarg observation=objects")
+            raise ValueError("sensor_sets need the perceived-objects observation: --observation objects")
         if "sensors" in self.env_kwargs and self.sensor_sets:
             raise ValueError("env_kwargs must not set sensors when sensor_sets does")
         try:
@@ -275,6 +275,11 @@ class RLStudy(Study):
                        help="the task, a registered id: FogDriveRL-v0 (default) or FogDriveRLHazard-v0 (stalled vehicles ahead)")
         p.add_argument("--env-kwarg", action="append", default=[], metavar="KEY=VALUE", type=_kwarg,
                        help="extra keyword argument of gym.make (repeatable; VALUE is read as JSON, else as text)")
+        p.add_argument("--observation", choices=("pixels", "objects"), default=None,
+                       help="the RL preset's observation (default pixels: front camera + LiDAR bird's-eye image; "
+                            "objects: the perceived objects); short for --env-kwarg observation=...")
+        p.add_argument("--layout", choices=("list", "lanes"), default=None,
+                       help="layout of the perceived objects (default list); short for --env-kwarg layout=...")
         p.add_argument("--conditions", nargs="+", choices=CONDITIONS, default=list(DEFAULT_CONDITIONS),
                        help="training conditions (default: all but moderate)")
         p.add_argument("--algo", choices=ALGOS, default=d.algo, help="the learner (default PPO)")
@@ -293,8 +298,8 @@ class RLStudy(Study):
         p.add_argument("--episode-seconds", type=float, default=None,
                        help="episode length in seconds (default 20, FogDriveRL-v0's; shorter only for smoke runs)")
         p.add_argument("--sensor-sets", nargs="+", choices=sorted(SENSOR_SETS), default=[],
-                       help="one agent per sensor set of the perceived-objects observation (needs --env-kwarg "
-                            "observation=objects), and the scripted detection driver per set and test fog")
+                       help="one agent per sensor set of the perceived-objects observation (needs --observation "
+                            "objects), and the scripted detection driver per set and test fog")
         p.add_argument("--episode-steps", type=int, default=None, metavar="N",
                        help="mean training-episode length the curricula are spread over (default: the task's "
                             "measured one; the step curriculum reaches dense fog after 60 %% of steps / N episodes)")
@@ -308,7 +313,12 @@ class RLStudy(Study):
         if args.smoke:
             conditions = ["clear", "curriculum"] if args.conditions == list(DEFAULT_CONDITIONS) else conditions
             steps, episodes, seconds = steps or 256, episodes or 2, seconds or 2.0
-        config = RLConfig(env_id=args.env, env_kwargs=dict(args.env_kwarg), conditions=tuple(conditions),
+        env_kwargs = dict(args.env_kwarg)
+        for key in ("observation", "layout"):
+            value = getattr(args, key, None)
+            if value is not None and env_kwargs.setdefault(key, value) != value:
+                raise ValueError(f"--{key} {value} contradicts --env-kwarg {key}={env_kwargs[key]}")
+        config = RLConfig(env_id=args.env, env_kwargs=env_kwargs, conditions=tuple(conditions),
                           algo=args.algo, policy=args.policy, vec_env=args.vec_env, steps=steps or 2048,
                           episodes=episodes or 8, envs=args.envs, episode_seconds=seconds or 20.0,
                           checkpoint=args.checkpoint, device=args.device, torch_threads=args.torch_threads,
