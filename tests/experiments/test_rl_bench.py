@@ -207,7 +207,9 @@ def test_ray_tasks_give_the_local_runs_results(tmp_path):
 
 def test_local_jobs_give_the_one_process_runs_results(tmp_path):
     pytest.importorskip("stable_baselines3")
-    argv = ["--conditions", "clear", "success", *TINY]
+    # the perceived objects on the native vector env: no env subprocesses, so the test times the runner, not spawns
+    argv = ["--conditions", "clear", "success", *TINY, "--env", "FogDriveRLHazard-v0", "--observation", "objects",
+            "--vec-env", "native"]  # fmt: skip
     assert runner.main(RLStudy, [*argv, "--out", str(tmp_path / "one")]) == 0
     assert runner.main(RLStudy, [*argv, "--jobs", "2", "--out", str(tmp_path / "two")]) == 0
     for path in sorted((tmp_path / "one" / "eval").glob("*.json")):
