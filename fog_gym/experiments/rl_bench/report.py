@@ -349,8 +349,9 @@ def sensor_fog_effect(tables: dict[str, Any], drivers: dict[str, Any], env: str,
             ax.set_title(f"{sset}: {label}", fontsize=9)
             if metric == "collision":
                 ax.set_ylim(-5, 105)
-            if col == 0:
+            if r == 0 or col == 0:  # each set's best-in-dense condition is its own: a legend per column
                 ax.legend(fontsize=6)
-    fig.suptitle(f"{env}: tested fog (mean over training seeds ± 95 % CI)", fontsize=9)
+    fig.suptitle(f"{env}: tested fog (mean over training seeds ± 95 % CI); per sensor set the clear-trained "
+                 "agents and the condition best in dense fog", fontsize=9)
     fig.tight_layout()
     save_figure(fig, path)
