@@ -270,15 +270,18 @@ class RLStudy(Study):
 
     @classmethod
     def add_arguments(cls, p: argparse.ArgumentParser) -> None:
+        from fog_gym.envs.presets import OBSERVATIONS
+        from fog_gym.perception.objects import LAYOUTS
+
         d = RLConfig()
         p.add_argument("--env", default=d.env_id,
                        help="the task, a registered id: FogDriveRL-v0 (default) or FogDriveRLHazard-v0 (stalled vehicles ahead)")
         p.add_argument("--env-kwarg", action="append", default=[], metavar="KEY=VALUE", type=_kwarg,
                        help="extra keyword argument of gym.make (repeatable; VALUE is read as JSON, else as text)")
-        p.add_argument("--observation", choices=("pixels", "objects"), default=None,
+        p.add_argument("--observation", choices=OBSERVATIONS, default=None,
                        help="the RL preset's observation (default pixels: front camera + LiDAR bird's-eye image; "
                             "objects: the perceived objects); short for --env-kwarg observation=...")
-        p.add_argument("--layout", choices=("list", "lanes"), default=None,
+        p.add_argument("--layout", choices=LAYOUTS, default=None,
                        help="layout of the perceived objects (default list); short for --env-kwarg layout=...")
         p.add_argument("--conditions", nargs="+", choices=CONDITIONS, default=list(DEFAULT_CONDITIONS),
                        help="training conditions (default: all but moderate)")
