@@ -9,6 +9,7 @@ import numpy as np
 from gymnasium import spaces
 
 from fog_gym.dataset.packing import unpack_points
+from fog_gym.render.birds_eye import lidar_bev
 
 
 class LidarBEV(gym.ObservationWrapper):
@@ -46,16 +47,7 @@ class LidarBEV(gym.ObservationWrapper):
 
     def observation(self, observation: dict) -> dict:
         pts = unpack_points(observation, self.channel)
-        height = pts[:, 2] + self.sensor_height  # above the road
-        above = (height > 0.3) & (height < 4.0)
-        scale = self.size / self.metres
-        col = np.floor(pts[above, 1] * scale + self.size / 2).astype(np.int64)
-        row = np.floor((self.ahead - pts[above, 0]) * scale + self.size / 2).astype(np.int64)
-        ok = (col >= 0) & (col < self.size) & (row >= 0) & (row < self.size)
-        img = np.zeros((2, self.size, self.size), np.uint8)
-        img[0, row[ok], col[ok]] = 255
-        h = np.clip(height[above][ok] / 4.0 * 255, 0, 255).astype(np.uint8)
-        np.maximum.at(img[1], (row[ok], col[ok]), h)
+        img = lidar_bev(pts, self.size, self.metres, self.ahead, self.sensor_height)
         out = dict(observation)
         if self.drop_channel:
             out.pop(self.channel)

@@ -20,6 +20,7 @@ import numpy as np
 from numba import njit, prange
 
 import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
+from fog_gym._numba import SERIAL_BELOW, serial_twin
 from fog_gym.fog.physics import FogLevel
 
 # LiDAR pulse and receiver (Hahner et al.; research note §1.1)
@@ -121,6 +122,9 @@ def _hahner(pts, table_i, table_r, alpha, beta_ratio, log_noise, u, out):
             out[n, c] = pts[n, c]
 
 
+_hahner_serial = serial_twin(_hahner)
+
+
 def fog_lidar(points: np.ndarray, level: FogLevel, rng: np.random.Generator, noise: float = 10.0) -> np.ndarray:
     """Hahner et al. fog on CARLA LiDAR points ``(N, 4)`` x, y, z, intensity ∈ [0, 1] → ``(N, 4)`` float32.
 
@@ -146,6 +150,6 @@ def fog_lidar(points: np.ndarray, level: FogLevel, rng: np.random.Generator, noi
     table_i, table_r = soft_response_table(level.alpha)
     u = rng.uniform(-1.0, 1.0, len(pts))
     out = np.empty_like(pts)
-    _hahner(pts, table_i, table_r, level.alpha, BETA_PER_MOR / level.visibility_m / (GAMMA / math.pi),
+    (_hahner if len(pts) >= SERIAL_BELOW else _hahner_serial)(pts, table_i, table_r, level.alpha, BETA_PER_MOR / level.visibility_m / (GAMMA / math.pi),
             math.log(max(1.0, noise / 5.0)) if noise > 0 else 0.0, u, out)  # fmt: skip
     return out

@@ -1,6 +1,8 @@
 """The environments' ``render_mode="rgb_array"`` frame: a bird's-eye view of a :class:`~fog_gym.world.scene.Scene`
 (road surface, markings, vehicles as boxes) beside the front camera.
 
+:func:`lidar_bev` is the RL presets' LiDAR image (:class:`~fog_gym.wrappers.LidarBEV`).
+
 Example:
     >>> composite(np.zeros((48, 64, 3), np.uint8), np.zeros((96, 96, 3), np.uint8), height=48).shape
     (48, 112, 3)
@@ -10,6 +12,9 @@ from __future__ import annotations
 
 import cv2
 import numpy as np
+from numba import njit
+
+import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
 
 from fog_gym.geometry import box_corners
 from fog_gym.world.scene import Scene
@@ -80,3 +85,42 @@ def composite(front_rgb: np.ndarray | None, bev: np.ndarray, height: int = 480) 
     h, w = front_rgb.shape[:2]
     front = cv2.resize(front_rgb, (max(1, int(round(w * height / h))), height), interpolation=cv2.INTER_AREA)
     return np.concatenate([front, bev], axis=1)
+
+
+def lidar_bev(points: np.ndarray, size: int, metres: float, ahead: float = 0.0, sensor_height: float = 2.0) -> np.ndarray:
+    """LiDAR points ``(N, ≥3)`` float32 in the sensor frame → ``(2, size, size)`` uint8 bird's-eye image: occupancy
+    (255) of the points 0.3–4 m above the road (``z + sensor_height``) and the highest of them (0–255 over 0–4 m).
+
+    The image spans ``metres`` on each side, centred ``ahead`` metres in front of the sensor: a point at (x, y) falls
+    in row ``floor((ahead − x)·size/metres + size/2)`` and column ``floor(y·size/metres + size/2)`` (float32 maths).
+
+    >>> img = lidar_bev(np.array([[1.5, -2.5, -1.0], [1.5, -2.5, 0.0], [0.0, 0.0, -1.9]], np.float32), 8, 8.0)
+    >>> int(img[0, 2, 1]), int(img[1, 2, 1]), int(img[0].sum() // 255)  # one cell, its highest point 2 m up; the road point left out
+    (255, 127, 1)
+    """
+    pts = np.ascontiguousarray(points, np.float32)
+    if pts.ndim != 2 or pts.shape[1] < 3:
+        raise ValueError(f"expected LiDAR points of shape (N, >=3), got {pts.shape}")
+    img = np.zeros((2, int(size), int(size)), np.uint8)
+    f = np.float32
+    _bev(pts, img, f(size / metres), f(size / 2), f(ahead), f(sensor_height))
+    return img
+
+
+@njit(cache=True)
+def _bev(pts, img, scale, half, ahead, sensor_height):
+    size = img.shape[1]
+    lo, hi, four, full = np.float32(0.3), np.float32(4.0), np.float32(4.0), np.float32(255.0)
+    for n in range(pts.shape[0]):
+        height = pts[n, 2] + sensor_height
+        if not (height > lo and height < hi):
+            continue
+        col = np.int64(np.floor(pts[n, 1] * scale + half))
+        row = np.int64(np.floor((ahead - pts[n, 0]) * scale + half))
+        if col < 0 or col >= size or row < 0 or row >= size:
+            continue
+        img[0, row, col] = 255
+        h = min(max(height / four * full, np.float32(0.0)), full)
+        v = np.uint8(h)
+        if v > img[1, row, col]:
+            img[1, row, col] = v

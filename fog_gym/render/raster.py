@@ -26,6 +26,7 @@ import numpy as np
 from numba import njit, prange
 
 import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
+from fog_gym._numba import SERIAL_BELOW, serial_twin
 from fog_gym.render.shading import (FACE_AXES, FACE_STEP, TONE_STEPS, encode_tone, face_sample, fix_irradiance, grid_axis,
                                     grid_bilinear, light_ground, night_ground_row, night_tone_table, tone_at)  # fmt: skip
 from fog_gym.render.surface import TiledSurface, surface_cell
@@ -47,7 +48,7 @@ NEAR = 0.05
 BAND_ROWS = 32
 
 
-@njit(cache=True, parallel=True, fastmath=False)
+@njit(cache=True, fastmath=False)  # one thread: parallel over cameras lost to its launch costs at every size
 def _setup_faces(
     cam_rot, cam_trans, cam_k, width, height, far,
     centers, halves, yaws, colors, tags, insts, emissive,
@@ -447,6 +448,9 @@ def _raster_bands(
                             out_face[c, i, j] = f
 
 
+_raster_bands_serial = serial_twin(_raster_bands)
+
+
 _NO_MAP = np.zeros((1, 1, 3), np.float32)
 
 
@@ -535,7 +539,8 @@ def render(
         prims.emissive, np.asarray(sun_dir, np.float64), float(ambient), float(sun_intensity),
     )  # fmt: skip
     face = np.empty((n_cam, height, width), np.int32) if face_ids else np.empty((1, 1, 1), np.int32)
-    _raster_bands(
+    raster = _raster_bands if n_cam * int(width) * int(height) >= SERIAL_BELOW else _raster_bands_serial
+    raster(
         cam_rot, cam_trans, cam_k, int(width), int(height), float(far),
         surface.flat, surface.rows, surface.cols, surface.tiles_x, surface.origin[0], surface.origin[1],
         surface.resolution, surface_lut_rgb, np.asarray(surface_tag, np.uint8),

@@ -18,6 +18,7 @@ Example:
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any
 
@@ -85,6 +86,9 @@ FOGDRIVE_CAMERA_POSES: dict[str, Pose] = {
     "CAM_RIGHT": Pose(0.5, 0.7, 1.5, 0.0, 0.0, 100.0),
 }
 
+#: The props near the ego are re-selected from the whole static world only after it moved this far [m]; in between
+#: from the props within ``render_radius`` plus this margin of where they were last selected (the same boxes).
+NEAR_MARGIN = 40.0
 #: Lights farther than this from the ego (beyond their own radius) are left out of a night frame [m].
 LIGHT_RANGE = 250.0
 #: The largest semantic tag id (the bound of a ``C_SEM`` space).
@@ -120,7 +124,8 @@ class CameraRig:
         for c in cameras:
             groups.setdefault((c.width, c.height), []).append(c)
         self._groups = list(groups.items())
-        self._props_cache: tuple[object, dict] | None = None
+        self._props_cache: tuple[object, Primitives] | None = None
+        self._near_cache: tuple[np.ndarray, Primitives] | None = None
         self._lamps_cache: tuple | None = None
         #: Auto-exposure gain of each camera in the latest frame (1 by day).
         self.exposure: dict[str, float] = {}
@@ -134,7 +139,14 @@ class CameraRig:
         props some camera can see (other sensors, the LiDAR's 360° sweep, take ``in_view=False``)."""
         if self._props_cache is None or self._props_cache[0] is not scene.static:
             self._props_cache = (scene.static, prop_primitives(scene.static.props))
-        props = self._props_cache[1].near(np.asarray(scene.ego_pose[:2]), self.render_radius)
+            self._near_cache = None
+        ego = np.asarray(scene.ego_pose[:2], np.float64)
+        near = self._near_cache
+        if near is None or math.hypot(ego[0] - near[0][0], ego[1] - near[0][1]) > NEAR_MARGIN - 1.0:
+            # a box within render_radius of the ego lies within render_radius + NEAR_MARGIN of a point less than
+            # NEAR_MARGIN away (1 m spare for rounding), so selecting from this subset gives the same boxes in order
+            near = self._near_cache = (ego, self._props_cache[1].near(ego, self.render_radius + NEAR_MARGIN))
+        props = near[1].near(ego, self.render_radius)
         if in_view:
             props = self._in_view(props, scene.ego_pose)
         return Primitives.concat(props, scene.primitives)
@@ -144,7 +156,7 @@ class CameraRig:
         n_props = len(prims) - len(scene.primitives)
         if n_props <= 0:
             return prims
-        props = prims.take(np.arange(len(prims)) < n_props)
+        props = prims.take(slice(0, n_props))
         return Primitives.concat(self._in_view(props, scene.ego_pose), scene.primitives)
 
     def _in_view(self, prims: Primitives, ego_pose: tuple[float, float, float]) -> Primitives:

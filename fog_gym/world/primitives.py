@@ -13,7 +13,7 @@ Example:
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -78,12 +78,11 @@ class Primitives:
     @classmethod
     def concat(cls, *groups: Primitives) -> Primitives:
         """All boxes of ``groups``, in order."""
-        return cls(**{f.name: np.ascontiguousarray(np.concatenate([getattr(g, f.name) for g in groups]))
-                      for f in fields(cls)})  # fmt: skip
+        return cls(**{k: np.concatenate([getattr(g, k) for g in groups]) for k in LAYOUT})
 
-    def take(self, keep: np.ndarray) -> Primitives:
-        """The boxes selected by a boolean mask or an index array."""
-        return Primitives(**{f.name: np.ascontiguousarray(getattr(self, f.name)[keep]) for f in fields(self)})
+    def take(self, keep: np.ndarray | slice) -> Primitives:
+        """The boxes selected by a boolean mask, an index array or a slice."""
+        return Primitives(**{k: np.ascontiguousarray(getattr(self, k)[keep]) for k in LAYOUT})
 
     def near(self, center_xy: np.ndarray, radius: float) -> Primitives:
         """Boxes whose centre lies within ``radius`` (plus their own size) of ``center_xy`` in the ground plane."""

@@ -203,9 +203,10 @@ def vehicle_primitives(state: VehicleState, night: bool, exclude_id: int | None 
     vi, lx, ly, z0, z1, halves, colors, tags, emissive = layout
     yaw = state.yaws[vi]
     c, s = np.cos(yaw), np.sin(yaw)
-    centers = np.c_[state.centers[vi, 0] + lx * c - ly * s, state.centers[vi, 1] + lx * s + ly * c, (z0 + z1) / 2]
+    cx, cy = state.centers[vi, 0], state.centers[vi, 1]
+    centers = np.stack((cx + lx * c - ly * s, cy + lx * s + ly * c, (z0 + z1) / 2), axis=1)
     return Primitives(
-        centers=np.ascontiguousarray(centers),
+        centers=centers,
         halves=halves,
         yaws=np.ascontiguousarray(yaw),
         colors=colors,

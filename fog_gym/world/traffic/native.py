@@ -266,9 +266,9 @@ class NativeTraffic:
         n = int(self.counts[w])
         f = self.floats[w, :n]
         heading, speed = f[:, K.FH], f[:, K.FS]
-        sizes = np.c_[f[:, K.FLEN], f[:, K.FWID], self.heights[w, :n]]
-        centers = np.c_[f[:, K.FX], f[:, K.FY], sizes[:, 2] / 2]
-        vel = np.c_[speed * np.cos(heading), speed * np.sin(heading), np.zeros(n)]
+        sizes = np.stack((f[:, K.FLEN], f[:, K.FWID], self.heights[w, :n]), axis=1)
+        centers = np.stack((f[:, K.FX], f[:, K.FY], sizes[:, 2] / 2), axis=1)
+        vel = np.stack((speed * np.cos(heading), speed * np.sin(heading), np.zeros(n)), axis=1)
         return (self.ids[w, :n].copy(), self.classes[w, :n].copy(), centers, sizes, heading.copy(), vel,
                 self.colors[w, :n].copy())  # fmt: skip
 
