@@ -8,7 +8,8 @@ episode restarts at once: ``NEXT_STEP`` autoreset in the vector envs, ``reset()`
   perceived objects, each as a ratio of highway-fast-v0;
 * how the objects vector env scales from 1 to 32 worlds;
 * a reset's cost in steps of the same env;
-* where a vector step's time goes (traffic, perception or rendering, fog, the rest) from cProfile;
+* where a vector step's time goes (traffic, perception or rendering, fog, the rest) from cProfile, in a run of its own
+  (the rates are measured without the profiler, whose overhead falls on Python code);
 * SB3 PPO end to end on the objects preset (16 worlds through ``fog_gym.rl.sb3.VectorEnvAdapter``, MLP policy,
   learner included) and the learner's share.
 
@@ -168,7 +169,8 @@ def main(argv: list[str] | None = None) -> int:
             print(f"{env_id} {obs} …", flush=True)
             single = rate_single(lambda: gym.make(env_id, observation=obs, fog="dense"), sec)
             venv = gym.make_vec(env_id, num_envs=16, vectorization_mode="vector_entry_point", observation=obs, fog="dense")
-            vec, prof = rate_vector(venv, sec, profile=True)
+            vec = rate_vector(venv, sec)[0]
+            prof = rate_vector(venv, min(sec, 3.0), seed=1, profile=True)[1]  # apart: cProfile slows Python down
             venv.close()
             cost = reset_cost(lambda: gym.make(env_id, observation=obs, fog="dense"))
             rows.append({"env": env_id, "observation": obs, "single": single, "vector16": vec, "reset_steps": cost,

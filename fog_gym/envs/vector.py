@@ -50,23 +50,33 @@ PRESET_ARGS = ("fog", "town", "camera_size", "grayscale", "bev_size", "frame_sta
                "observation", "hazards", "episode_seconds", "traffic", "static_world", "time_of_day", *OBJECT_ARGS)  # fmt: skip
 
 
+def check_vector_arguments(env_id: str, num_envs: Any, autoreset_mode: Any, kwargs: dict) -> AutoresetMode:
+    """``ValueError`` naming the argument unless the vector env can be built from these (before any world is); returns
+    the autoreset mode."""
+    if env_id not in VECTOR_PRESETS:
+        raise ValueError(f"env_id must be one of {sorted(VECTOR_PRESETS)} (the presets with a vector path), got {env_id!r}")
+    if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
+        raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
+    unknown = sorted(set(kwargs) - set(PRESET_ARGS))
+    if unknown:
+        raise ValueError(f"unknown argument(s) {unknown} for {env_id}; allowed: {sorted(PRESET_ARGS)}")
+    try:
+        mode = AutoresetMode(autoreset_mode)
+    except ValueError:
+        mode = None
+    if mode not in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP):
+        raise ValueError(f"autoreset_mode must be NEXT_STEP or SAME_STEP, got {autoreset_mode!r}")
+    if kwargs.get("town", "highway") != "highway":
+        raise ValueError(f"town: the native vector path runs the highway town only, got {kwargs['town']!r}")
+    return mode
+
+
 class FogDriveVectorEnv(gym.vector.VectorEnv):
     """N worlds of an RL preset stepped in one process (see the module docstring)."""
 
     def __init__(self, env_id: str, num_envs: int, autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
                  info_detections: bool = True, **kwargs: Any) -> None:  # fmt: skip
-        if env_id not in VECTOR_PRESETS:
-            raise ValueError(f"env_id must be one of {sorted(VECTOR_PRESETS)} (the presets with a vector path), got {env_id!r}")
-        if isinstance(num_envs, bool) or not isinstance(num_envs, (int, np.integer)) or num_envs < 1:
-            raise ValueError(f"num_envs must be an integer >= 1, got {num_envs!r}")
-        unknown = sorted(set(kwargs) - set(PRESET_ARGS))
-        if unknown:
-            raise ValueError(f"unknown argument(s) {unknown} for {env_id}; allowed: {sorted(PRESET_ARGS)}")
-        mode = AutoresetMode(autoreset_mode)
-        if mode not in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP):
-            raise ValueError(f"autoreset_mode must be NEXT_STEP or SAME_STEP, got {autoreset_mode!r}")
-        if kwargs.get("town", "highway") != "highway":
-            raise ValueError(f"town: the native vector path runs the highway town only, got {kwargs['town']!r}")
+        mode = check_vector_arguments(env_id, num_envs, autoreset_mode, kwargs)
         self.env_id = env_id
         self.num_envs = int(num_envs)
         self.metadata = {"autoreset_mode": mode, "render_modes": []}
@@ -298,13 +308,24 @@ class FogDriveVectorEnv(gym.vector.VectorEnv):
         return infos
 
 
-def make_rl_vector(num_envs: int = 1, **kwargs: Any) -> FogDriveVectorEnv:
-    """``FogDriveRL-v0``'s vector entry point."""
+def make_vector(env_id: str, num_envs: int = 1, shards: int = 1, **kwargs: Any) -> gym.vector.VectorEnv:
+    """The vector env of ``env_id``: :class:`FogDriveVectorEnv` in this process (``shards=1``), or its worlds over
+    ``shards`` worker processes (:class:`~fog_gym.envs.sharded.ShardedVectorEnv`)."""
     kwargs.pop("max_episode_steps", None)
-    return FogDriveVectorEnv("FogDriveRL-v0", num_envs, **kwargs)
+    if isinstance(shards, bool) or not isinstance(shards, (int, np.integer)) or shards < 1:
+        raise ValueError(f"shards must be an integer >= 1, got {shards!r}")
+    if shards == 1:
+        return FogDriveVectorEnv(env_id, num_envs, **kwargs)
+    from fog_gym.envs.sharded import ShardedVectorEnv
+
+    return ShardedVectorEnv(env_id, num_envs, int(shards), **kwargs)
 
 
-def make_rl_hazard_vector(num_envs: int = 1, **kwargs: Any) -> FogDriveVectorEnv:
-    """``FogDriveRLHazard-v0``'s vector entry point."""
-    kwargs.pop("max_episode_steps", None)
-    return FogDriveVectorEnv("FogDriveRLHazard-v0", num_envs, **kwargs)
+def make_rl_vector(num_envs: int = 1, shards: int = 1, **kwargs: Any) -> gym.vector.VectorEnv:
+    """``FogDriveRL-v0``'s vector entry point (``shards``: worker processes, see :func:`make_vector`)."""
+    return make_vector("FogDriveRL-v0", num_envs, shards, **kwargs)
+
+
+def make_rl_hazard_vector(num_envs: int = 1, shards: int = 1, **kwargs: Any) -> gym.vector.VectorEnv:
+    """``FogDriveRLHazard-v0``'s vector entry point (``shards``: worker processes, see :func:`make_vector`)."""
+    return make_vector("FogDriveRLHazard-v0", num_envs, shards, **kwargs)

@@ -100,7 +100,7 @@ class VectorEnvAdapter(VecEnv):
         from gymnasium.vector import AutoresetMode
 
         base = getattr(venv, "unwrapped", venv)
-        if not hasattr(base, "reset_one") or not hasattr(base, "worlds") and not hasattr(base, "envs"):
+        if not (hasattr(base, "reset_one") and hasattr(base, "set_fog")):
             raise ValueError(f"venv must be fog-gym's native vector env, got {type(venv).__name__}")
         base.metadata = {**base.metadata, "autoreset_mode": AutoresetMode.SAME_STEP}
         self.venv = base
