@@ -5,7 +5,8 @@ episode restarts at once: ``NEXT_STEP`` autoreset in the vector envs, ``reset()`
 
 * highway-fast-v0 (plain highway-env: the pace this benchmark is a ratio of);
 * the single envs and the native vector env (16 worlds) of ``FogDriveRL-v0`` and ``FogDriveRLHazard-v0``, pixels and
-  perceived objects, each as a ratio of highway-fast-v0;
+  perceived objects, each as a ratio of highway-fast-v0, in one process and sharded over 2 worker processes
+  (``shards=2``);
 * how the objects vector env scales from 1 to 32 worlds;
 * a reset's cost in steps of the same env;
 * where a vector step's time goes (traffic, perception or rendering, fog, the rest) from cProfile, in a run of its own
@@ -173,8 +174,13 @@ def main(argv: list[str] | None = None) -> int:
             prof = rate_vector(venv, min(sec, 3.0), seed=1, profile=True)[1]  # apart: cProfile slows Python down
             venv.close()
             cost = reset_cost(lambda: gym.make(env_id, observation=obs, fog="dense"))
+            shards = 2
+            venv = gym.make_vec(env_id, num_envs=16, vectorization_mode="vector_entry_point", observation=obs, fog="dense",
+                                shards=shards)  # fmt: skip
+            sharded = rate_vector(venv, sec)[0]
+            venv.close()
             rows.append({"env": env_id, "observation": obs, "single": single, "vector16": vec, "reset_steps": cost,
-                         "breakdown": breakdown(prof)})  # fmt: skip
+                         "sharded16": sharded, "shards": shards, "breakdown": breakdown(prof)})  # fmt: skip
     res["presets"] = rows
     scaling = []
     for n in (1, 2, 4, 8, 16, 32) if not args.quick else (1, 4, 16):
@@ -190,11 +196,12 @@ def main(argv: list[str] | None = None) -> int:
 
     print(f"\nhighway-fast-v0: {base:.1f} steps/s (random actions, resets included)\n")
     print("| env | observation | single env [steps/s] | vector env, 16 worlds [steps/s] | × highway-fast-v0 | "
-          "reset [steps] |")  # fmt: skip
-    print("|---|---|---|---|---|---|")
+          "16 worlds in 2 processes (shards=2) [steps/s] | × highway-fast-v0 | reset [steps] |")  # fmt: skip
+    print("|---|---|---|---|---|---|---|---|")
     for r in rows:
         print(f"| {r['env']} | {r['observation']} | {r['single']:.0f} | {r['vector16']:.0f} | "
-              f"{r['vector16'] / base:.1f}× | {r['reset_steps']:.1f} |")  # fmt: skip
+              f"{r['vector16'] / base:.1f}× | {r['sharded16']:.0f} | {r['sharded16'] / base:.1f}× | "
+              f"{r['reset_steps']:.1f} |")  # fmt: skip
     print("\nWhere a 16-world vector step goes (share of profiled time):\n")
     stages = list(rows[0]["breakdown"])
     print("| env | observation | " + " | ".join(stages) + " |")
