@@ -10,7 +10,8 @@
 Entry points live in :mod:`fog_gym.envs.presets`, the env class in :mod:`fog_gym.envs.fogdrive`, its configuration
 in :mod:`fog_gym.envs.config`; the RL presets' perceived-objects observation in :mod:`fog_gym.envs.objects` and
 their native vector env (``gym.make_vec(id, num_envs, vectorization_mode="vector_entry_point")``) in
-:mod:`fog_gym.envs.vector`.
+:mod:`fog_gym.envs.vector`, sharded over worker processes with ``shards=K`` (:mod:`fog_gym.envs.sharded`); the vector
+entry points are here.
 
 Example:
     >>> import gymnasium as gym
@@ -20,14 +21,41 @@ Example:
 
 from __future__ import annotations
 
+from typing import Any
+
 from gymnasium.envs.registration import register
 
 #: Every registered id → (its entry point, its native vector entry point or None).
 ENV_IDS = {
     "FogDrive-v0": ("fog_gym.envs.presets:make_fogdrive", None),
-    "FogDriveRL-v0": ("fog_gym.envs.presets:make_fogdrive_rl", "fog_gym.envs.vector:make_rl_vector"),
-    "FogDriveRLHazard-v0": ("fog_gym.envs.presets:make_fogdrive_rl_hazard", "fog_gym.envs.vector:make_rl_hazard_vector"),
+    "FogDriveRL-v0": ("fog_gym.envs.presets:make_fogdrive_rl", "fog_gym.envs:make_rl_vector"),
+    "FogDriveRLHazard-v0": ("fog_gym.envs.presets:make_fogdrive_rl_hazard", "fog_gym.envs:make_rl_hazard_vector"),
 }
 
 for _id, (_entry, _vector) in ENV_IDS.items():
     register(id=_id, entry_point=_entry, vector_entry_point=_vector, max_episode_steps=None)
+
+
+def make_vector(env_id: str, num_envs: int = 1, shards: int = 1, **kwargs: Any) -> Any:
+    """The vector env of ``env_id``: :class:`~fog_gym.envs.vector.FogDriveVectorEnv` in this process (``shards=1``),
+    or its worlds over ``shards`` worker processes (:class:`~fog_gym.envs.sharded.ShardedVectorEnv`)."""
+    kwargs.pop("max_episode_steps", None)
+    if isinstance(shards, bool) or not isinstance(shards, int) or shards < 1:
+        raise ValueError(f"shards must be an integer >= 1, got {shards!r}")
+    if shards == 1:
+        from fog_gym.envs.vector import FogDriveVectorEnv
+
+        return FogDriveVectorEnv(env_id, num_envs, **kwargs)
+    from fog_gym.envs.sharded import ShardedVectorEnv
+
+    return ShardedVectorEnv(env_id, num_envs, shards, **kwargs)
+
+
+def make_rl_vector(num_envs: int = 1, shards: int = 1, **kwargs: Any) -> Any:
+    """``FogDriveRL-v0``'s vector entry point (``shards``: worker processes, see :func:`make_vector`)."""
+    return make_vector("FogDriveRL-v0", num_envs, shards, **kwargs)
+
+
+def make_rl_hazard_vector(num_envs: int = 1, shards: int = 1, **kwargs: Any) -> Any:
+    """``FogDriveRLHazard-v0``'s vector entry point (``shards``: worker processes, see :func:`make_vector`)."""
+    return make_vector("FogDriveRLHazard-v0", num_envs, shards, **kwargs)

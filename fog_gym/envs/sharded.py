@@ -35,7 +35,7 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
-from fog_gym.envs.vector import check_vector_arguments
+from fog_gym.envs.vector import check_vector_arguments, sub_env_seeds
 
 
 def shard_sizes(num_envs: int, shards: int) -> tuple[int, ...]:
@@ -52,8 +52,7 @@ def _worker(conn: Any, env_id: str, size: int, threads: int, autoreset_mode: str
     try:
         import numba
 
-        numba.set_num_threads(threads)
-        import fog_gym  # noqa: F401  (registers the envs)
+        numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
         from fog_gym.envs.vector import FogDriveVectorEnv
 
         envs = FogDriveVectorEnv(env_id, size, autoreset_mode=autoreset_mode, info_detections=info_detections, **kwargs)
@@ -118,7 +117,7 @@ class ShardedVectorEnv(gym.vector.VectorEnv):
     # -- Gymnasium VectorEnv API ----------------------------------------------------------------------
     def reset(self, *, seed: int | Sequence[int | None] | None = None, options: dict[str, Any] | None = None):
         self._sync_mode()
-        seeds = self._seeds(seed)
+        seeds = sub_env_seeds(seed, self.num_envs)
         for k, conn in enumerate(self._conns):
             conn.send(("reset", ((), {"seed": seeds[self._starts[k]:self._starts[k + 1]], "options": options})))
         parts = self._gather()
@@ -221,16 +220,6 @@ class ShardedVectorEnv(gym.vector.VectorEnv):
                 conn.send(("mode", mode.value))
             self._gather()
             self._mode = mode
-
-    def _seeds(self, seed: Any) -> list[int | None]:
-        if seed is None:
-            return [None] * self.num_envs
-        if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
-            return [int(seed) + i for i in range(self.num_envs)]
-        seeds = list(seed)
-        if len(seeds) != self.num_envs:
-            raise ValueError(f"seed must be an int, None or {self.num_envs} seeds, got {len(seeds)}")
-        return seeds
 
     def _concat(self, parts: list) -> Any:
         if isinstance(parts[0], dict):

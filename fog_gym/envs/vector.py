@@ -71,6 +71,22 @@ def check_vector_arguments(env_id: str, num_envs: Any, autoreset_mode: Any, kwar
     return mode
 
 
+def sub_env_seeds(seed: Any, num_envs: int) -> list[int | None]:
+    """Each sub-env's seed for ``reset(seed=seed)``: ``seed + i`` for an int, None for None, or one of a list.
+
+    >>> sub_env_seeds(5, 3), sub_env_seeds(None, 2)
+    ([5, 6, 7], [None, None])
+    """
+    if seed is None:
+        return [None] * num_envs
+    if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
+        return [int(seed) + i for i in range(num_envs)]
+    seeds = list(seed)
+    if len(seeds) != num_envs:
+        raise ValueError(f"seed must be an int, None or {num_envs} seeds, got {len(seeds)}")
+    return seeds
+
+
 class FogDriveVectorEnv(gym.vector.VectorEnv):
     """N worlds of an RL preset stepped in one process (see the module docstring)."""
 
@@ -270,14 +286,7 @@ class FogDriveVectorEnv(gym.vector.VectorEnv):
 
     # -- helpers --------------------------------------------------------------------------------------
     def _seeds(self, seed: Any) -> list[int | None]:
-        if seed is None:
-            return [None] * self.num_envs
-        if isinstance(seed, (int, np.integer)) and not isinstance(seed, bool):
-            return [int(seed) + i for i in range(self.num_envs)]
-        seeds = list(seed)
-        if len(seeds) != self.num_envs:
-            raise ValueError(f"seed must be an int, None or {self.num_envs} seeds, got {len(seeds)}")
-        return seeds
+        return sub_env_seeds(seed, self.num_envs)
 
     def _ragged(self) -> dict[str, Any]:
         """Info keys whose arrays differ in shape between sub-envs, as object arrays (Gymnasium's convention)."""
@@ -306,26 +315,3 @@ class FogDriveVectorEnv(gym.vector.VectorEnv):
             infos["detections"] = np.array([w.detections(i) for i in range(self.num_envs)] + [None], dtype=object)[:-1]
             infos["_detections"] = mask.copy()
         return infos
-
-
-def make_vector(env_id: str, num_envs: int = 1, shards: int = 1, **kwargs: Any) -> gym.vector.VectorEnv:
-    """The vector env of ``env_id``: :class:`FogDriveVectorEnv` in this process (``shards=1``), or its worlds over
-    ``shards`` worker processes (:class:`~fog_gym.envs.sharded.ShardedVectorEnv`)."""
-    kwargs.pop("max_episode_steps", None)
-    if isinstance(shards, bool) or not isinstance(shards, (int, np.integer)) or shards < 1:
-        raise ValueError(f"shards must be an integer >= 1, got {shards!r}")
-    if shards == 1:
-        return FogDriveVectorEnv(env_id, num_envs, **kwargs)
-    from fog_gym.envs.sharded import ShardedVectorEnv
-
-    return ShardedVectorEnv(env_id, num_envs, int(shards), **kwargs)
-
-
-def make_rl_vector(num_envs: int = 1, shards: int = 1, **kwargs: Any) -> gym.vector.VectorEnv:
-    """``FogDriveRL-v0``'s vector entry point (``shards``: worker processes, see :func:`make_vector`)."""
-    return make_vector("FogDriveRL-v0", num_envs, shards, **kwargs)
-
-
-def make_rl_hazard_vector(num_envs: int = 1, shards: int = 1, **kwargs: Any) -> gym.vector.VectorEnv:
-    """``FogDriveRLHazard-v0``'s vector entry point (``shards``: worker processes, see :func:`make_vector`)."""
-    return make_vector("FogDriveRLHazard-v0", num_envs, shards, **kwargs)
