@@ -109,7 +109,11 @@ class ShardedVectorEnv(gym.vector.VectorEnv):
             child.close()
             self._conns.append(parent)
             self._procs.append(proc)
-        spaces = self._gather()
+        try:
+            spaces = self._gather()
+        except Exception:
+            self.close_extras()  # the shards that did start stop again
+            raise
         self.single_observation_space, self.single_action_space = spaces[0]
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)

@@ -121,8 +121,12 @@ def test_bad_arguments_fail_in_the_main_process_and_worker_errors_come_back():
         ShardedVectorEnv("FogDriveRLHazard-v0", 4, 2, colour="red")
     with pytest.raises(ValueError, match="num_envs must be"):
         ShardedVectorEnv("FogDriveRLHazard-v0", 0, 1)
+    import multiprocessing as mp
+
+    before = len(mp.active_children())
     with pytest.raises(ValueError, match="fog visibility must be"):  # checked where the worlds are built
         _make(2, 2, fog=-5)
+    assert len(mp.active_children()) == before  # no worker left behind
 
 
 def test_shard_sizes_cover_every_world_once():
