@@ -3,7 +3,8 @@
 
 :class:`ShardedVectorEnv` runs K worker processes, each with its own :class:`~fog_gym.envs.vector.FogDriveVectorEnv`
 of about N/K worlds (shard k holds sub-envs ``[start_k, start_k + n_k)``), steps them at once and concatenates their
-results, so the worlds' Python and kernels use K cores. Every worker's numba kernels get ``cores // K`` threads.
+results, so the worlds' Python and kernels use K cores. Every worker's numba kernels get ``cores // K`` threads;
+``context`` picks the multiprocessing start method (``"fork"``, ``"spawn"``, ``"forkserver"``; default: the platform's).
 
 It is the same vector env as ``shards=1`` sub-env for sub-env: ``reset(seed=s)`` gives sub-env i the episode of a
 single env reset with ``seed=s + i``, autoresets (``NEXT_STEP`` or ``SAME_STEP``) and infos follow Gymnasium's
