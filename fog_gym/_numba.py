@@ -12,8 +12,8 @@ module) and :func:`announce_compilation` prints the notice once per process when
 
 Small workloads (the RL presets' 64×64 camera, a 32-channel LiDAR sweep) run faster on one thread: a parallel
 kernel pays a launch per parallel region (tens of µs with workqueue), more than such a frame's work.
-:func:`serial_twin` compiles a parallel kernel a second time without ``parallel``; callers pick it below a work size
-(:data:`SERIAL_BELOW`). Both give the same bits (tests compare them).
+:func:`serial_twin` compiles a parallel kernel a second time without ``parallel``; :func:`pick` chooses it below a work
+size (:data:`SERIAL_BELOW`). Both give the same bits (tests compare them).
 
 Example:
     >>> isinstance(cold_kernels(), list)
@@ -49,6 +49,11 @@ def serial_twin(kernel):
     copy.__doc__ = f"{f.__name__} on one thread (:func:`fog_gym._numba.serial_twin`)."
     options = {k: v for k, v in kernel.targetoptions.items() if k in ("fastmath", "error_model", "boundscheck")}
     return njit(cache=True, **options)(copy)
+
+
+def pick(kernel, twin, work: int):
+    """``kernel`` for ``work`` pixels, rays or points of at least :data:`SERIAL_BELOW`, else its serial ``twin``."""
+    return kernel if work >= SERIAL_BELOW else twin
 
 
 def drop_stale_caches(root: Path | None = None) -> bool:

@@ -6,16 +6,12 @@ import numpy as np
 import pytest
 
 import fog_gym  # noqa: F401
-from fog_gym.fog import camera, lidar
-from fog_gym.render import raster
+import fog_gym._numba
 from fog_gym.sensors import raycast
-
-KERNEL_MODULES = (raster, raycast, lidar, camera)
 
 
 def _episode(monkeypatch, below: int, env_id: str, **kwargs) -> list:
-    for m in KERNEL_MODULES:
-        monkeypatch.setattr(m, "SERIAL_BELOW", below)
+    monkeypatch.setattr(fog_gym._numba, "SERIAL_BELOW", below)
     env = gym.make(env_id, **kwargs)
     obs, _ = env.reset(seed=3)
     frames = [obs]

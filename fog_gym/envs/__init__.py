@@ -40,9 +40,7 @@ def make_vector(env_id: str, num_envs: int = 1, shards: int = 1, **kwargs: Any) 
     """The vector env of ``env_id``: :class:`~fog_gym.envs.vector.FogDriveVectorEnv` in this process (``shards=1``),
     or its worlds over ``shards`` worker processes (:class:`~fog_gym.envs.sharded.ShardedVectorEnv`)."""
     kwargs.pop("max_episode_steps", None)
-    if isinstance(shards, bool) or not isinstance(shards, int) or shards < 1:
-        raise ValueError(f"shards must be an integer >= 1, got {shards!r}")
-    if shards == 1:
+    if shards == 1 and not isinstance(shards, (bool, float)):  # any other value: ShardedVectorEnv checks it
         from fog_gym.envs.vector import FogDriveVectorEnv
 
         return FogDriveVectorEnv(env_id, num_envs, **kwargs)

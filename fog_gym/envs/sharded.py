@@ -75,9 +75,7 @@ def _worker(conn: Any, env_id: str, size: int, threads: int, autoreset_mode: str
             if cmd == "mode":
                 envs.metadata = {**envs.metadata, "autoreset_mode": AutoresetMode(args)}
                 out = None
-            elif cmd == "get_attr":
-                out = envs.get_attr(*args)
-            else:  # reset, step, set_fog, set_attr, call, reset_one
+            else:  # reset, step, set_fog, set_attr, call, get_attr, reset_one
                 out = getattr(envs, cmd)(*args[0], **args[1])
             conn.send(("ok", out))
         except Exception as e:  # noqa: BLE001
@@ -101,7 +99,6 @@ class ShardedVectorEnv(gym.vector.VectorEnv):
         ctx = mp.get_context(context)
         threads = max(1, (os.cpu_count() or 1) // len(self.shard_sizes))
         self._conns, self._procs = [], []
-        self.closed = False
         for size in self.shard_sizes:
             parent, child = ctx.Pipe()
             proc = ctx.Process(target=_worker, args=(child, env_id, size, threads, mode.value, info_detections, kwargs),
@@ -169,7 +166,7 @@ class ShardedVectorEnv(gym.vector.VectorEnv):
 
     def get_attr(self, name: str) -> tuple:
         for conn in self._conns:
-            conn.send(("get_attr", (name,)))
+            conn.send(("get_attr", ((name,), {})))
         return tuple(v for part in self._gather() for v in part)
 
     def close_extras(self, **kwargs: Any) -> None:

@@ -22,7 +22,7 @@ import numpy as np
 from numba import njit, prange
 
 import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
-from fog_gym._numba import SERIAL_BELOW, serial_twin
+from fog_gym._numba import pick, serial_twin
 
 def ray_length_factor(width: int, height: int, K: np.ndarray) -> np.ndarray:
     """Per-pixel ``ℓ / z`` = ``sqrt(1 + ((u − cx)/fx)² + ((v − cy)/fy)²)`` at pixel centres, float32 ``(H, W)``."""
@@ -231,8 +231,10 @@ def fog_images(rgb: np.ndarray, depth: np.ndarray, K: np.ndarray, alphas: Sequen
     row = (((np.arange(h) + 0.5 - K[1, 2]) / K[1, 1]) ** 2).astype(np.float32)
     out = np.empty((len(alphas), h, w, 3), np.uint8)
     airlight_row = np.tile(np.asarray(airlight, np.float32), w)
-    (_koschmieder if len(alphas) * h * w >= SERIAL_BELOW else _koschmieder_serial)(np.ascontiguousarray(rgb).reshape(h, 3 * w), np.ascontiguousarray(depth, np.float32), col, row,
-                 np.asarray(alphas, np.float32), airlight_row, out.reshape(len(alphas), h, 3 * w))  # fmt: skip
+    pick(_koschmieder, _koschmieder_serial, len(alphas) * h * w)(
+        np.ascontiguousarray(rgb).reshape(h, 3 * w), np.ascontiguousarray(depth, np.float32), col, row,
+        np.asarray(alphas, np.float32), airlight_row, out.reshape(len(alphas), h, 3 * w),
+    )  # fmt: skip
     return out
 
 

@@ -20,7 +20,7 @@ import numpy as np
 from numba import njit, prange
 
 import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
-from fog_gym._numba import SERIAL_BELOW, serial_twin
+from fog_gym._numba import pick, serial_twin
 from fog_gym.fog.physics import FogLevel
 
 # LiDAR pulse and receiver (Hahner et al.; research note §1.1)
@@ -150,6 +150,8 @@ def fog_lidar(points: np.ndarray, level: FogLevel, rng: np.random.Generator, noi
     table_i, table_r = soft_response_table(level.alpha)
     u = rng.uniform(-1.0, 1.0, len(pts))
     out = np.empty_like(pts)
-    (_hahner if len(pts) >= SERIAL_BELOW else _hahner_serial)(pts, table_i, table_r, level.alpha, BETA_PER_MOR / level.visibility_m / (GAMMA / math.pi),
-            math.log(max(1.0, noise / 5.0)) if noise > 0 else 0.0, u, out)  # fmt: skip
+    pick(_hahner, _hahner_serial, len(pts))(
+        pts, table_i, table_r, level.alpha, BETA_PER_MOR / level.visibility_m / (GAMMA / math.pi),
+        math.log(max(1.0, noise / 5.0)) if noise > 0 else 0.0, u, out,
+    )  # fmt: skip
     return out

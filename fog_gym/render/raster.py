@@ -26,7 +26,7 @@ import numpy as np
 from numba import njit, prange
 
 import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
-from fog_gym._numba import SERIAL_BELOW, serial_twin
+from fog_gym._numba import pick, serial_twin
 from fog_gym.render.shading import (FACE_AXES, FACE_STEP, TONE_STEPS, encode_tone, face_sample, fix_irradiance, grid_axis,
                                     grid_bilinear, light_ground, night_ground_row, night_tone_table, tone_at)  # fmt: skip
 from fog_gym.render.surface import TiledSurface, surface_cell
@@ -539,8 +539,7 @@ def render(
         prims.emissive, np.asarray(sun_dir, np.float64), float(ambient), float(sun_intensity),
     )  # fmt: skip
     face = np.empty((n_cam, height, width), np.int32) if face_ids else np.empty((1, 1, 1), np.int32)
-    raster = _raster_bands if n_cam * int(width) * int(height) >= SERIAL_BELOW else _raster_bands_serial
-    raster(
+    pick(_raster_bands, _raster_bands_serial, n_cam * int(width) * int(height))(
         cam_rot, cam_trans, cam_k, int(width), int(height), float(far),
         surface.flat, surface.rows, surface.cols, surface.tiles_x, surface.origin[0], surface.origin[1],
         surface.resolution, surface_lut_rgb, np.asarray(surface_tag, np.uint8),

@@ -26,7 +26,7 @@ import numpy as np
 from numba import njit, prange
 
 import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
-from fog_gym._numba import SERIAL_BELOW, serial_twin
+from fog_gym._numba import pick, serial_twin
 from fog_gym.world.primitives import Primitives
 
 
@@ -315,7 +315,7 @@ def cast_rays(
     if n == 0:
         return RayHits(np.zeros(0, np.float32), np.zeros(0, np.int32), np.zeros(0, np.float32))
     rotation = np.eye(3) if rotation is None else np.ascontiguousarray(rotation, np.float64).reshape(3, 3)
-    dist, index, cosine = (_cast if n >= SERIAL_BELOW else _cast_serial)(
+    dist, index, cosine = pick(_cast, _cast_serial, n)(
         np.ascontiguousarray(origin, np.float64).reshape(3),
         rotation,
         directions,
