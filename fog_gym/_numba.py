@@ -1,14 +1,14 @@
-"""Numba set-up shared by every module with kernels: the threading layer, and a one-line notice when the kernels
-must be compiled.
+"""Numba set-up shared by every module with kernels: the threading layer, serial twins, and compiling ahead.
 
 GNU OpenMP, numba's usual pick, aborts a process that forks after a parallel kernel ran; Gymnasium's
 AsyncVectorEnv and SB3's SubprocVecEnv fork. The workqueue layer is fork-safe (but not for concurrent kernel
 launches from several Python threads). ``NUMBA_THREADING_LAYER`` still overrides. Import this module before
 defining a kernel.
 
-Compilation takes about a minute on a laptop CPU and happens once (first run, or after an upgrade): kernels are
-cached next to their modules. :func:`cold_kernels` reads numba's cache indexes from disk (it imports no kernel
-module) and :func:`announce_compilation` prints the notice once per process when some are missing or stale.
+Kernels compile once (first run, or after an upgrade) and are cached next to their modules. An env compiles the
+kernels of its path ahead, in parallel worker processes, with a progress bar that names them
+(:func:`compile_kernels`, the paths in :mod:`fog_gym.envs.kernel_table`); a kernel compiled on its first call
+instead is named on stderr.
 
 Small workloads (the RL presets' 64×64 camera, a 32-channel LiDAR sweep) run faster on one thread: a parallel
 kernel pays a launch per parallel region (tens of µs with workqueue), more than such a frame's work.
@@ -16,19 +16,21 @@ kernel pays a launch per parallel region (tens of µs with workqueue), more than
 size (:data:`SERIAL_BELOW`). Both give the same bits (tests compare them).
 
 Example:
-    >>> isinstance(cold_kernels(), list)
-    True
+    >>> parse_signature(("float64", "int64"))
+    (float64, int64)
 """
 
 from __future__ import annotations
 
 import os
-import pickle
 import sys
 from pathlib import Path
+from typing import NamedTuple
 
 import numba
+import numpy as np
 from numba import njit
+from numba.core import event as _event
 
 if "NUMBA_THREADING_LAYER" not in os.environ:
     numba.config.THREADING_LAYER = "workqueue"
@@ -54,6 +56,18 @@ def serial_twin(kernel):
 def pick(kernel, twin, work: int):
     """``kernel`` for ``work`` pixels, rays or points of at least :data:`SERIAL_BELOW`, else its serial ``twin``."""
     return kernel if work >= SERIAL_BELOW else twin
+
+
+def readonly(a):
+    """A read-only view of ``a`` (no copy). Kernels take the arrays that may be read-only (cached ray patterns) as
+    read-only views, so numba compiles one signature for them, not one for each writability.
+
+    >>> readonly(np.zeros(2)).flags.writeable
+    False
+    """
+    view = a.view()
+    view.flags.writeable = False
+    return view
 
 
 def drop_stale_caches(root: Path | None = None) -> bool:
@@ -87,58 +101,181 @@ def drop_stale_caches(root: Path | None = None) -> bool:
 if os.environ.get("FOG_GYM_KEEP_NUMBA_CACHE", "0") != "1":
     drop_stale_caches()
 
-#: The main kernels (module file relative to the package, function name), the ones every env compiles first.
-MAIN_KERNELS = (("render/raster.py", "_raster_bands"), ("sensors/raycast.py", "_cast"), ("fog/camera.py", "_koschmieder"),
-                ("fog/lidar.py", "_hahner"), ("labels/boxes.py", "_project_boxes"), ("sensors/lidar.py", "_lidar_points"))  # fmt: skip
-_announced = False
 
 
-def _source_stamp(source: Path):
-    """The freshness stamp numba keeps in its cache index for a source file (its own function: the format differs
-    between numba versions)."""
-    from types import SimpleNamespace
+# -- compiling ahead, in parallel processes, with progress ----------------------------------------------------------
+#
+# A kernel compiles on its first call with new argument types; the paths of fog-gym (an env preset at its sizes)
+# call a known set of kernels with known types, listed per path in :mod:`fog_gym.envs.kernel_table` (made by
+# ``scripts/kernel_table.py`` from real runs, checked by the tests). :func:`compile_kernels` compiles the entries whose
+# on-disk cache is missing or stale, each kernel in a worker process (longest first, as many processes as cores),
+# and shows a progress bar naming them; the calling process then loads every kernel from the cache. A kernel a
+# path calls that the table misses still compiles on its first call, and :func:`_CompileNotices` names it.
 
-    from numba.core.caching import _SourceFileBackedLocatorMixin
 
-    return _SourceFileBackedLocatorMixin.get_source_stamp(SimpleNamespace(_py_file=str(source)))
+class KernelEntry(NamedTuple):
+    """One kernel of a path: its module, its name in the module, the argument types of each signature the path
+    compiles (numba type reprs, e.g. ``"Array(float64, 2, 'C', False, aligned=True)"``), and the seconds its
+    compilation took when the table was made (to start the longest first)."""
+
+    module: str
+    name: str
+    signatures: tuple[tuple[str, ...], ...]
+    seconds: float
+
+    @property
+    def label(self) -> str:
+        """``render.raster._raster_bands``: the kernel's name without the package."""
+        return f"{self.module.removeprefix('fog_gym.')}.{self.name}"
 
 
-def _cached(source: Path, function: str) -> bool:
-    """Whether numba's on-disk cache of ``function`` in ``source`` exists and matches the source file's stamp."""
-    tag = f"py{sys.version_info.major}{sys.version_info.minor}"
+def _types_namespace() -> dict:
+    from numba.core import types
+
+    return {**vars(types), "bool": types.boolean, "none": types.none}
+
+
+def parse_signature(argtypes: tuple[str, ...]) -> tuple:
+    """numba types from their reprs (what :class:`KernelEntry` stores).
+
+    >>> parse_signature(("float64", "Array(int32, 1, 'C', False, aligned=True)", "bool"))
+    (float64, Array(int32, 1, 'C', False, aligned=True), bool)
+    """
+    ns = _types_namespace()
+    return tuple(eval(t, {"__builtins__": {}}, ns) for t in argtypes)  # noqa: S307 - reprs of numba types only
+
+
+def _dispatcher(module: str, name: str):
+    import importlib
+
+    return getattr(importlib.import_module(module), name)
+
+
+def _missing(entry: KernelEntry) -> tuple[tuple[str, ...], ...]:
+    """The signatures of ``entry`` that numba's on-disk cache lacks (or holds for another source or machine)."""
     try:
-        want = _source_stamp(source)
-    except Exception:  # noqa: BLE001 - a numba without this internal: say nothing rather than guess
-        return True
-    cache = source.parent / "__pycache__"
-    if numba.config.CACHE_DIR:  # NUMBA_CACHE_DIR: numba keeps every cache under it, one folder per source folder
-        from numba.core.caching import _CacheLocator
-
-        cache = Path(numba.config.CACHE_DIR) / _CacheLocator.get_suitable_cache_subpath(str(source))
-    for index in cache.glob(f"{source.stem}.{function}-*.{tag}.nbi"):
-        try:
-            with open(index, "rb") as f:
-                if pickle.load(f) != numba.__version__:
-                    continue
-                stamp, overloads = pickle.loads(f.read())
-        except Exception:  # noqa: BLE001 - an unreadable index counts as missing
-            continue
-        if stamp == want and overloads:
-            return True
-    return False
+        disp = _dispatcher(entry.module, entry.name)
+        cache = disp._cache  # numba's per-function cache: its index maps (signature, machine, code hash) to a file
+        if not hasattr(cache, "_cache_file"):  # caching off (cache=False): nothing to compile ahead
+            return ()
+        codegen = disp.targetctx.codegen()
+        keys = cache._cache_file._load_index().keys()
+        missing = []
+        for sig in entry.signatures:
+            key = cache._index_key(parse_signature(sig), codegen)
+            if key not in keys:
+                missing.append(sig)
+        return tuple(missing)
+    except Exception:  # noqa: BLE001 - a numba whose internals differ, a kernel renamed: leave it to the first call
+        return ()
 
 
-def cold_kernels() -> list[str]:
-    """Names of the main kernels whose on-disk cache is missing or stale (empty when all are cached)."""
-    root = Path(__file__).resolve().parent
-    return [fn for rel, fn in MAIN_KERNELS if (root / rel).exists() and not _cached(root / rel, fn)]
+def cold(entries: list[KernelEntry]) -> list[KernelEntry]:
+    """The entries with a signature to compile, each reduced to its missing signatures."""
+    out = []
+    for e in entries:
+        missing = _missing(e)
+        if missing:
+            out.append(e._replace(signatures=missing))
+    return out
 
 
-def announce_compilation() -> None:
-    """Print the notice to stderr once per process if some kernel must be compiled."""
-    global _announced
-    if _announced:
-        return
-    _announced = True
-    if cold_kernels():
-        print("fog-gym: compiling kernels (first run only, about a minute)…", file=sys.stderr, flush=True)
+def _compile_entry(module: str, name: str, signatures: tuple[tuple[str, ...], ...]) -> float:
+    """Compile (and cache) one kernel's signatures; the worker process's task. Returns the seconds it took."""
+    import time
+
+    _CompileNotices.on = False  # compiled on purpose, behind the caller's progress bar
+    t0 = time.perf_counter()
+    disp = _dispatcher(module, name)
+    for sig in signatures:
+        disp.compile(parse_signature(sig))
+    return time.perf_counter() - t0
+
+
+def compile_jobs() -> int:
+    """Worker processes for :func:`compile_kernels`: ``FOG_GYM_COMPILE_JOBS`` or the CPUs this process may use."""
+    env = os.environ.get("FOG_GYM_COMPILE_JOBS")
+    if env:
+        return max(1, int(env))
+    try:
+        return max(1, len(os.sched_getaffinity(0)))
+    except AttributeError:  # not Linux
+        return max(1, os.cpu_count() or 1)
+
+
+def compile_kernels(entries: list[KernelEntry], jobs: int | None = None, file=None) -> list[KernelEntry]:
+    """Compile the cold ``entries`` ahead of their first call, in ``jobs`` worker processes (default
+    :func:`compile_jobs`), longest first, with a progress bar on ``file`` (stderr) that names the kernels; returns the
+    entries it compiled (none when everything is cached). ``FOG_GYM_COMPILE=lazy`` turns this off (kernels then
+    compile on their first call, one after the other)."""
+    import time
+
+    from tqdm import tqdm
+
+    if os.environ.get("FOG_GYM_COMPILE", "ahead") == "lazy":
+        return []
+    todo = sorted(cold(list(dict.fromkeys(entries))), key=lambda e: -e.seconds)
+    if not todo:
+        return []
+    jobs = min(jobs or compile_jobs(), len(todo))
+    file = sys.stderr if file is None else file
+    bar = tqdm(total=len(todo), desc=f"fog-gym: compiling kernels (first run only, {jobs} process{'es' * (jobs > 1)})",
+               unit="kernel", file=file, mininterval=1.0, bar_format="{desc}: {n}/{total} [{elapsed}]{postfix}")
+    t0 = time.perf_counter()
+    try:
+        if jobs == 1:
+            for e in todo:
+                bar.set_postfix_str(e.label)
+                _compile_entry(e.module, e.name, e.signatures)
+                bar.update()
+        else:
+            import multiprocessing
+            from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+
+            with ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
+                futures = {pool.submit(_compile_entry, e.module, e.name, e.signatures): e for e in todo}
+                pending = set(futures)
+                order = list(futures)
+                while pending:
+                    running = [futures[f].label for f in order if f in pending][:jobs]  # longest first: these run
+                    bar.set_postfix_str(", ".join(running), refresh=False)
+                    bar.refresh()
+                    done, pending = wait(pending, timeout=1.0, return_when=FIRST_COMPLETED)
+                    for f in done:
+                        f.result()  # a kernel that fails to compile fails here, as it would on its first call
+                        bar.update()
+        bar.set_postfix_str(f"done in {time.perf_counter() - t0:.0f} s")
+    finally:
+        bar.close()
+    return todo
+
+
+class _CompileNotices(_event.Listener):
+    """A numba event listener that names each fog-gym kernel compiled on its first call (one the compile table
+    missed) on stderr."""
+
+    #: Off in the worker processes of :func:`compile_kernels` (the caller's progress bar names their kernels).
+    on = True
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.depth = 0
+        self.start = 0.0
+
+    def on_start(self, event) -> None:
+        import time
+
+        self.depth += 1
+        if self.depth == 1:
+            self.start = time.perf_counter()
+            f = event.data["dispatcher"].py_func
+            if self.on and f.__module__.startswith("fog_gym"):
+                print(f"fog-gym: compiling {f.__module__.removeprefix('fog_gym.')}.{f.__name__} …", file=sys.stderr,
+                      flush=True)  # fmt: skip
+
+    def on_end(self, event) -> None:
+        self.depth -= 1
+
+
+if os.environ.get("FOG_GYM_COMPILE_NOTICES", "1") == "1":
+    _event.register("numba:compile", _CompileNotices())

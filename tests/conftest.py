@@ -35,3 +35,10 @@ def _restore_sensor_and_fog_registries():
     for live, old in zip((sensors.REGISTRY, fog_models.MODELS), saved):
         live.clear()
         live.update(old)
+
+
+def pytest_sessionstart(session):
+    """Compile every env path's kernels ahead, in parallel processes, before the first test (a no-op when cached)."""
+    from fog_gym.envs.warmup import PATHS, ensure_compiled
+
+    ensure_compiled(*PATHS)

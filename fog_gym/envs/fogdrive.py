@@ -18,8 +18,8 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from fog_gym._numba import announce_compilation
 from fog_gym.envs.config import FogDriveConfig
+from fog_gym.envs.warmup import ensure_compiled, path_of
 from fog_gym.world.hazards import HazardConfig
 from fog_gym.sensors.rig import RigConfig
 from fog_gym import geometry
@@ -120,7 +120,7 @@ class FogDriveEnv(gym.Env):
 
         c = self.config
         self.metadata = {**self.metadata, "render_fps": c.keyframe_frequency}
-        announce_compilation()
+        ensure_compiled(*path_of(c))
         # ``world``: a prebuilt world (a vector env's view of its shared traffic core); else one of its own
         self.world = world if world is not None else make_world(c.town, c.simulation_frequency, c.keyframe_frequency,
                                                                 c.episode_seconds, dict(c.highway_config),

@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
+from fog_gym._numba import readonly
 from fog_gym.checks import finite, interval, positive
 from fog_gym.dataset.layout import FOG_LEVELS
 from fog_gym.geometry import Pose, sensor_to_world
@@ -279,7 +280,7 @@ def simulate_lidar(
     uniform = rng.random(n) if cfg.dropoff_zero_intensity > 0.0 else _NONE
     limit = cfg.dropoff_intensity_limit
     alpha = cfg.dropoff_zero_intensity / limit if limit > 0.0 else 0.0
-    return _lidar_points(dirs, hits.distance, hits.index, noise, uniform, cfg.atmosphere_attenuation_rate, limit,
+    return _lidar_points(readonly(dirs), hits.distance, hits.index, noise, uniform, cfg.atmosphere_attenuation_rate, limit,
                          alpha, 1.0 - cfg.dropoff_zero_intensity)  # fmt: skip
 
 

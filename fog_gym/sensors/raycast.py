@@ -26,7 +26,7 @@ import numpy as np
 from numba import njit, prange
 
 import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
-from fog_gym._numba import pick, serial_twin
+from fog_gym._numba import pick, readonly, serial_twin
 from fog_gym.world.primitives import Primitives
 
 
@@ -310,7 +310,7 @@ def cast_rays(
     if int(n_azimuth_bins) < 1 or int(n_elevation_bins) < 1:
         raise ValueError(f"bin counts must be >= 1, got {n_azimuth_bins!r}, {n_elevation_bins!r}")
     prims = Primitives.coerce(prims)
-    directions = np.ascontiguousarray(directions, np.float64).reshape(-1, 3)
+    directions = readonly(np.ascontiguousarray(directions, np.float64).reshape(-1, 3))  # one signature for both
     n = directions.shape[0]
     if n == 0:
         return RayHits(np.zeros(0, np.float32), np.zeros(0, np.int32), np.zeros(0, np.float32))

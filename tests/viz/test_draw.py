@@ -1,8 +1,4 @@
-"""Pictures for people: the bird's-eye view keeps every lane marking, the night preview, the compile notice."""
-
-import os
-import subprocess
-import sys
+"""Pictures for people: the bird's-eye view keeps every lane marking, the night preview."""
 
 import numpy as np
 
@@ -39,12 +35,3 @@ def test_exposure_preview_brightens_dark_images_and_leaves_bright_ones():
     assert gain > 10 and img.max() > 150 and img.dtype == np.uint8
     bright = np.full((4, 4, 3), 240, np.uint8)
     assert exposure_preview(bright)[1] == 1.0 and np.array_equal(exposure_preview(bright)[0], bright)
-
-
-def test_cold_kernel_cache_prints_one_notice(tmp_path):
-    code = ("import fog_gym._numba as k; assert k.cold_kernels(); k.announce_compilation(); "
-            "k.announce_compilation()")  # fmt: skip
-    out = subprocess.run([sys.executable, "-c", code], env={**os.environ, "NUMBA_CACHE_DIR": str(tmp_path)},
-                         capture_output=True, text=True)  # fmt: skip
-    assert out.returncode == 0, out.stderr
-    assert out.stderr.count("compiling kernels (first run only, about a minute)") == 1
