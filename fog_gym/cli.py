@@ -151,16 +151,13 @@ def _study(name: str):
 
 
 def run_demo(args: argparse.Namespace) -> list[Path]:
-    import cv2
     import gymnasium as gym
-    import numpy as np
     from tqdm import tqdm
 
     import fog_gym  # noqa: F401
-    from fog_gym.encoding import colorize_depth, colorize_semantic
     from fog_gym.dataset.packing import unpack_points
     from fog_gym.fog import parse_fog
-    from fog_gym.viz.draw import contact_sheet, exposure_preview, lidar_panels
+    from fog_gym.viz import figures
 
     if args.steps < 0:
         raise _fail("demo", "--steps must be >= 0")
@@ -168,52 +165,42 @@ def run_demo(args: argparse.Namespace) -> list[Path]:
     env = gym.make("FogDrive-v0", town=args.town, time_of_day=args.time_of_day, resolution=args.resolution,
                    render_mode="rgb_array", fog=levels)  # paired: clean + every level from one render  # fmt: skip
     obs, info = env.reset(seed=args.seed)
-    env.action_space.seed(args.seed)
     idle = env.unwrapped.idle_action
+    steps = 0
     for _ in tqdm(range(args.steps), desc=f"driving {args.town} ({args.time_of_day})", unit="step"):
         obs, reward, terminated, truncated, info = env.step(idle)
+        steps += 1
         if terminated or truncated:
             break
     args.out.mkdir(parents=True, exist_ok=True)
-    rows = {
-        name: [obs[name], colorize_depth(obs[f"{name}_DEPTH"]), colorize_semantic(obs[f"{name}_SEM"])]
-        for name in env.unwrapped.cameras.names
-    }
     stem = f"{args.town}_{args.time_of_day}_seed{args.seed}"
-    sheet = args.out / f"contact_sheet_{stem}.png"
-    view = args.out / f"render_{stem}.png"
-    lidar = args.out / f"lidar_{stem}.png"
-    fog = args.out / f"fog_levels_{stem}.png"
-    if args.time_of_day == "night":
-        for name, row in rows.items():
-            row[0] = exposure_preview(row[0])[0]
-    cv2.imwrite(str(sheet), contact_sheet(rows, tile_width=min(480, args.resolution[0]))[..., ::-1])
-    view_img = env.render()
-    if args.time_of_day == "night":
-        front_w = view_img.shape[1] - view_img.shape[0]  # the front camera left of the square bird's-eye view
-        view_img[:, :front_w] = exposure_preview(view_img[:, :front_w])[0]
-    cv2.imwrite(str(view), view_img[..., ::-1])
-    points = env.unwrapped.points
-    cv2.imwrite(str(lidar), lidar_panels(points.get("LIDAR_TOP"), points.get("SEM_LIDAR_TOP"))[..., ::-1])
-    fog_levels = [parse_fog(lv) for lv in levels]
-    suffixes = [""] + [f"_{lv.channel_suffix}" for lv in fog_levels]
-    names = ["clear"] + [f"{lv.name} ({lv.visibility_m:g} m)" if lv.name[0].isalpha() else f"{lv.visibility_m:g} m"
-                         for lv in fog_levels]  # fmt: skip
-    width = min(480, args.resolution[0])
-    fronts = [obs[f"CAM_FRONT{s}"] for s in suffixes]
-    fog_rows = {"CAM_FRONT": fronts}
-    if args.time_of_day == "night":  # the data stays linear; a person needs an exposure-normalised copy to see it
-        _, gain = exposure_preview(fronts[0])
-        fog_rows[f"CAM_FRONT preview x{gain:.0f}"] = [np.clip(f.astype(np.float32) * gain, 0, 255).astype(np.uint8) for f in fronts]
-    fog_rows.update({
-        "LIDAR_TOP (intensity)": [
-            cv2.resize(lidar_panels(unpack_points(obs, f"LIDAR_TOP{s}"), None, metres=100.0), (width, width))
-            for s in suffixes
-        ],
-    })
-    cv2.imwrite(str(fog), contact_sheet(fog_rows, tile_width=width, captions=names)[..., ::-1])
+    where = f"{args.town}, {args.time_of_day}, seed {args.seed}, after {steps / env.unwrapped.config.keyframe_frequency:g} s"
+    w, h = args.resolution
+    paths = []
+    with tqdm(total=4, desc="drawing figures", unit="figure") as bar:
+        columns = {"clear": {"rgb": obs["CAM_FRONT"], "lidar": unpack_points(obs, "LIDAR_TOP")}}
+        for lv in (parse_fog(v) for v in levels):
+            name = f"{lv.name} ({lv.visibility_m:g} m)" if lv.name[0].isalpha() else f"{lv.visibility_m:g} m"
+            columns[name] = {"rgb": obs[f"CAM_FRONT_{lv.channel_suffix}"],
+                             "lidar": unpack_points(obs, f"LIDAR_TOP_{lv.channel_suffix}")}  # fmt: skip
+        fig = figures.fog_levels_figure(columns, f"The front camera and the LiDAR in fog, paired from one render ({where})",
+                                        zoom_row=args.time_of_day == "night")  # fmt: skip
+        paths.append(figures.save(fig, args.out / f"fog_levels_{stem}.png"))
+        bar.update()
+        rows = {name: (obs[name], obs[f"{name}_DEPTH"], obs[f"{name}_SEM"]) for name in env.unwrapped.cameras.names}
+        fig = figures.cameras_figure(rows, f"Every camera: RGB, planar depth and semantic tags ({w}×{h}; {where})")
+        paths.append(figures.save(fig, args.out / f"contact_sheet_{stem}.png"))
+        bar.update()
+        fig = figures.render_figure(env.render(), f"env.render() with render_mode='rgb_array' ({where})")
+        paths.append(figures.save(fig, args.out / f"render_{stem}.png"))
+        bar.update()
+        points = env.unwrapped.points
+        fig = figures.lidar_figure(points.get("LIDAR_TOP"), points.get("SEM_LIDAR_TOP"),
+                                   f"One LiDAR sweep, clear air, from above ({where})")  # fmt: skip
+        paths.append(figures.save(fig, args.out / f"lidar_{stem}.png"))
+        bar.update()
     env.close()
-    return [fog, sheet, view, lidar]
+    return paths
 
 
 def _stats_figure(rows: list[tuple[str, int, float]], path: Path) -> None:

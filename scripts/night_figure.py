@@ -9,7 +9,6 @@ import argparse
 import sys
 from pathlib import Path
 
-import cv2
 import numpy as np
 from tqdm import tqdm
 
@@ -47,17 +46,12 @@ def main(argv: list[str] | None = None) -> int:
     p.add_argument("--resolution", type=int, nargs=2, default=(480, 360), metavar=("W", "H"))
     p.add_argument("--out", type=Path, default=Path("docs/images/night_fog_levels.png"))
     a = p.parse_args(argv)
-    from fog_gym.viz.draw import night_fog_levels
+    from fog_gym.viz.figures import night_levels_figure, save
 
     frames = {tod: front_levels(a.town, tod, a.seed, a.steps, tuple(a.resolution))
               for tod in tqdm(("day", "night"), desc="rendering")}  # fmt: skip
-    img = night_fog_levels(frames["day"], frames["night"], tile_width=min(480, a.resolution[0]))
-    a.out.parent.mkdir(parents=True, exist_ok=True)
-    ok, buf = cv2.imencode(".png", img[..., ::-1])
-    tmp = a.out.with_suffix(".tmp.png")
-    tmp.write_bytes(buf.tobytes())
-    tmp.replace(a.out)  # atomic
-    print(f"wrote {a.out}")
+    title = f"The front camera by day and by night at each fog level ({a.town}, seed {a.seed}, after {a.steps / 10:g} s)"
+    print(f"wrote {save(night_levels_figure(frames['day'], frames['night'], title), a.out)}")
     return 0
 
 
