@@ -12,8 +12,38 @@ Example:
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import math
 from typing import Any
+
+_COMMAND_LINE = contextvars.ContextVar("fog_gym_command_line", default=False)
+
+
+@contextlib.contextmanager
+def command_line():
+    """Within this block (the ``fog-gym`` command's handlers), :func:`option` names command-line flags."""
+    token = _COMMAND_LINE.set(True)
+    try:
+        yield
+    finally:
+        _COMMAND_LINE.reset(token)
+
+
+def option(keyword: str, python: str = "True", shell: str | None = None) -> str:
+    """An option as the reader of an error message passes it: ``keyword=python`` from Python, ``--keyword shell``
+    (``--keyword`` for a switch) on the command line (inside :func:`command_line`).
+
+    >>> option("save", "'FILE.rrd'", "FILE.rrd")
+    "save='FILE.rrd'"
+    >>> with command_line():
+    ...     option("save", "'FILE.rrd'", "FILE.rrd"), option("overwrite")
+    ('--save FILE.rrd', '--overwrite')
+    """
+    if _COMMAND_LINE.get():
+        flag = "--" + keyword.replace("_", "-")
+        return flag if shell is None else f"{flag} {shell}"
+    return f"{keyword}={python}"
 
 
 def finite(name: str, value: Any) -> float:

@@ -316,9 +316,12 @@ def main(argv: list[str] | None = None) -> int:
 
         return run_study(_study(argv[0]), argv[1:])
     args = parser.parse_args(argv)
+    from fog_gym.checks import command_line
+
     handler = {"generate": _generate, "validate": _validate, "stats": _stats, "audit": _audit, "demo": _demo,
                "view": _view, "minari": _minari, "export": _export}  # fmt: skip
-    return handler[args.command](args)
+    with command_line():  # error messages name flags (--overwrite), not keywords (overwrite=True)
+        return handler[args.command](args)
 
 
 def _generate(args: argparse.Namespace) -> int:
@@ -351,8 +354,8 @@ EXPORT_DESCRIPTION = (
     "Write a FogDrive set in a format detectors read: nuScenes v1.0 tables (OUT/v1.0-trainval/, OUT/samples/<CHANNEL>/, "
     "the devkit loads it), KITTI object (OUT/training/{image_2,velodyne,calib,label_2}; other cameras under "
     "OUT/<CAMERA>/) or COCO with YOLO labels (OUT/images/, OUT/annotations/instances_<split>.json, OUT/labels/, "
-    "OUT/dataset.yaml), with the cameras and LiDAR at one fog level. The set is validated first; OUT must be empty "
-    "(--overwrite replaces an earlier export, --resume completes an interrupted one). Frames, class mapping and "
+    "OUT/dataset.yaml), with the cameras and LiDAR at one fog level. OUT must be empty (--overwrite replaces an "
+    "earlier export, --resume completes an interrupted one), which is checked first; then the set is validated. Frames, class mapping and "
     "limits: docs/exports.md."
 )
 

@@ -30,6 +30,7 @@ from fog_gym.fog import FOG_PRESETS
 from fog_gym.dataset.layout import DATA_ROOT, MODALITIES, SAMPLE_PERIOD_US, scene_folder_name, scene_id
 from fog_gym.dataset.manifest import MANIFEST_FILE, differences, make_manifest, read_manifest, write_manifest
 from fog_gym.dataset.writer import SceneWriter, WriteError, _atomic_write, build_index
+from fog_gym.checks import option
 
 PROGRESS_DIR = ".generate"  # completion markers, outside data_root so the layout stays exactly D2
 
@@ -153,7 +154,7 @@ def check_manifest(root: Path, manifest: dict[str, Any], resume: bool) -> None:
     if stored is not None:
         diff = differences(stored, manifest)
         if diff:
-            raise ValueError("--resume with settings that differ from the dataset's manifest "
+            raise ValueError(f"{option('resume')} with settings that differ from the dataset's manifest "
                              f"({MANIFEST_FILE}): {'; '.join(diff)}")
         return
     started = any(p.is_dir() for p in (root / DATA_ROOT).iterdir()) if (root / DATA_ROOT).is_dir() else False
@@ -168,7 +169,7 @@ def check_root(root: Path, resume: bool) -> None:
     if root.exists() and not root.is_dir():
         raise ValueError(f"dataset root {root} exists and is not a folder")
     if root.exists() and any(root.iterdir()) and not resume:
-        raise ValueError(f"dataset root {root} is not empty; pass --resume to continue an interrupted run")
+        raise ValueError(f"dataset root {root} is not empty; pass {option('resume')} to continue an interrupted run")
     probe = root / ".write_probe"
     try:
         (root / DATA_ROOT).mkdir(parents=True, exist_ok=True)

@@ -24,6 +24,7 @@ from typing import Any
 
 import gymnasium as gym
 import numpy as np
+from fog_gym.checks import option
 
 _DATASET_ID = re.compile(r"^(?:[A-Za-z0-9_.-]+/)*[A-Za-z0-9_.-]+-v\d+$")
 
@@ -94,7 +95,7 @@ def collect(env: gym.Env, policy: Any = None, episodes: int = 1, dataset_id: str
     act = _policy_fn(policy, env.action_space)
     if dataset_id in minari.list_local_datasets():
         if not overwrite:
-            raise FileExistsError(f"Minari dataset {dataset_id!r} exists; pass overwrite=True (--overwrite) to replace it")
+            raise FileExistsError(f"Minari dataset {dataset_id!r} exists; pass {option('overwrite')} to replace it")
         minari.delete_dataset(dataset_id)
     pick = (lambda o: {k: o[k] for k in space.spaces}) if keys is not None else (lambda o: o)
     env.action_space.seed(seed)

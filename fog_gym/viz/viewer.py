@@ -41,6 +41,7 @@ import numpy as np
 
 from fog_gym.dataset.layout import CAMERAS, CHANNELS  # noqa: F401  (CHANNELS: the viewer's documented channel list)
 from fog_gym.encoding import CITYSCAPES_PALETTE, TAG_NAMES
+from fog_gym.checks import option
 
 LIDAR_PATH = "world/ego/lidar"
 RADAR_PATH = "world/ego/radar"
@@ -240,7 +241,8 @@ def blueprint(cameras: Sequence[str], levels: Sequence[str], active: str = "clea
 def _check_display(save: str | Path | None) -> None:
     if save is None and sys.platform.startswith("linux") and not (os.environ.get("DISPLAY")
                                                                  or os.environ.get("WAYLAND_DISPLAY")):  # fmt: skip
-        raise ValueError("no display to open the viewer on: pass save='FILE.rrd' (--save) and open it where there is one")
+        raise ValueError(f"no display to open the viewer on: pass {option('save', repr('FILE.rrd'), 'FILE.rrd')} and open "
+                         "the file where there is one (rerun FILE.rrd)")
 
 
 def _open(application: str, save: str | Path | None):

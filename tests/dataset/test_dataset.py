@@ -165,7 +165,7 @@ def test_generate_resume_validate(tmp_path):
         p.unlink()
     for p in (root / "data_root" / plan[1].folder / "out_3dbbox").iterdir():
         p.unlink()
-    with pytest.raises(ValueError, match="not empty; pass --resume"):
+    with pytest.raises(ValueError, match="not empty; pass resume=True"):  # the keyword from Python (--resume in the CLI)
         check_root(root, resume=False)
     generate(root, plan, workers=1, resume=True, progress=False)
     assert digest(plan[1].folder) == before  # regenerated bit for bit from (seed, scene index)

@@ -280,8 +280,14 @@ def test_export_refuses_bad_input_and_a_folder_it_must_not_touch(fogdrive, tmp_p
     stranger = tmp_path / "home"
     stranger.mkdir()
     (stranger / "notes.txt").write_text("mine")
-    with pytest.raises(ExportError, match="not empty; pass --overwrite"):
+    with pytest.raises(ExportError, match="not empty; pass overwrite=True .* or resume=True"):  # Python's keywords
         export(fogdrive, stranger, "coco", progress=False)
+    # on the command line: the flags, and the refusal comes before the set is validated (no progress bar)
+    cli = subprocess.run([sys.executable, "-m", "fog_gym.cli", "export", str(fogdrive), str(stranger), "--format", "coco"],
+                         capture_output=True, text=True)  # fmt: skip
+    assert cli.returncode == 1 and cli.stderr.strip() == (
+        f"fog-gym export: the output folder {stranger} is not empty; pass --overwrite to replace an earlier export or "
+        "--resume to complete an interrupted one")  # fmt: skip
     with pytest.raises(ExportError, match="refusing to delete it"):
         export(fogdrive, stranger, "coco", overwrite=True, progress=False)
     assert (stranger / "notes.txt").read_text() == "mine"

@@ -28,6 +28,7 @@ from fog_gym.dataset.export.common import (
     FOG_CHOICES, FORMATS, SPLIT_CHOICES, ExportError, Sink, Source, default_cameras,
 )  # fmt: skip
 from fog_gym.dataset.layout import CAMERA_NAMES
+from fog_gym.checks import option
 
 MANIFEST = "fog_gym_export.json"  # in OUT: the export's settings, whether it is complete, and its notes
 
@@ -45,11 +46,12 @@ def _check_arguments(fmt: str, fog: str, split: str, cameras: Sequence[str] | No
             raise ExportError(f"cameras must name each camera once, got {list(cameras)}")
 
 
-def _check_output(root: Path, out: Path, settings: dict[str, Any], overwrite: bool, resume: bool) -> None:
-    """Refuse an output folder inside the set (or holding it), a non-empty one without ``overwrite``/``resume``,
-    deleting anything but an earlier export, and resuming an export made with other settings."""
+def _check_output_folder(root: Path, out: Path, overwrite: bool, resume: bool) -> None:
+    """What can be refused about the output folder without reading the set: inside the set (or holding it), not a
+    folder, not empty without ``overwrite``/``resume``, or holding no earlier export to replace or resume."""
     if overwrite and resume:
-        raise ExportError("overwrite and resume exclude each other: replace an export, or complete one")
+        raise ExportError(f"{option('overwrite')} and {option('resume')} exclude each other: replace an export, or "
+                          "complete one")  # fmt: skip
     r, o = root.resolve(), out.resolve()
     if o == r or r in o.parents or o in r.parents:
         raise ExportError(f"the output folder {out} must lie outside the dataset root {root} (and not contain it)")
@@ -57,27 +59,39 @@ def _check_output(root: Path, out: Path, settings: dict[str, Any], overwrite: bo
         raise ExportError(f"the output folder {out} exists and is not a folder")
     if not out.is_dir() or not any(out.iterdir()):
         return
-    manifest = out / MANIFEST
-    stored = None
-    if manifest.is_file():
-        try:
-            stored = json.loads(manifest.read_bytes())
-        except (OSError, ValueError, RecursionError):
-            stored = None
-    if resume:
-        if not isinstance(stored, dict):
+    if not overwrite and not resume:
+        raise ExportError(f"the output folder {out} is not empty; pass {option('overwrite')} to replace an earlier export "
+                          f"or {option('resume')} to complete an interrupted one")  # fmt: skip
+    if not isinstance(_stored_manifest(out), dict):
+        if resume:
             raise ExportError(f"{out} holds no fog-gym export ({MANIFEST}) to resume")
-        diff = [f"{k}: {stored.get(k)!r} there, {v!r} now" for k, v in settings.items() if stored.get(k) != v]
-        if diff:
-            raise ExportError(f"{out} holds an export with other settings ({'; '.join(diff)}); pass overwrite to "
-                              "replace it")  # fmt: skip
-        return
-    if not overwrite:
-        raise ExportError(f"the output folder {out} is not empty; pass --overwrite to replace an earlier export or "
-                          "--resume to complete an interrupted one")  # fmt: skip
-    if not isinstance(stored, dict):
         raise ExportError(f"the output folder {out} is not empty and holds no fog-gym export ({MANIFEST}): refusing to "
                           "delete it; choose an empty or new folder")  # fmt: skip
+
+
+def _stored_manifest(out: Path) -> Any:
+    manifest = out / MANIFEST
+    if manifest.is_file():
+        try:
+            return json.loads(manifest.read_bytes())
+        except (OSError, ValueError, RecursionError):
+            return None
+    return None
+
+
+def _check_output(root: Path, out: Path, settings: dict[str, Any], overwrite: bool, resume: bool) -> None:
+    """:func:`_check_output_folder`, then refuse resuming an export made with other settings; with ``overwrite``,
+    empty the folder of the earlier export."""
+    _check_output_folder(root, out, overwrite, resume)
+    if not out.is_dir() or not any(out.iterdir()):
+        return
+    stored = _stored_manifest(out)  # a dict: _check_output_folder refused anything else
+    if resume:
+        diff = [f"{k}: {stored.get(k)!r} there, {v!r} now" for k, v in settings.items() if stored.get(k) != v]
+        if diff:
+            raise ExportError(f"{out} holds an export with other settings ({'; '.join(diff)}); pass "
+                              f"{option('overwrite')} to replace it")  # fmt: skip
+        return
     for child in out.iterdir():
         shutil.rmtree(child) if child.is_dir() and not child.is_symlink() else child.unlink()
 
@@ -106,6 +120,7 @@ seconds include the ``validate`` pass, ``validate_seconds`` long).
     problem = dataset_root_problem(root)
     if problem is not None:
         raise ExportError(problem)
+    _check_output_folder(root, out, overwrite, resume)  # before the validate pass: a refusal costs nothing
     problems = validate(root, progress=progress)
     validate_seconds = time.perf_counter() - t0
     if problems:
