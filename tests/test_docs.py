@@ -115,3 +115,94 @@ def _url(page: Path) -> str:
     """
     parts = page.with_suffix("").parts
     return "/".join([*(parts[:-1] if parts[-1] == "index" else parts), "index.html"])
+
+
+def test_the_command_line_table_lists_every_subcommand_with_its_help():
+    """``docs/installation.md`` lists the ``fog-gym`` subcommands in a table; the parser is the source of truth."""
+    import argparse
+
+    from fog_gym.cli import build_parser
+
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    text = (ROOT / "docs" / "installation.md").read_text()
+    rows = re.findall(r"^\| `fog-gym ([\w-]+)` \|", text, re.M)
+    assert sorted(rows) == sorted(sub.choices)
+
+
+_CALL = re.compile(r"`(?P<name>fog_gym(?:\.\w+)+|\w+)(?:\((?P<args>[^`]*)\))?`", re.S)
+
+
+def _public_function(dotted: str):
+    """The fog-gym function a dotted name resolves to, or None (a module, class, constant, private name)."""
+    import importlib
+    import inspect
+
+    parts = dotted.split(".")
+    if any(p.startswith("_") for p in parts):
+        return None
+    for i in range(len(parts), 0, -1):
+        try:
+            obj = importlib.import_module(".".join(parts[:i]))
+        except ImportError:
+            continue
+        try:
+            for a in parts[i:]:
+                obj = getattr(obj, a)
+        except AttributeError:
+            return None
+        return obj if inspect.isfunction(obj) else None
+    return None
+
+
+def _parameters(args: str) -> list[str]:
+    """Parameter names of a signature written in the docs: ``path, spec=None, *, x`` → ``["path", "spec", "*", "x"]``."""
+    out, depth, cur = [], 0, ""
+    for ch in args + ",":
+        if ch in "([{":
+            depth += 1
+        elif ch in ")]}":
+            depth -= 1
+        if ch == "," and depth == 0:
+            name = re.split(r"[=:]", cur, maxsplit=1)[0].strip()
+            if name:
+                out.append(name.lstrip("*") if name not in ("*",) else name)
+            cur = ""
+        else:
+            cur += ch
+    return out
+
+
+def _signature_names(func) -> list[str]:
+    import inspect
+
+    names = []
+    for p in inspect.signature(func).parameters.values():
+        if p.kind is p.KEYWORD_ONLY and "*" not in names and not any(
+                q.kind is q.VAR_POSITIONAL for q in inspect.signature(func).parameters.values()):  # fmt: skip
+            names.append("*")
+        names.append(p.name)
+    return names
+
+
+def test_every_public_function_the_docs_name_is_shown_with_its_signature():
+    """A page that names a fog-gym function (``fog_gym.dataset.decode.load_channel``) writes it once with its whole
+    signature (``load_channel(path, spec)``, defaults may be shown); a call written with ``...`` hides it."""
+    problems = []
+    for page in PAGES:
+        text = re.sub(r"```.*?```", "", page.read_text(), flags=re.S)  # code blocks run as they are (tested above)
+        named, shown = {}, set()
+        for m in _CALL.finditer(text):
+            func = _public_function(m["name"]) if m["name"].startswith("fog_gym.") else None
+            if func is None and m["args"] is not None:
+                func = named.get(m["name"]) or _public_function(f"fog_gym.{m['name']}")
+            if func is None:
+                continue
+            named[func.__name__] = func
+            args = m["args"]
+            if args is not None and "..." in args:
+                problems.append(f"{page.relative_to(ROOT)}: `{m['name']}({args})` elides the signature")
+            elif args is not None and _parameters(args) == _signature_names(func):
+                shown.add(func)
+        problems += [f"{page.relative_to(ROOT)}: {f.__module__}.{f.__name__} never shown as "
+                     f"{f.__name__}({', '.join(_signature_names(f))})" for f in set(named.values()) - shown]  # fmt: skip
+    assert sorted(problems) == []

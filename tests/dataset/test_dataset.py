@@ -267,3 +267,21 @@ def test_generated_set_of_20_scenes_meets_the_split_rules(tmp_path):
     assert r["duplicate_assignments"] == r["scenes_in_no_split"] == r["scenes_in_split_but_not_in_index"] == []
     assert len(ds.splits["train"]) == 14 and sorted([len(ds.splits["val"]), len(ds.splits["test"])]) == [2, 4]
     assert all(v == 0.5 for v in r["day_share"].values())
+
+
+@pytest.mark.parametrize("scenes, towns, expected", [
+    (2, None, {"highway": 1}),
+    (4, None, {"highway": 1, "merge": 1}),
+    (12, None, {t: 1 for t in ("highway", "merge", "roundabout", "intersection", "racetrack", "exit")}),
+    (14, None, {"highway": 2, **{t: 1 for t in ("merge", "roundabout", "intersection", "racetrack", "exit")}}),
+    (6, ("roundabout", "exit"), {"roundabout": 2, "exit": 1}),
+])  # fmt: skip
+def test_scenes_are_dealt_to_the_towns_as_the_datasets_page_says(scenes, towns, expected):
+    """docs/datasets.md: P pairs over T towns in --towns order, ⌊P/T⌋ each and one more for the first P mod T."""
+    from collections import Counter
+
+    from fog_gym.generate import plan_scenes
+
+    plan = plan_scenes(scenes, **({"towns": towns} if towns else {}))
+    assert Counter(s.town for s in plan if s.time_of_day == "day") == expected
+    assert Counter(s.time_of_day for s in plan) == {"day": scenes // 2, "night": scenes // 2}

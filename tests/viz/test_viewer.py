@@ -106,8 +106,12 @@ def test_without_a_display_the_viewer_asks_for_save(dataset, monkeypatch):
     monkeypatch.setattr(sys, "platform", "linux")
     monkeypatch.delenv("DISPLAY", raising=False)
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
-    with pytest.raises(ValueError, match="no display to open the viewer on: pass save="):
+    with pytest.raises(ValueError, match="no display to open the viewer on: pass save='FILE.rrd' and open"):
         view_dataset(dataset)
+    from fog_gym.cli import main
+
+    with pytest.raises(SystemExit, match="fog-gym view: no display to open the viewer on: pass --save FILE.rrd and open"):
+        main(["view", "--root", str(dataset)])  # the command line names the flag
 
 
 def test_cli_view_saves_an_rrd_and_refuses_a_non_rrd_name(dataset, tmp_path):

@@ -1,0 +1,24 @@
+"""Every example answers ``--help`` with its usage and starts no work (nothing written, quickly)."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+EXAMPLES = sorted((Path(__file__).resolve().parents[1] / "examples").glob("*.py"))
+
+
+def test_every_example_answers_help_without_starting_work(tmp_path):
+    assert len(EXAMPLES) >= 5
+    runs = {}
+    for ex in EXAMPLES:  # all at once: each only parses its arguments
+        cwd = tmp_path / ex.stem
+        cwd.mkdir()
+        runs[ex.name] = (cwd, subprocess.Popen([sys.executable, str(ex), "--help"], cwd=cwd, text=True,
+                                               stdout=subprocess.PIPE, stderr=subprocess.PIPE))  # fmt: skip
+    for name, (cwd, proc) in runs.items():
+        out, err = proc.communicate(timeout=120)
+        assert proc.returncode == 0, (name, err)
+        assert out.startswith("usage: "), (name, out)
+        assert "--help" in out and list(cwd.iterdir()) == [], name  # no output folder, no data
