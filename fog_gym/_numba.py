@@ -219,8 +219,10 @@ def compile_kernels(entries: list[KernelEntry], jobs: int | None = None, file=No
         return []
     jobs = min(jobs or compile_jobs(), len(todo))
     file = sys.stderr if file is None else file
+    tty = hasattr(file, "isatty") and file.isatty()
+    tick = 1.0 if tty else 5.0  # a log file gets a line every 5 s, a terminal one line redrawn every second
     bar = tqdm(total=len(todo), desc=f"fog-gym: compiling kernels (first run only, {jobs} process{'es' * (jobs > 1)})",
-               unit="kernel", file=file, mininterval=1.0, bar_format="{desc}: {n}/{total} [{elapsed}]{postfix}")
+               unit="kernel", file=file, mininterval=tick, bar_format="{desc}: {n}/{total} [{elapsed}]{postfix}")
     t0 = time.perf_counter()
     try:
         if jobs == 1:
@@ -240,7 +242,7 @@ def compile_kernels(entries: list[KernelEntry], jobs: int | None = None, file=No
                     running = [futures[f].label for f in order if f in pending][:jobs]  # longest first: these run
                     bar.set_postfix_str(", ".join(running), refresh=False)
                     bar.refresh()
-                    done, pending = wait(pending, timeout=1.0, return_when=FIRST_COMPLETED)
+                    done, pending = wait(pending, timeout=tick, return_when=FIRST_COMPLETED)
                     for f in done:
                         f.result()  # a kernel that fails to compile fails here, as it would on its first call
                         bar.update()
