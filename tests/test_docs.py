@@ -136,7 +136,9 @@ def _public_function(dotted: str):
     """The fog-gym function a dotted name resolves to, or None (a module, class, constant, private name)."""
     import importlib
     import inspect
+    import warnings
 
+    warnings.simplefilter("ignore", DeprecationWarning)  # old module names still resolve, with a warning
     parts = dotted.split(".")
     if any(p.startswith("_") for p in parts):
         return None
