@@ -80,3 +80,20 @@ def unpack_points(obs: Mapping[str, np.ndarray] | np.ndarray, channel: str | Non
     if n and not valid[:n].all():  # not packed: keep every non-zero row, in order
         return np.ascontiguousarray(array[valid], np.float32)
     return np.ascontiguousarray(array[:n], np.float32)
+
+
+def pad_rows(rows: np.ndarray, capacity: int, fill: float = np.nan) -> np.ndarray:
+    """``rows`` (N, …) in a ``(capacity, …)`` array, the rest ``fill``: the fixed-shape form of a variable-length
+    ``info`` entry, so that Gymnasium's vectorisers can stack it (the count goes beside it).
+
+    >>> pad_rows(np.array([[1.0, 2.0]]), 3).tolist()
+    [[1.0, 2.0], [nan, nan], [nan, nan]]
+    >>> pad_rows(np.array([7, 8]), 3, fill=-1).tolist()
+    [7, 8, -1]
+    """
+    rows = np.asarray(rows)
+    if len(rows) > capacity:
+        raise ValueError(f"{len(rows)} rows do not fit a capacity of {capacity}")
+    out = np.full((capacity, *rows.shape[1:]), fill, dtype=rows.dtype)
+    out[: len(rows)] = rows
+    return out

@@ -20,7 +20,7 @@ from gymnasium import spaces
 
 from fog_gym.envs.config import FogDriveConfig
 from fog_gym.envs.warmup import ensure_compiled, path_of
-from fog_gym.world.hazards import HazardConfig
+from fog_gym.world.hazards import HazardConfig, hazard_info
 from fog_gym.sensors.rig import RigConfig
 from fog_gym import geometry
 from fog_gym.dataset.layout import extrinsic_key
@@ -54,7 +54,8 @@ class FogDriveEnv(gym.Env):
     :class:`RigConfig`), ``episode_seconds``, ``simulation_frequency``, ``keyframe_frequency``,
     ``highway_config`` (highway-env config overrides), ``traffic`` ("fast", the default traffic core, or
     "reference", highway-env's own Python path; same trajectories), ``hazards`` (a :class:`HazardConfig`: stalled
-    vehicles ahead of the ego at every reset; ``info["hazards"]`` then holds, per stalled vehicle, its offset from the
+    vehicles ahead of the ego at every reset; ``info["hazards"]`` then holds, per stalled vehicle (the first
+    ``info["hazard_count"]`` rows of a fixed ``(capacity, 4)`` array, NaN after), its offset from the
     ego in metres ahead and to the right, its length and width), or ``config`` (a complete :class:`FogDriveConfig`).
 
     Public attributes (what wrappers and tools may use): ``config`` (the validated :class:`FogDriveConfig`),
@@ -249,7 +250,7 @@ class FogDriveEnv(gym.Env):
             "crashed": self.world.ego_crashed,
         }
         if self.config.hazards is not None:
-            info["hazards"] = self.world.hazards_ego()
+            info.update(hazard_info(self.world.hazards_ego(), self.config.hazards))
         if "rewards" in hw_info:
             info["rewards"] = {k: float(v) for k, v in hw_info["rewards"].items()}
         if self.config.labels is not None:

@@ -30,7 +30,8 @@ from fog_gym.fog.lidar import BETA_PER_MOR, GAMMA, soft_response_table
 from fog_gym.fog.physics import FogLevel, parse_fog
 from fog_gym.perception import objects as PO
 from fog_gym.seeds import stream
-from fog_gym.world.hazards import HazardConfig
+from fog_gym.dataset.packing import pad_rows
+from fog_gym.world.hazards import HazardConfig, hazard_info
 from fog_gym.world.scene import Lighting, town_static_world
 from fog_gym.world.scenery import SURFACE_RGB
 from fog_gym.world.traffic import kernels as K
@@ -171,14 +172,16 @@ class ObjectWorlds:
         info: dict[str, Any] = {"speed": float(c.floats[w, 0, K.FS]), "crashed": c.ego_crashed(w),
                                 "fog": level.info(), "step": int(self.steps[w])}  # fmt: skip
         if c.hazards is not None:
-            info["hazards"] = c.hazards_ego(w)
+            info.update(hazard_info(c.hazards_ego(w), c.hazards))
         if detections:
             info["detections"] = self.detections(w)
         return info
 
     def detections(self, w: int) -> dict[str, dict[str, np.ndarray]]:
-        """Per sensor of the rig and ``"fused"``: ``vehicle_ids``, ``position`` (reported x, y, ego frame),
-        ``true_position`` (their true centres, ego frame) and ``distance`` (true, from the ego's centre) [m]."""
+        """Per sensor of the rig and ``"fused"``: ``count`` (vehicles detected), then one row per detected vehicle in
+        fixed arrays of the world's vehicle capacity (rows after ``count``: id −1, NaN): ``vehicle_ids``, ``position``
+        (reported x, y, ego frame), ``true_position`` (their true centres, ego frame) and ``distance`` (true, from the
+        ego's centre) [m]."""
         c = self.core
         n = int(c.counts[w])
         f = c.floats[w, :n]
@@ -191,53 +194,79 @@ class ObjectWorlds:
             if name != "fused" and name not in self.objects.sensors:
                 continue
             slots = np.flatnonzero(self.present[w, :n, s])
-            out[name] = {"vehicle_ids": c.ids[w, slots].astype(np.int64), "position": self.pos[w, slots, s].copy(),
-                         "true_position": true[slots], "distance": np.hypot(true[slots, 0], true[slots, 1])}  # fmt: skip
+            cap = c.capacity
+            out[name] = {"count": len(slots), "vehicle_ids": pad_rows(c.ids[w, slots].astype(np.int64), cap, -1),
+                         "position": pad_rows(self.pos[w, slots, s], cap), "true_position": pad_rows(true[slots], cap),
+                         "distance": pad_rows(np.hypot(true[slots, 0], true[slots, 1]), cap)}  # fmt: skip
         return out
 
 
 class FogDriveObjectsEnv(gym.Env):
     """One world of :class:`ObjectWorlds` as a Gymnasium env (what ``gym.make(<RL preset>, observation="objects")``
-    returns). Observation: ``Box(-1, 1, (max_objects, 6 + len(sensors)), float32)`` (``layout="lanes"``: ``(4, 5)``); actions, reward, termination
-    and truncation as the preset's; ``info``: speed, crashed, fog, step, hazards (hazard preset), detections."""
+    returns). Observation: ``Box(-1, 1, (max_objects, 6 + len(sensors)), float32)`` (``layout="lanes"``: ``(4, 5)``);
+    actions, reward, termination and truncation as the preset's; ``info``: speed, crashed, fog, step, hazards and
+    hazard_count (hazard preset), detections (unless ``info_detections=False``: the fastest training loop).
+
+    ``worlds`` and ``index`` make it a view of world ``index`` of a shared :class:`ObjectWorlds` (the native vector
+    env's sub-envs, for ``get_attr`` / ``set_attr`` / ``call``); it then reads the world's state and draws on its
+    generator, and the vector env steps all worlds at once."""
 
     metadata = {"render_modes": [], "render_fps": 5}
 
-    def __init__(self, highway_config: Mapping[str, Any], hazards: HazardConfig | None, fog: Any = "clear",
-                 objects: PO.ObjectsConfig | None = None, episode_seconds: float = 20.0) -> None:  # fmt: skip
-        self.objects = objects if objects is not None else PO.ObjectsConfig()
-        self.worlds = ObjectWorlds(1, highway_config, hazards, fog, self.objects, episode_seconds)
+    def __init__(self, highway_config: Mapping[str, Any] | None = None, hazards: HazardConfig | None = None,
+                 fog: Any = "clear", objects: PO.ObjectsConfig | None = None, episode_seconds: float = 20.0,
+                 info_detections: bool = True, worlds: ObjectWorlds | None = None, index: int = 0) -> None:  # fmt: skip
+        if not isinstance(info_detections, bool):
+            raise ValueError(f"info_detections must be True or False, got {info_detections!r}")
+        if worlds is None:
+            self.objects = objects if objects is not None else PO.ObjectsConfig()
+            worlds = ObjectWorlds(1, highway_config or {}, hazards, fog, self.objects, episode_seconds)
+        self.objects = worlds.objects
+        self.worlds, self.index = worlds, int(index)
+        self.info_detections = info_detections
         m, nf = self.worlds.obs.shape[1:]
         self.observation_space = spaces.Box(-1.0, 1.0, (m, nf), np.float32)
         self.action_space = spaces.Discrete(5)
         self._started = False
 
     @property
+    def np_random(self) -> np.random.Generator:
+        """The world's generator (its reset draws the episode seed from it)."""
+        return self.worlds.np_random[self.index]
+
+    @np_random.setter
+    def np_random(self, value: np.random.Generator) -> None:
+        self.worlds.np_random[self.index] = value
+
+    @property
     def episode_seed(self) -> int:
-        return int(self.worlds.episode_seed[0])
+        return int(self.worlds.episode_seed[self.index])
 
     @property
     def fog(self) -> FogLevel:
-        return self.worlds.levels[0]
+        return self.worlds.levels[self.index]
 
     def set_fog(self, fog: Any) -> None:
         """Change the fog from the next ``reset`` on (curricula)."""
-        self.worlds.set_fog(0, fog)
+        self.worlds.set_fog(self.index, fog)
 
     @property
     def next_fog(self) -> FogLevel | None:
-        return self.worlds.pending[0]
+        return self.worlds.pending[self.index]
 
     @next_fog.setter
     def next_fog(self, fog: Any) -> None:
         if fog is not None:
             self.set_fog(fog)
 
+    def info(self) -> dict[str, Any]:
+        """The world's current ``info`` (what ``reset`` and ``step`` return)."""
+        return self.worlds.info(self.index, self.info_detections)
+
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
-        super().reset(seed=seed)
-        self.worlds.reset(0, seed)
+        self.worlds.reset(self.index, seed)
         self._started = True
-        return self.worlds.obs[0].copy(), self.worlds.info(0)
+        return self.worlds.obs[self.index].copy(), self.info()
 
     def step(self, action: Any):
         if not self._started:
@@ -245,6 +274,10 @@ class FogDriveObjectsEnv(gym.Env):
         a = int(action)
         if not self.action_space.contains(a):
             raise ValueError(f"action must be a meta-action 0..4, got {action!r}")
-        self.worlds.step(np.array([a]), np.ones(1, bool))
-        w = self.worlds
-        return w.obs[0].copy(), w.core.reward(0), w.terminated(0), w.truncated(0), w.info(0)
+        actions = np.zeros(self.worlds.n, np.int64)
+        actions[self.index] = a
+        active = np.zeros(self.worlds.n, bool)
+        active[self.index] = True
+        self.worlds.step(actions, active)
+        w, i = self.worlds, self.index
+        return w.obs[i].copy(), w.core.reward(i), w.terminated(i), w.truncated(i), self.info()

@@ -90,12 +90,16 @@ def make_fogdrive_rl(fog: Any = "clear", town: str = "highway", camera_size: Seq
         objects = objects_config(kwargs)
         hazards = kwargs.pop("hazards", None)
         episode_seconds = kwargs.pop("episode_seconds", 20.0)
+        info_detections = kwargs.pop("info_detections", True)
         kwargs.pop("traffic", None)
         if kwargs:
             raise ValueError(f"observation='objects' does not take {sorted(kwargs)}")
         if town != "highway":
             raise ValueError(f"observation='objects' runs on the highway town only, got town {town!r}")
-        return FogDriveObjectsEnv({**RL_TRAFFIC, **(highway_config or {})}, hazards, fog, objects, episode_seconds)
+        return FogDriveObjectsEnv({**RL_TRAFFIC, **(highway_config or {})}, hazards, fog, objects, episode_seconds,
+                                  info_detections)  # fmt: skip
+    if "info_detections" in kwargs:
+        raise ValueError("info_detections configures observation='objects'; this env has observation='pixels'")
     leftover = [k for k in OBJECT_ARGS if k in kwargs]
     if leftover:
         raise ValueError(f"{leftover} configure observation='objects'; this env has observation='pixels'")

@@ -7,10 +7,10 @@ results, so the worlds' Python and kernels use K cores. Every worker's numba ker
 ``context`` picks the multiprocessing start method (``"fork"``, ``"spawn"``, ``"forkserver"``; default: the platform's).
 
 It is the same vector env as ``shards=1`` sub-env for sub-env: ``reset(seed=s)`` gives sub-env i the episode of a
-single env reset with ``seed=s + i``, autoresets (``NEXT_STEP`` or ``SAME_STEP``) and infos follow Gymnasium's
-conventions (per-key arrays with ``_key`` masks), and ``set_fog``, ``set_attr("next_fog", ...)``, ``call("set_fog",
-...)``, ``get_attr("fog")`` and ``reset_one`` reach the sub-env they name (so :class:`~fog_gym.rl.sb3.VectorEnvAdapter`
-and :class:`~fog_gym.wrappers.VectorFogCurriculum` work unchanged). Bad arguments fail in the main process before a
+single env reset with ``seed=s + i``; autoresets (``NEXT_STEP``, ``SAME_STEP``, ``DISABLED``), ``reset_mask`` and infos
+follow Gymnasium's ``SyncVectorEnv`` (per-key arrays with ``_key`` masks); ``get_attr`` / ``set_attr`` / ``call`` reach
+every sub-env's attributes and methods (values and results must pickle), ``set_fog`` and ``reset_one`` the sub-env they
+name (so :class:`~fog_gym.rl.sb3.VectorEnvAdapter` and :class:`~fog_gym.wrappers.VectorFogCurriculum` work unchanged). Bad arguments fail in the main process before a
 worker starts; a worker's error is raised again in the main process.
 
 Example:
@@ -113,17 +113,31 @@ class ShardedVectorEnv(gym.vector.VectorEnv):
             self.close_extras()  # the shards that did start stop again
             raise
         self.single_observation_space, self.single_action_space = spaces[0]
+        self._obs: list | None = None  # each shard's latest observations (a masked reset keeps the others')
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
 
     # -- Gymnasium VectorEnv API ----------------------------------------------------------------------
     def reset(self, *, seed: int | Sequence[int | None] | None = None, options: dict[str, Any] | None = None):
+        from fog_gym.envs.vector import reset_mask
+
         self._sync_mode()
         seeds = sub_env_seeds(seed, self.num_envs)
+        options = dict(options) if options is not None else None
+        mask = reset_mask(options, self.num_envs)
+        if self._obs is None and not mask.all():
+            raise RuntimeError("the first reset resets every sub-env (no reset_mask)")
+        asked = []
         for k, conn in enumerate(self._conns):
-            conn.send(("reset", ((), {"seed": seeds[self._starts[k]:self._starts[k + 1]], "options": options})))
-        parts = self._gather()
-        return self._concat([p[0] for p in parts]), merge_infos([p[1] for p in parts], self.shard_sizes)
+            a, b = self._starts[k], self._starts[k + 1]
+            if mask[a:b].any():  # a shard none of whose sub-envs reset is not asked
+                opts = {**(options or {}), "reset_mask": mask[a:b].copy()}
+                conn.send(("reset", ((), {"seed": seeds[a:b], "options": opts})))
+                asked.append(k)
+        answers = dict(zip(asked, self._gather(asked)))
+        self._obs = [answers[k][0] if k in answers else self._obs[k] for k in range(len(self._conns))]
+        infos = [answers[k][1] if k in answers else {} for k in range(len(self._conns))]
+        return self._concat(self._obs), merge_infos(infos, self.shard_sizes)
 
     def step(self, actions: Any):
         self._sync_mode()
@@ -131,7 +145,8 @@ class ShardedVectorEnv(gym.vector.VectorEnv):
         for k, conn in enumerate(self._conns):
             conn.send(("step", ((actions[self._starts[k]:self._starts[k + 1]],), {})))
         parts = self._gather()
-        obs = self._concat([p[0] for p in parts])
+        self._obs = [p[0] for p in parts]
+        obs = self._concat(self._obs)
         rewards, terminated, truncated = (np.concatenate([p[i] for p in parts]) for i in (1, 2, 3))
         return obs, rewards, terminated, truncated, merge_infos([p[4] for p in parts], self.shard_sizes)
 
@@ -148,23 +163,24 @@ class ShardedVectorEnv(gym.vector.VectorEnv):
         return self._ask(k, "reset_one", i, seed)
 
     def set_attr(self, name: str, values: Any) -> None:
-        values = list(values) if isinstance(values, (list, tuple)) else [values] * self.num_envs
+        """Set ``name`` on every sub-env: one value for all, or a list of ``num_envs`` values (as ``SyncVectorEnv``)."""
+        if not isinstance(values, (list, tuple)):
+            values = [values] * self.num_envs
         if len(values) != self.num_envs:
-            raise ValueError(f"set_attr needs {self.num_envs} values, got {len(values)}")
+            raise ValueError(f"values must be a list of num_envs={self.num_envs} values, got {len(values)}")
         for k, conn in enumerate(self._conns):
-            conn.send(("set_attr", ((name, values[self._starts[k]:self._starts[k + 1]]), {})))
+            conn.send(("set_attr", ((name, list(values[self._starts[k]:self._starts[k + 1]])), {})))
         self._gather()
 
     def call(self, name: str, *args: Any, **kwargs: Any) -> tuple:
-        levels = args[0] if args else kwargs.get("fog")
-        levels = list(levels) if isinstance(levels, (list, tuple)) else [levels] * self.num_envs
-        if len(levels) != self.num_envs:
-            raise ValueError(f"call needs {self.num_envs} values, got {len(levels)}")
-        for k, conn in enumerate(self._conns):
-            conn.send(("call", ((name, levels[self._starts[k]:self._starts[k + 1]]), {})))
+        """Call each sub-env's method ``name`` with the same arguments (as ``SyncVectorEnv``; results cross the
+        process boundary, so they must pickle)."""
+        for conn in self._conns:
+            conn.send(("call", ((name, *args), kwargs)))
         return tuple(v for part in self._gather() for v in part)
 
     def get_attr(self, name: str) -> tuple:
+        """Each sub-env's attribute ``name`` (it must pickle)."""
         for conn in self._conns:
             conn.send(("get_attr", ((name,), {})))
         return tuple(v for part in self._gather() for v in part)
@@ -203,9 +219,9 @@ class ShardedVectorEnv(gym.vector.VectorEnv):
             raise error from RuntimeError(f"in shard {k}'s worker process:\n{trace}")
         return out
 
-    def _gather(self) -> list:
+    def _gather(self, shards: Sequence[int] | None = None) -> list:
         outs, first_error = [], None
-        for k in range(len(self._conns)):  # every worker's answer is read, so none is left in a pipe
+        for k in range(len(self._conns)) if shards is None else shards:  # every answer is read: none left in a pipe
             try:
                 outs.append(self._receive(k))
             except Exception as e:  # noqa: BLE001

@@ -10,11 +10,13 @@ shared :class:`~fog_gym.world.traffic.native.NativeTraffic`:
 
 **Seeded identity**: ``reset(seed=s)`` gives sub-env i exactly the episode of ``gym.make(id, **kwargs)`` reset with
 ``seed=s + i`` (a list of seeds: one per sub-env); a later reset without a seed continues each sub-env's own
-generator, as a single env's does. **Autoreset** (``autoreset_mode``): Gymnasium's ``NEXT_STEP`` by default — a
-sub-env that terminates or truncates is reset by the next ``step``, whose action for it is ignored and whose reward
-is 0 — or ``SAME_STEP`` (the reset happens inside the step that ended the episode; the last observation and info
-are in ``infos["final_obs"]`` and ``infos["final_info"]``, as SB3 expects). ``set_fog`` per sub-env, reachable with
-``call("set_fog", [...])``-style lists or ``set_attr("next_fog", [...])`` (:class:`~fog_gym.wrappers.VectorFogCurriculum`).
+generator, as a single env's does. **Gymnasium's contract**, as ``SyncVectorEnv`` over single envs keeps it (tested
+differentially): ``autoreset_mode`` ``NEXT_STEP`` (default: a sub-env that ended is reset by the next ``step``, whose
+action for it is ignored and whose reward is 0), ``SAME_STEP`` (reset inside the ending step; ``infos["final_obs"]``
+and ``infos["final_info"]``, as SB3 expects) or ``DISABLED`` (reset ended sub-envs yourself with
+``reset(options={"reset_mask": mask})``); infos with ``_key`` masks at every level; ``get_attr`` / ``set_attr`` /
+``call`` on any attribute or method of the sub-envs (``set_attr("next_fog", [...])`` per sub-env:
+:class:`~fog_gym.wrappers.VectorFogCurriculum`).
 
 Example:
     >>> import gymnasium as gym, fog_gym
@@ -64,8 +66,8 @@ def check_vector_arguments(env_id: str, num_envs: Any, autoreset_mode: Any, kwar
         mode = AutoresetMode(autoreset_mode)
     except ValueError:
         mode = None
-    if mode not in (AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP):
-        raise ValueError(f"autoreset_mode must be NEXT_STEP or SAME_STEP, got {autoreset_mode!r}")
+    if mode is None:
+        raise ValueError(f"autoreset_mode must be NEXT_STEP, SAME_STEP or DISABLED, got {autoreset_mode!r}")
     if kwargs.get("town", "highway") != "highway":
         raise ValueError(f"town: the native vector path runs the highway town only, got {kwargs['town']!r}")
     return mode
@@ -88,15 +90,27 @@ def sub_env_seeds(seed: Any, num_envs: int) -> list[int | None]:
 
 
 class FogDriveVectorEnv(gym.vector.VectorEnv):
-    """N worlds of an RL preset stepped in one process (see the module docstring)."""
+    """N worlds of an RL preset stepped in one process (see the module docstring).
+
+    It is Gymnasium's ``SyncVectorEnv`` over N single envs of the preset, made fast: the traffic (and, for perceived
+    objects, the detection) of every world runs in one numba call, and everything else follows ``SyncVectorEnv``
+    step by step — the same observations, rewards, terminations, truncations and infos (built by the same
+    ``_add_info``, so the same ``_key`` masks, ``final_obs`` and ``final_info``) in every autoreset mode, ``reset``
+    with ``options={"reset_mask": mask}``, and ``get_attr`` / ``set_attr`` / ``call`` on the sub-envs (``envs``:
+    the preset's wrapped envs for pixels, :class:`~fog_gym.envs.objects.FogDriveObjectsEnv` views of the shared
+    worlds for perceived objects)."""
 
     def __init__(self, env_id: str, num_envs: int, autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
                  info_detections: bool = True, **kwargs: Any) -> None:  # fmt: skip
         mode = check_vector_arguments(env_id, num_envs, autoreset_mode, kwargs)
+        if not isinstance(info_detections, bool):
+            raise ValueError(f"info_detections must be True or False, got {info_detections!r}")
         self.env_id = env_id
         self.num_envs = int(num_envs)
         self.metadata = {"autoreset_mode": mode, "render_modes": []}
-        self.info_detections = bool(info_detections)
+        self.render_mode = None
+        self.info_detections = info_detections
+        spec_kwargs = dict(kwargs)
         traffic, with_hazards, bev_ahead = VECTOR_PRESETS[env_id]
         observation = check_observation(kwargs.pop("observation", "pixels"))
         self.observation = observation
@@ -109,7 +123,7 @@ class FogDriveVectorEnv(gym.vector.VectorEnv):
             raise ValueError("fog: the RL presets take one level (in place), not a paired list")
         parse_fog(fog)
         if observation == "objects":
-            from fog_gym.envs.objects import ObjectWorlds
+            from fog_gym.envs.objects import FogDriveObjectsEnv, ObjectWorlds
 
             objects = objects_config(kwargs)
             episode_seconds = kwargs.pop("episode_seconds", 20.0)
@@ -118,10 +132,10 @@ class FogDriveVectorEnv(gym.vector.VectorEnv):
             if kwargs:
                 raise ValueError(f"observation='objects' does not take {sorted(kwargs)}")
             self.worlds = ObjectWorlds(self.num_envs, highway_config, hazards, fog, objects, episode_seconds)
-            m, nf = self.worlds.obs.shape[1:]
-            self.single_observation_space = gym.spaces.Box(-1.0, 1.0, (m, nf), np.float32)
             self.core = self.worlds.core
-            self.envs: list[gym.Env] = []
+            self.envs: list[gym.Env] = [FogDriveObjectsEnv(worlds=self.worlds, index=i, info_detections=info_detections)
+                                        for i in range(self.num_envs)]  # fmt: skip
+            spec_kwargs["info_detections"] = info_detections
         else:
             from fog_gym.world.traffic.native import NativeTraffic
             from fog_gym.world.traffic_world import NativeTrafficWorld
@@ -140,28 +154,38 @@ class FogDriveVectorEnv(gym.vector.VectorEnv):
                                            episode_seconds=kwargs.get("episode_seconds", 20.0))  # fmt: skip
                 self.envs.append(make_fogdrive_rl(fog=fog, highway_config=highway_config, hazards=hazards, world=world,
                                                   **kwargs))  # fmt: skip
-            self.single_observation_space = self.envs[0].observation_space
+        sub_spec = _sub_env_spec(env_id, spec_kwargs)
+        for env in self.envs:
+            env.unwrapped.spec = sub_spec
+        self.single_observation_space = self.envs[0].observation_space
         self.single_action_space = gym.spaces.Discrete(5)
         self.observation_space = batch_space(self.single_observation_space, self.num_envs)
         self.action_space = batch_space(self.single_action_space, self.num_envs)
-        self._ended = np.zeros(self.num_envs, bool)
+        self._obs: list[Any] = [None] * self.num_envs  # the pixel path's latest observation per sub-env
+        self._autoreset = np.zeros(self.num_envs, bool)  # SyncVectorEnv's _autoreset_envs
         self._started = False
 
     # -- Gymnasium VectorEnv API ----------------------------------------------------------------------
     def reset(self, *, seed: int | Sequence[int | None] | None = None, options: dict[str, Any] | None = None):
         seeds = self._seeds(seed)
-        self._ended[:] = False
+        options = dict(options) if options is not None else None
+        mask = reset_mask(options, self.num_envs)
+        which = list(np.flatnonzero(mask))
+        self._autoreset[mask] = False
+        if not self._started and not mask.all():
+            raise RuntimeError("the first reset resets every sub-env (no reset_mask)")
         self._started = True
+        infos: dict[str, Any] = {}
         if self.observation == "objects":
-            self.worlds.reset_many(list(range(self.num_envs)), seeds)
-            infos = self._infos(np.ones(self.num_envs, bool))
+            self.worlds.reset_many(which, [seeds[i] for i in which])
+            for i in which:
+                self.envs[i]._started = True
+                infos = self._add_info(infos, self.envs[i].info(), i)
             return self.worlds.obs.copy(), infos
-        obs, infos = [], self._ragged()
-        for i, env in enumerate(self.envs):
-            o, info = env.reset(seed=seeds[i])
-            obs.append(o)
+        for i in which:
+            self._obs[i], info = self.envs[i].reset(seed=seeds[i], options=options)
             infos = self._add_info(infos, info, i)
-        return self._batch(obs), infos
+        return self._batch(self._obs), infos
 
     def step(self, actions: Any):
         if not self._started:
@@ -169,116 +193,94 @@ class FogDriveVectorEnv(gym.vector.VectorEnv):
         actions = np.asarray(actions, np.int64).reshape(self.num_envs)
         if actions.min() < 0 or actions.max() > 4:
             raise ValueError(f"actions must be meta-actions 0..4, got {actions.tolist()}")
-        next_step = self.metadata["autoreset_mode"] == AutoresetMode.NEXT_STEP
-        resetting = self._ended.copy() if next_step else np.zeros(self.num_envs, bool)
+        mode = self.metadata["autoreset_mode"]
+        if mode == AutoresetMode.DISABLED and self._autoreset.any():
+            raise RuntimeError(f"sub-envs {np.flatnonzero(self._autoreset).tolist()} ended: with autoreset_mode "
+                               "DISABLED reset them first, reset(options={'reset_mask': mask})")  # fmt: skip
+        resetting = self._autoreset.copy() if mode == AutoresetMode.NEXT_STEP else np.zeros(self.num_envs, bool)
         stepping = ~resetting
+        rewards = np.zeros(self.num_envs)
+        terminated = np.zeros(self.num_envs, bool)
+        truncated = np.zeros(self.num_envs, bool)
+        same_step = mode == AutoresetMode.SAME_STEP
         if self.observation == "objects":
-            return self._step_objects(actions, resetting, stepping, next_step)
-        return self._step_pixels(actions, resetting, stepping, next_step)
+            infos = self._step_objects(actions, resetting, stepping, same_step, rewards, terminated, truncated)
+            obs = self.worlds.obs.copy()
+        else:
+            infos = self._step_pixels(actions, resetting, same_step, rewards, terminated, truncated)
+            obs = self._batch(self._obs)
+        self._autoreset = terminated | truncated
+        return obs, rewards, terminated, truncated, infos
 
-    def _step_objects(self, actions, resetting, stepping, next_step):
+    def _step_objects(self, actions, resetting, stepping, same_step, rewards, terminated, truncated) -> dict:
         w = self.worlds
         if resetting.any():
             w.reset_many(list(np.flatnonzero(resetting)), [None] * int(resetting.sum()))
         w.step(actions, stepping)
-        rewards = np.zeros(self.num_envs)
-        terminated = np.zeros(self.num_envs, bool)
-        truncated = np.zeros(self.num_envs, bool)
         for i in np.flatnonzero(stepping):
             rewards[i] = w.core.reward(i)
             terminated[i] = w.terminated(i)
             truncated[i] = w.truncated(i)
-        done = terminated | truncated
-        infos = self._infos(np.ones(self.num_envs, bool))
-        obs = w.obs.copy()
-        if not next_step and done.any():
-            ended = list(np.flatnonzero(done))
-            infos["final_obs"] = np.full(self.num_envs, None, dtype=object)
-            infos["final_info"] = {k: v.copy() if isinstance(v, np.ndarray) else v for k, v in infos.items()
-                                   if k != "final_obs"}  # fmt: skip
-            infos["_final_obs"] = infos["_final_info"] = done.copy()
-            for i in ended:
-                infos["final_obs"][i] = obs[i].copy()
-            w.reset_many(ended, [None] * len(ended))
-            obs = w.obs.copy()
-            fresh = self._infos(done)
-            for k, v in fresh.items():
-                if isinstance(v, np.ndarray) and k in infos and infos[k].shape == v.shape:
-                    infos[k][done] = v[done]
-        self._ended = done if next_step else np.zeros(self.num_envs, bool)
-        return obs, rewards, terminated, truncated, infos
+        ended = np.flatnonzero((terminated | truncated) & same_step)
+        finals = {i: (w.obs[i].copy(), self.envs[i].info()) for i in ended}
+        if len(ended):
+            w.reset_many(list(ended), [None] * len(ended))
+        infos: dict[str, Any] = {}
+        for i in range(self.num_envs):
+            if i in finals:
+                infos = self._add_info(infos, {"final_obs": finals[i][0], "final_info": finals[i][1]}, i)
+            infos = self._add_info(infos, self.envs[i].info(), i)
+        return infos
 
-    def _step_pixels(self, actions, resetting, stepping, next_step):
-        self.core.step(actions, stepping)
-        obs, infos = [], self._ragged()
-        rewards = np.zeros(self.num_envs)
-        terminated = np.zeros(self.num_envs, bool)
-        truncated = np.zeros(self.num_envs, bool)
-        final_obs, final_info = {}, {}
+    def _step_pixels(self, actions, resetting, same_step, rewards, terminated, truncated) -> dict:
+        self.core.step(actions, ~resetting)
+        infos: dict[str, Any] = {}
         for i, env in enumerate(self.envs):
             if resetting[i]:
-                o, info = env.reset()
+                self._obs[i], info = env.reset()
             else:
                 env.unwrapped.world.pre_stepped(int(actions[i]))
-                o, rewards[i], terminated[i], truncated[i], info = env.step(int(actions[i]))
-                if not next_step and (terminated[i] or truncated[i]):
-                    final_obs[i], final_info[i] = o, info
-                    o, info = env.reset()
-            obs.append(o)
+                self._obs[i], rewards[i], terminated[i], truncated[i], info = env.step(int(actions[i]))
+                if same_step and (terminated[i] or truncated[i]):
+                    infos = self._add_info(infos, {"final_obs": self._obs[i], "final_info": info}, i)
+                    self._obs[i], info = env.reset()
             infos = self._add_info(infos, info, i)
-        if final_obs:
-            infos["final_obs"] = np.full(self.num_envs, None, dtype=object)
-            infos["_final_obs"] = np.zeros(self.num_envs, bool)
-            fi: dict = self._ragged()
-            for i, o in final_obs.items():
-                infos["final_obs"][i] = o
-                infos["_final_obs"][i] = True
-                fi = self._add_info(fi, final_info[i], i)
-            infos["final_info"], infos["_final_info"] = fi, infos["_final_obs"].copy()
-        self._ended = (terminated | truncated) if next_step else np.zeros(self.num_envs, bool)
-        return self._batch(obs), rewards, terminated, truncated, infos
+        return infos
 
-    # -- sub-env access (curricula) -------------------------------------------------------------------
-    def set_fog(self, index: int, fog: Any) -> None:
-        """Sub-env ``index``'s fog from its next reset on."""
-        if self.observation == "objects":
-            self.worlds.set_fog(index, fog)
-        else:
-            self.envs[index].get_wrapper_attr("set_fog")(fog)
+    # -- sub-env access (as SyncVectorEnv) ------------------------------------------------------------
+    def get_attr(self, name: str) -> tuple[Any, ...]:
+        """Each sub-env's attribute ``name`` (through its wrappers)."""
+        return tuple(env.get_wrapper_attr(name) for env in self.envs)
 
     def set_attr(self, name: str, values: Any) -> None:
-        values = list(values) if isinstance(values, (list, tuple)) else [values] * self.num_envs
+        """Set ``name`` on every sub-env: one value for all, or a list of ``num_envs`` values."""
+        if not isinstance(values, (list, tuple)):
+            values = [values] * self.num_envs
         if len(values) != self.num_envs:
-            raise ValueError(f"set_attr needs {self.num_envs} values, got {len(values)}")
-        if name != "next_fog":
-            raise AttributeError(f"{name!r}: the vector env's sub-envs take 'next_fog' only")
-        for i, v in enumerate(values):
-            if v is not None:
-                self.set_fog(i, v)
+            raise ValueError(f"values must be a list of num_envs={self.num_envs} values, got {len(values)}")
+        for env, value in zip(self.envs, values):
+            env.set_wrapper_attr(name, value)
 
-    def call(self, name: str, *args: Any, **kwargs: Any) -> tuple:
-        if name != "set_fog":
-            raise AttributeError(f"{name!r}: the vector env's sub-envs answer 'set_fog' only")
-        levels = args[0] if args else kwargs["fog"]
-        levels = list(levels) if isinstance(levels, (list, tuple)) else [levels] * self.num_envs
-        for i, lv in enumerate(levels):
-            self.set_fog(i, lv)
-        return tuple(None for _ in range(self.num_envs))
+    def call(self, name: str, *args: Any, **kwargs: Any) -> tuple[Any, ...]:
+        """Call each sub-env's method ``name`` with the same arguments (an attribute that is not callable is
+        returned as it is)."""
+        out = []
+        for env in self.envs:
+            f = env.get_wrapper_attr(name)
+            out.append(f(*args, **kwargs) if callable(f) else f)
+        return tuple(out)
 
-    def get_attr(self, name: str) -> tuple:
-        if name == "fog":
-            if self.observation == "objects":
-                return tuple(self.worlds.levels)
-            return tuple(env.get_wrapper_attr("fog") for env in self.envs)
-        raise AttributeError(f"{name!r} is not an attribute the vector env's sub-envs share")
+    def set_fog(self, index: int, fog: Any) -> None:
+        """Sub-env ``index``'s fog from its next reset on."""
+        self.envs[index].get_wrapper_attr("set_fog")(fog)
 
     def reset_one(self, index: int, seed: int | None = None) -> tuple[Any, dict]:
         """Reset sub-env ``index`` alone (an SB3 curriculum's re-reset); its next step continues normally."""
-        self._ended[index] = False
-        if self.observation == "objects":
-            self.worlds.reset(index, seed)
-            return self.worlds.obs[index].copy(), self.worlds.info(index, self.info_detections)
-        return self.envs[index].reset(seed=seed)
+        self._autoreset[index] = False
+        obs, info = self.envs[index].reset(seed=seed)
+        if self.observation != "objects":
+            self._obs[index] = obs
+        return obs, info
 
     def close_extras(self, **kwargs: Any) -> None:
         for env in self.envs:
@@ -288,30 +290,34 @@ class FogDriveVectorEnv(gym.vector.VectorEnv):
     def _seeds(self, seed: Any) -> list[int | None]:
         return sub_env_seeds(seed, self.num_envs)
 
-    def _ragged(self) -> dict[str, Any]:
-        """Info keys whose arrays differ in shape between sub-envs, as object arrays (Gymnasium's convention)."""
-        return {"hazards": np.full(self.num_envs, None, dtype=object)} if self.core.hazards is not None else {}
-
     def _batch(self, obs: list) -> Any:
         if isinstance(self.single_observation_space, gym.spaces.Dict):
             return {k: np.stack([o[k] for o in obs]) for k in self.single_observation_space.spaces}
         return np.stack(obs)
 
-    def _infos(self, mask: np.ndarray) -> dict[str, Any]:
-        w = self.worlds
-        c = w.core
-        infos: dict[str, Any] = {
-            "speed": c.floats[:, 0, 3].copy(), "crashed": c.ints[:, 0, 3].astype(bool),
-            "step": w.steps.copy(), "fog": {"visibility_m": np.array([lv.visibility_m for lv in w.levels]),
-                                            "alpha": w.alphas.copy()},
-        }  # fmt: skip
-        for k in ("speed", "crashed", "step"):
-            infos[f"_{k}"] = mask.copy()
-        infos["_fog"] = mask.copy()
-        if c.hazards is not None:
-            infos["hazards"] = np.array([c.hazards_ego(i) for i in range(self.num_envs)] + [None], dtype=object)[:-1]
-            infos["_hazards"] = mask.copy()
-        if self.info_detections:
-            infos["detections"] = np.array([w.detections(i) for i in range(self.num_envs)] + [None], dtype=object)[:-1]
-            infos["_detections"] = mask.copy()
-        return infos
+
+def reset_mask(options: dict[str, Any] | None, num_envs: int) -> np.ndarray:
+    """The sub-envs ``reset`` resets: ``options["reset_mask"]`` (popped; checked as ``SyncVectorEnv`` checks it) or
+    all of them."""
+    if options is None or "reset_mask" not in options:
+        return np.ones(num_envs, bool)
+    mask = options.pop("reset_mask")
+    if not isinstance(mask, np.ndarray):
+        raise TypeError(f"`options['reset_mask']` must be a numpy array, got {type(mask)}")
+    if mask.shape != (num_envs,):
+        raise ValueError(f"`options['reset_mask']` must have shape `({num_envs},)`, got {mask.shape}")
+    if mask.dtype != np.bool_:
+        raise TypeError(f"`options['reset_mask']` must have `dtype=np.bool_`, got {mask.dtype}")
+    if not mask.any():
+        raise ValueError(f"`options['reset_mask']` must contain a boolean array with at least one True value, got "
+                         f"reset_mask={mask}")  # fmt: skip
+    return mask.copy()
+
+
+def _sub_env_spec(env_id: str, kwargs: dict[str, Any]) -> Any:
+    """The spec ``gym.make(env_id, **kwargs)`` gives its env (the sub-envs report it through ``get_attr("spec")``)."""
+    import copy
+
+    spec = copy.deepcopy(gym.spec(env_id))
+    spec.kwargs = {**spec.kwargs, **copy.deepcopy(kwargs)}
+    return spec

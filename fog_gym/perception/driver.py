@@ -95,7 +95,8 @@ def sensor_reach(sensors: tuple[str, ...], fog: Any, episodes: int = 8, seed: in
         _, info = env.reset(seed=seed + e)
         done = False
         while not done:
-            dists += info["detections"]["fused"]["distance"].tolist()
+            fused = info["detections"]["fused"]
+            dists += fused["distance"][: fused["count"]].tolist()
             _, _, term, trunc, info = env.step(IDLE)
             done = term or trunc
     return float(np.percentile(dists, percentile)) if dists else 0.0

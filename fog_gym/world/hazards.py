@@ -8,6 +8,8 @@ Example:
 
 from __future__ import annotations
 
+import math
+
 from dataclasses import dataclass
 from typing import Any
 
@@ -52,6 +54,40 @@ class HazardConfig:
             raise ValueError(f"span must be > 0 metres, got {self.span!r}")
         if not finite("clearance", self.clearance) >= 0:
             raise ValueError(f"clearance must be >= 0 metres, got {self.clearance!r}")
+
+    @property
+    def capacity(self) -> int:
+        """The most stalled vehicles a reset can place: the first at ``first[0]``, then every ``gap[0]`` up to
+        ``span`` (the rows of ``info["hazards"]``).
+
+        >>> HazardConfig().capacity
+        10
+        """
+        return int(math.floor((self.span - self.first[0]) / self.gap[0])) + 1 if self.span >= self.first[0] else 0
+
+
+def hazard_info(rows: np.ndarray, config: HazardConfig) -> dict[str, Any]:
+    """``info["hazards"]``: the stalled vehicles' rows (ahead, right, length, width; nearest first at the reset) in a
+    fixed ``(config.capacity, 4)`` array, NaN after the last, and ``info["hazard_count"]``: how many rows are real (a
+    fixed shape, so Gymnasium's vectorisers stack it).
+
+    >>> info = hazard_info(np.array([[80.0, 4.0, 4.5, 1.8]]), HazardConfig())
+    >>> info["hazards"].shape, info["hazard_count"], bool(np.isnan(info["hazards"][1:]).all())
+    ((10, 4), 1, True)
+    """
+    from fog_gym.dataset.packing import pad_rows
+
+    return {"hazards": pad_rows(np.asarray(rows, np.float64).reshape(-1, 4), config.capacity),
+            "hazard_count": int(len(rows))}
+
+
+def hazard_rows(info: dict[str, Any]) -> np.ndarray:
+    """The real rows of ``info["hazards"]`` (its first ``info["hazard_count"]``): (K, 4) ahead, right, length, width.
+
+    >>> hazard_rows(hazard_info(np.array([[80.0, 4.0, 4.5, 1.8]]), HazardConfig())).tolist()
+    [[80.0, 4.0, 4.5, 1.8]]
+    """
+    return info["hazards"][: info["hazard_count"]]
 
 
 def place_hazards(road: Any, ego: Any, config: HazardConfig, rng: np.random.Generator) -> list[Any]:

@@ -84,7 +84,7 @@ def test_fog_and_resets_reach_the_sub_env_they_name():
         for e in (envs, one):
             e.reset(seed=0)
             e.set_fog(3, "dense")
-            e.call("set_fog", ["clear", "light", "moderate", "dense"])
+            e.set_attr("next_fog", ["clear", "light", "moderate", "dense"])
         obs, info = envs.reset_one(3, seed=5)
         single = gym.make("FogDriveRLHazard-v0", observation="objects", fog="dense")
         np.testing.assert_array_equal(obs, single.reset(seed=5)[0])

@@ -27,6 +27,7 @@ import numpy as np
 from fog_gym.experiments.rl_bench.data import FASTER, IDLE, LANE_LEFT, LANE_RIGHT, SLOWER
 from fog_gym.experiments.rl_bench.data import TEST_LEVELS as LEVELS
 from fog_gym.experiments.runner import save_figure, write_report
+from fog_gym.world.hazards import hazard_rows
 
 TARGET_SPEEDS = (0.0, 5.0, 10.0, 15.0, 20.0, 25.0, 30.0)
 
@@ -161,7 +162,7 @@ def sight_distances(level: str, episodes: int, seed0: int, min_cells: int) -> li
         seen: dict[int, float] = {}
         approached: set[int] = set()
         while True:
-            hz = info["hazards"]
+            hz = hazard_rows(info)
             for i, (a, r, length, width) in enumerate(hz):
                 if abs(r) < 2.0 and 0.0 < a < 56.0:
                     approached.add(i)

@@ -29,6 +29,7 @@ from fog_gym.experiments.rl_bench.data import LANE_LEFT, LANE_RIGHT, SLOWER
 from fog_gym.experiments.rl_bench.data import TEST_LEVELS as LEVELS
 from fog_gym.experiments.rl_bench.train import ALGOS
 from fog_gym.experiments.runner import write_report
+from fog_gym.world.hazards import hazard_rows
 
 EVASIVE = (LANE_LEFT, LANE_RIGHT, SLOWER)
 PROBE_SEED = 3_000_000
@@ -79,16 +80,16 @@ def probe(model_path: Path, fog: str, episodes: int, near: float, seed0: int = P
     rets, crashes, speeds, passes = [], [], [], []
     for k in range(episodes):
         obs, info = env.reset(seed=seed0 + k)
-        total, sp, aheads = 0.0, [], [info["hazards"][:, 0].copy()]
+        total, sp, aheads = 0.0, [], [hazard_rows(info)[:, 0].copy()]
         while True:
             action = int(model.predict(obs, deterministic=True)[0])
-            key = "near" if hazard_near(info["hazards"], near) else "far"
+            key = "near" if hazard_near(hazard_rows(info), near) else "far"
             counts[key][0] += action in EVASIVE
             counts[key][1] += 1
             obs, r, term, trunc, info = env.step(action)
             total += float(r)
             sp.append(float(info["speed"]))
-            aheads.append(info["hazards"][:, 0].copy())
+            aheads.append(hazard_rows(info)[:, 0].copy())
             if term or trunc:
                 break
         rets.append(total)

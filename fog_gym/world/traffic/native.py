@@ -113,7 +113,7 @@ class NativeTraffic:
 
     def _max_hazards(self) -> int:
         hz = self.hazards
-        return 0 if hz is None else int(math.floor((hz.span - hz.first[0]) / hz.gap[0])) + 1
+        return 0 if hz is None else hz.capacity
 
     @property
     def action_count(self) -> int:
