@@ -82,12 +82,13 @@ def unpack_points(obs: Mapping[str, np.ndarray] | np.ndarray, channel: str | Non
     return np.ascontiguousarray(array[:n], np.float32)
 
 
-def pad_rows(rows: np.ndarray, capacity: int, fill: float = np.nan) -> np.ndarray:
-    """``rows`` (N, …) in a ``(capacity, …)`` array, the rest ``fill``: the fixed-shape form of a variable-length
-    ``info`` entry, so that Gymnasium's vectorisers can stack it (the count goes beside it).
+def pad_rows(rows: np.ndarray, capacity: int, fill: float = 0) -> np.ndarray:
+    """``rows`` (N, …) in a ``(capacity, …)`` array, the rest ``fill`` (zeros: equal to themselves, unlike NaN, so
+    Gymnasium's determinism checks hold): the fixed-shape form of a variable-length ``info`` entry, so that
+    Gymnasium's vectorisers can stack it (the count goes beside it).
 
     >>> pad_rows(np.array([[1.0, 2.0]]), 3).tolist()
-    [[1.0, 2.0], [nan, nan], [nan, nan]]
+    [[1.0, 2.0], [0.0, 0.0], [0.0, 0.0]]
     >>> pad_rows(np.array([7, 8]), 3, fill=-1).tolist()
     [7, 8, -1]
     """

@@ -5,6 +5,7 @@
                           ``fog=`` wraps it in :class:`~fog_gym.wrappers.FogWrapper`
 ``FogDriveRL-v0``         the RL preset: 64×64 front camera and LiDAR bird's-eye image, 5 Hz policy
 ``FogDriveRLHazard-v0``   the RL preset on stalled vehicles ahead: seeing far enough decides the episode
+``FogDriveRLObjects-v0``  the hazard task on perceived objects, lanes layout, a flat vector (CleanRL, SB3)
 ========================  =================================================================================
 
 Entry points live in :mod:`fog_gym.envs.presets`, the env class in :mod:`fog_gym.envs.fogdrive`, its configuration
@@ -16,7 +17,7 @@ entry points are here.
 Example:
     >>> import gymnasium as gym
     >>> sorted(k for k in gym.registry if k.startswith("FogDrive"))
-    ['FogDrive-v0', 'FogDriveRL-v0', 'FogDriveRLHazard-v0']
+    ['FogDrive-v0', 'FogDriveRL-v0', 'FogDriveRLHazard-v0', 'FogDriveRLObjects-v0']
 """
 
 from __future__ import annotations
@@ -30,6 +31,7 @@ ENV_IDS = {
     "FogDrive-v0": ("fog_gym.envs.presets:make_fogdrive", None),
     "FogDriveRL-v0": ("fog_gym.envs.presets:make_fogdrive_rl", "fog_gym.envs:make_rl_vector"),
     "FogDriveRLHazard-v0": ("fog_gym.envs.presets:make_fogdrive_rl_hazard", "fog_gym.envs:make_rl_hazard_vector"),
+    "FogDriveRLObjects-v0": ("fog_gym.envs.presets:make_fogdrive_rl_objects", "fog_gym.envs:make_rl_objects_vector"),
 }
 
 for _id, (_entry, _vector) in ENV_IDS.items():
@@ -52,6 +54,11 @@ def make_vector(env_id: str, num_envs: int = 1, shards: int = 1, **kwargs: Any) 
 def make_rl_vector(num_envs: int = 1, shards: int = 1, **kwargs: Any) -> Any:
     """``FogDriveRL-v0``'s vector entry point (``shards``: worker processes, see :func:`make_vector`)."""
     return make_vector("FogDriveRL-v0", num_envs, shards, **kwargs)
+
+
+def make_rl_objects_vector(num_envs: int = 1, shards: int = 1, **kwargs: Any) -> Any:
+    """``FogDriveRLObjects-v0``'s vector entry point (``shards``: worker processes, see :func:`make_vector`)."""
+    return make_vector("FogDriveRLObjects-v0", num_envs, shards, **kwargs)
 
 
 def make_rl_hazard_vector(num_envs: int = 1, shards: int = 1, **kwargs: Any) -> Any:

@@ -55,7 +55,7 @@ class FogDriveEnv(gym.Env):
     ``highway_config`` (highway-env config overrides), ``traffic`` ("fast", the default traffic core, or
     "reference", highway-env's own Python path; same trajectories), ``hazards`` (a :class:`HazardConfig`: stalled
     vehicles ahead of the ego at every reset; ``info["hazards"]`` then holds, per stalled vehicle (the first
-    ``info["hazard_count"]`` rows of a fixed ``(capacity, 4)`` array, NaN after), its offset from the
+    ``info["hazard_count"]`` rows of a fixed ``(capacity, 4)`` array, zeros after), its offset from the
     ego in metres ahead and to the right, its length and width), or ``config`` (a complete :class:`FogDriveConfig`).
 
     Public attributes (what wrappers and tools may use): ``config`` (the validated :class:`FogDriveConfig`),

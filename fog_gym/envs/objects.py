@@ -114,6 +114,12 @@ class ObjectWorlds:
             self.tables_i[w], self.tables_r[w] = ti, tr
             self.beta_ratios[w] = BETA_PER_MOR / level.visibility_m / (GAMMA / math.pi)
 
+    def observation(self, w: int | slice = slice(None)) -> np.ndarray:
+        """A copy of world ``w``'s observation (or every world's), in the config's :attr:`observation_shape`."""
+        obs = self.obs[w]
+        lead = obs.shape[: obs.ndim - 2]
+        return obs.reshape(*lead, *self.objects.observation_shape).copy()
+
     def set_fog(self, w: int, fog: Any) -> None:
         """World ``w``'s fog from its next reset on."""
         self.pending[w] = parse_fog(fog)
@@ -179,7 +185,7 @@ class ObjectWorlds:
 
     def detections(self, w: int) -> dict[str, dict[str, np.ndarray]]:
         """Per sensor of the rig and ``"fused"``: ``count`` (vehicles detected), then one row per detected vehicle in
-        fixed arrays of the world's vehicle capacity (rows after ``count``: id −1, NaN): ``vehicle_ids``, ``position``
+        fixed arrays of the world's vehicle capacity (rows after ``count``: id −1, zeros): ``vehicle_ids``, ``position``
         (reported x, y, ego frame), ``true_position`` (their true centres, ego frame) and ``distance`` (true, from the
         ego's centre) [m]."""
         c = self.core
@@ -224,8 +230,7 @@ class FogDriveObjectsEnv(gym.Env):
         self.objects = worlds.objects
         self.worlds, self.index = worlds, int(index)
         self.info_detections = info_detections
-        m, nf = self.worlds.obs.shape[1:]
-        self.observation_space = spaces.Box(-1.0, 1.0, (m, nf), np.float32)
+        self.observation_space = spaces.Box(-1.0, 1.0, self.objects.observation_shape, np.float32)
         self.action_space = spaces.Discrete(5)
         self._started = False
 
@@ -265,8 +270,11 @@ class FogDriveObjectsEnv(gym.Env):
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
         self.worlds.reset(self.index, seed)
+        if seed is not None:
+            self._np_random_seed = int(seed)
+        self._np_random = self.worlds.np_random[self.index]  # Gymnasium's own field names the world's generator
         self._started = True
-        return self.worlds.obs[self.index].copy(), self.info()
+        return self.worlds.observation(self.index), self.info()
 
     def step(self, action: Any):
         if not self._started:
@@ -280,4 +288,4 @@ class FogDriveObjectsEnv(gym.Env):
         active[self.index] = True
         self.worlds.step(actions, active)
         w, i = self.worlds, self.index
-        return w.obs[i].copy(), w.core.reward(i), w.terminated(i), w.truncated(i), self.info()
+        return w.observation(i), w.core.reward(i), w.terminated(i), w.truncated(i), self.info()

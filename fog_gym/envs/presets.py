@@ -55,7 +55,7 @@ RL_TRAFFIC = {"vehicles_count": 20, "lanes_count": 3}
 #: Values of the RL presets' ``observation`` argument.
 OBSERVATIONS: tuple[str, ...] = ("pixels", "objects")
 #: The RL presets' arguments of the perceived-objects observation (:class:`~fog_gym.perception.objects.ObjectsConfig`).
-OBJECT_ARGS: tuple[str, ...] = ("sensors", "max_objects", "min_points", "min_pixels", "min_contrast", "layout")
+OBJECT_ARGS: tuple[str, ...] = ("sensors", "max_objects", "min_points", "min_pixels", "min_contrast", "layout", "flat")
 
 
 def objects_config(kwargs: dict[str, Any]) -> Any:
@@ -160,3 +160,20 @@ def make_fogdrive_rl_hazard(fog: Any = "clear", hazards: Any = None, highway_con
     hz = HazardConfig() if hazards is None else hazards
     return make_fogdrive_rl(fog=fog, highway_config={**HAZARD_TRAFFIC, **(highway_config or {})}, hazards=hz,
                             bev_ahead=kwargs.pop("bev_ahead", HAZARD_BEV_AHEAD), **kwargs)  # fmt: skip
+
+
+#: FogDriveRLObjects-v0's observation arguments: the layout the RL study learns on, as one flat vector.
+OBJECTS_PRESET = {"observation": "objects", "layout": "lanes", "flat": True}
+
+
+def make_fogdrive_rl_objects(fog: Any = "clear", **kwargs: Any) -> gym.Env:
+    """``FogDriveRLObjects-v0``: the hazard task (:func:`make_fogdrive_rl_hazard`) on perceived objects in the
+    ``"lanes"`` layout (per lane the nearest fused object ahead and behind) as a flat ``Box(-1, 1, (20,))``, the
+    observation on which the RL study's agents learn; SB3's ``MlpPolicy`` and CleanRL's PPO take it as it is.
+
+    >>> import gymnasium as gym, fog_gym
+    >>> env = gym.make("FogDriveRLObjects-v0", fog="dense")
+    >>> env.observation_space.shape, int(env.action_space.n)
+    ((20,), 5)
+    """
+    return make_fogdrive_rl_hazard(fog=fog, **{**OBJECTS_PRESET, **kwargs})

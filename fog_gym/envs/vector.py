@@ -37,8 +37,8 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
-from fog_gym.envs.presets import (HAZARD_BEV_AHEAD, HAZARD_TRAFFIC, OBJECT_ARGS, RL_TRAFFIC, check_observation,
-                                  make_fogdrive_rl, objects_config)  # fmt: skip
+from fog_gym.envs.presets import (HAZARD_BEV_AHEAD, HAZARD_TRAFFIC, OBJECT_ARGS, OBJECTS_PRESET, RL_TRAFFIC,
+                                  check_observation, make_fogdrive_rl, objects_config)  # fmt: skip
 from fog_gym.fog.physics import parse_fog
 from fog_gym.world.hazards import HazardConfig
 
@@ -46,7 +46,10 @@ from fog_gym.world.hazards import HazardConfig
 VECTOR_PRESETS: dict[str, tuple[dict, bool, float]] = {
     "FogDriveRL-v0": (RL_TRAFFIC, False, 0.0),
     "FogDriveRLHazard-v0": (HAZARD_TRAFFIC, True, HAZARD_BEV_AHEAD),
+    "FogDriveRLObjects-v0": (HAZARD_TRAFFIC, True, HAZARD_BEV_AHEAD),
 }
+#: Env ids whose own arguments the vector env applies first (the caller's override them).
+PRESET_DEFAULTS: dict[str, dict[str, Any]] = {"FogDriveRLObjects-v0": OBJECTS_PRESET}
 #: Keyword arguments the vector env accepts besides the presets' own (``make_fogdrive_rl``'s).
 PRESET_ARGS = ("fog", "town", "camera_size", "grayscale", "bev_size", "frame_stack", "highway_config", "bev_ahead",
                "observation", "hazards", "episode_seconds", "traffic", "static_world", "time_of_day", *OBJECT_ARGS)  # fmt: skip
@@ -102,6 +105,8 @@ class FogDriveVectorEnv(gym.vector.VectorEnv):
 
     def __init__(self, env_id: str, num_envs: int, autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
                  info_detections: bool = True, **kwargs: Any) -> None:  # fmt: skip
+        spec_kwargs = dict(kwargs)  # what the caller passed, as gym.make records it in each sub-env's spec
+        kwargs = {**PRESET_DEFAULTS.get(env_id, {}), **kwargs}
         mode = check_vector_arguments(env_id, num_envs, autoreset_mode, kwargs)
         if not isinstance(info_detections, bool):
             raise ValueError(f"info_detections must be True or False, got {info_detections!r}")
@@ -110,7 +115,6 @@ class FogDriveVectorEnv(gym.vector.VectorEnv):
         self.metadata = {"autoreset_mode": mode, "render_modes": []}
         self.render_mode = None
         self.info_detections = info_detections
-        spec_kwargs = dict(kwargs)
         traffic, with_hazards, bev_ahead = VECTOR_PRESETS[env_id]
         observation = check_observation(kwargs.pop("observation", "pixels"))
         self.observation = observation
@@ -181,7 +185,7 @@ class FogDriveVectorEnv(gym.vector.VectorEnv):
             for i in which:
                 self.envs[i]._started = True
                 infos = self._add_info(infos, self.envs[i].info(), i)
-            return self.worlds.obs.copy(), infos
+            return self.worlds.observation(), infos
         for i in which:
             self._obs[i], info = self.envs[i].reset(seed=seeds[i], options=options)
             infos = self._add_info(infos, info, i)
@@ -205,7 +209,7 @@ class FogDriveVectorEnv(gym.vector.VectorEnv):
         same_step = mode == AutoresetMode.SAME_STEP
         if self.observation == "objects":
             infos = self._step_objects(actions, resetting, stepping, same_step, rewards, terminated, truncated)
-            obs = self.worlds.obs.copy()
+            obs = self.worlds.observation()
         else:
             infos = self._step_pixels(actions, resetting, same_step, rewards, terminated, truncated)
             obs = self._batch(self._obs)
@@ -222,7 +226,7 @@ class FogDriveVectorEnv(gym.vector.VectorEnv):
             terminated[i] = w.terminated(i)
             truncated[i] = w.truncated(i)
         ended = np.flatnonzero((terminated | truncated) & same_step)
-        finals = {i: (w.obs[i].copy(), self.envs[i].info()) for i in ended}
+        finals = {i: (w.observation(i), self.envs[i].info()) for i in ended}
         if len(ended):
             w.reset_many(list(ended), [None] * len(ended))
         infos: dict[str, Any] = {}

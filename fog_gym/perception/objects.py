@@ -102,10 +102,13 @@ class ObjectsConfig:
     radar_pose: tuple[float, float] = (2.0, 1.2)
     max_rays: int = 64  # rays cast per vehicle and sensor at most (strided beyond)
     layout: str = "list"  # the observation's layout: "list" (objects nearest first) or "lanes" (see LAYOUTS)
+    flat: bool = False  # the observation as one flat vector (SB3's MlpPolicy and CleanRL take it without a warning)
 
     def __post_init__(self) -> None:
         if self.layout not in LAYOUTS:
             raise ValueError(f"layout must be one of {LAYOUTS}, got {self.layout!r}")
+        if not isinstance(self.flat, bool):
+            raise ValueError(f"flat must be True or False, got {self.flat!r}")
         if isinstance(self.sensors, str) or not isinstance(self.sensors, Sequence):
             raise ValueError(f"sensors must be a non-empty subset of {SENSORS}, got {self.sensors!r}")
         unknown = [s for s in self.sensors if s not in SENSORS]
@@ -134,6 +137,11 @@ class ObjectsConfig:
     def shape(self) -> tuple[int, int]:
         """The observation's shape: ``(max_objects, 6 + len(sensors))``, or ``(4, 5)`` for the ``"lanes"`` layout."""
         return (4, len(LANE_FEATURES)) if self.layout == "lanes" else (self.max_objects, len(self.features))
+
+    @property
+    def observation_shape(self) -> tuple[int, ...]:
+        """The observation space's shape: :attr:`shape`, or its rows one after the other with ``flat``."""
+        return (int(np.prod(self.shape)),) if self.flat else self.shape
 
     @property
     def sensor_mask(self) -> np.ndarray:

@@ -68,11 +68,11 @@ class HazardConfig:
 
 def hazard_info(rows: np.ndarray, config: HazardConfig) -> dict[str, Any]:
     """``info["hazards"]``: the stalled vehicles' rows (ahead, right, length, width; nearest first at the reset) in a
-    fixed ``(config.capacity, 4)`` array, NaN after the last, and ``info["hazard_count"]``: how many rows are real (a
+    fixed ``(config.capacity, 4)`` array, zeros after the last, and ``info["hazard_count"]``: how many rows are real (a
     fixed shape, so Gymnasium's vectorisers stack it).
 
     >>> info = hazard_info(np.array([[80.0, 4.0, 4.5, 1.8]]), HazardConfig())
-    >>> info["hazards"].shape, info["hazard_count"], bool(np.isnan(info["hazards"][1:]).all())
+    >>> info["hazards"].shape, info["hazard_count"], bool((info["hazards"][1:] == 0).all())
     ((10, 4), 1, True)
     """
     from fog_gym.dataset.packing import pad_rows

@@ -20,8 +20,18 @@ CASES = [
     ("FogDriveRLHazard-v0", {"episode_seconds": 1.0}),
     ("FogDriveRL-v0", {"observation": "objects", "episode_seconds": 1.0}),
     ("FogDriveRLHazard-v0", {"observation": "objects", "episode_seconds": 1.0}),
+    ("FogDriveRLObjects-v0", {"episode_seconds": 1.0}),
 ]  # fmt: skip
-IDS = ["FogDrive", "RL-pixels", "Hazard-pixels", "RL-objects", "Hazard-objects"]
+IDS = ["FogDrive", "RL-pixels", "Hazard-pixels", "RL-objects", "Hazard-objects", "RLObjects"]
+
+
+def test_the_cases_cover_every_registered_env_and_observation():
+    from fog_gym.envs import ENV_IDS
+    from fog_gym.envs.presets import OBSERVATIONS
+
+    assert {c[0] for c in CASES} == set(ENV_IDS)
+    for env_id in ("FogDriveRL-v0", "FogDriveRLHazard-v0"):
+        assert {c[1].get("observation", "pixels") for c in CASES if c[0] == env_id} == set(OBSERVATIONS)
 
 
 def assert_same(a, b, path="infos"):
@@ -88,8 +98,9 @@ def _run(envs, mode: AutoresetMode, steps: int = 12) -> list:
 
 
 @pytest.mark.parametrize("mode", [AutoresetMode.NEXT_STEP, AutoresetMode.SAME_STEP, AutoresetMode.DISABLED])
-@pytest.mark.parametrize("observation", ["objects", "pixels"])
-@pytest.mark.parametrize("env_id", ["FogDriveRL-v0", "FogDriveRLHazard-v0"])
+@pytest.mark.parametrize("env_id, observation", [("FogDriveRL-v0", "objects"), ("FogDriveRL-v0", "pixels"),
+                                                 ("FogDriveRLHazard-v0", "objects"), ("FogDriveRLHazard-v0", "pixels"),
+                                                 ("FogDriveRLObjects-v0", "objects")])  # fmt: skip
 def test_the_native_vector_env_equals_sync_vector_env_over_single_envs(env_id, observation, mode):
     kwargs = {"observation": observation, "fog": "dense", "episode_seconds": 1.0}
     sync = gym.make_vec(env_id, num_envs=3, vectorization_mode="sync", vector_kwargs={"autoreset_mode": mode}, **kwargs)
@@ -173,3 +184,21 @@ def test_disabled_autoreset_refuses_to_step_an_ended_sub_env():
         envs.step(np.ones(2, np.int64))
     envs.reset(options={"reset_mask": np.array([True, True])})
     envs.step(np.ones(2, np.int64))
+
+
+def test_the_objects_preset_is_a_flat_box_the_checkers_take_without_a_warning():
+    import warnings
+
+    from gymnasium.utils.env_checker import check_env as gym_check
+    from stable_baselines3.common.env_checker import check_env as sb3_check
+
+    env = gym.make("FogDriveRLObjects-v0", fog="dense")
+    assert env.observation_space.shape == (20,)  # the lanes layout's 4 × 5, row after row
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        sb3_check(env.unwrapped)
+        gym_check(env.unwrapped, skip_render_check=True)
+    assert [str(w.message) for w in caught if "unconventional" in str(w.message) or "shape" in str(w.message)] == []
+    flat = gym.make("FogDriveRLHazard-v0", observation="objects", layout="lanes", flat=True)
+    lanes = gym.make("FogDriveRLHazard-v0", observation="objects", layout="lanes")
+    np.testing.assert_array_equal(flat.reset(seed=4)[0], lanes.reset(seed=4)[0].reshape(-1))

@@ -120,7 +120,7 @@ def test_the_same_seed_gives_the_same_detections_and_fog_shortens_what_lidar_and
     reach, seen = {}, {}
     for fog in ("clear", "dense"):
         run = _episode(fog, seed=0)
-        reach[fog] = {s: max((np.nanmax(i["detections"][s]["distance"], initial=0.0) for _, i in run))
+        reach[fog] = {s: max((i["detections"][s]["distance"].max(initial=0.0) for _, i in run))
                       for s in ("camera", "lidar")}  # fmt: skip
         seen[fog] = {s: sum(i["detections"][s]["count"] for _, i in run) for s in ("camera", "lidar")}
     assert reach["dense"]["lidar"] <= lidar_crossover_range(parse_fog("dense")) + 2 * 5.0 < 80.0 < reach["clear"]["lidar"]
@@ -139,9 +139,9 @@ def test_the_observation_is_kinematics_style_ego_first_nearest_first_unused_rows
     fused = info["detections"]["fused"]
     assert fused["count"] >= present.sum() and set(info["detections"]) == {"lidar", "radar", "fused"}
     assert set(fused) == {"count", "vehicle_ids", "position", "true_position", "distance"}
-    n, cap = fused["count"], len(fused["vehicle_ids"])  # fixed rows: the detected first, then id -1 and NaN
+    n, cap = fused["count"], len(fused["vehicle_ids"])  # fixed rows: the detected first, then id -1 and zeros
     assert (fused["vehicle_ids"][:n] > 0).all() and (fused["vehicle_ids"][n:] == -1).all()
-    assert not np.isnan(fused["distance"][:n]).any() and np.isnan(fused["distance"][n:]).all()
+    assert (fused["distance"][:n] > 0).all() and (fused["distance"][n:] == 0).all()
     assert cap == env.unwrapped.worlds.core.capacity
     # every flagged sensor saw the object: a row flagged only by radar is in the radar list, not the LiDAR one
     assert (rows[:, 6:].sum(axis=1) >= 1).all() and set(np.round(rows[:, 5] * 2).tolist()) <= {-2, -1, 0, 1, 2}
