@@ -5,6 +5,7 @@
 from __future__ import annotations
 
 import json
+from pathlib import Path
 import shutil
 import subprocess
 import sys
@@ -224,6 +225,7 @@ def test_coco_loads_in_pycocotools_and_ground_truth_scores_ap_1(fogdrive, tmp_pa
     export(fogdrive, out, "coco", fog="dense", progress=False)
     ds = FogDrive(fogdrive)
     total = 0
+    caches = {}
     for split in ("train", "val", "test"):
         path = out / "annotations" / f"instances_{split}.json"
         with contextlib.redirect_stdout(io.StringIO()):
@@ -244,9 +246,13 @@ def test_coco_loads_in_pycocotools_and_ground_truth_scores_ap_1(fogdrive, tmp_pa
             ev.summarize()
         assert ev.stats[0] == pytest.approx(1.0) and ev.stats[1] == pytest.approx(1.0)
         assert {c["id"] for c in gt.cats.values()} == set(COCO_CATEGORY_ID.values())
-        # the same boxes in YOLO's layout: labels/<camera>/<name>.txt beside images/, listed in <split>.txt
+        # the same boxes in YOLO's layout: labels/<split>/<camera>/<name>.txt beside images/, listed in <split>.txt
         listed = (out / f"{split}.txt").read_text().split()
         assert sorted(listed) == sorted(f"./images/{img['file_name']}" for img in gt.imgs.values())
+        assert all(p.startswith(f"./images/{split}/") for p in listed)
+        # Ultralytics' label cache: the first label file's folder + .cache (img2label_paths, then .parent.with_suffix)
+        first_label = Path(listed[0].replace("/images/", "/labels/")).with_suffix(".txt")
+        caches[split] = first_label.parent.with_suffix(".cache")
         for img in gt.imgs.values():
             text = (out / "labels" / img["file_name"].replace(".png", ".txt")).read_text()
             rows = np.array([line.split() for line in text.splitlines()], float).reshape(-1, 5)
@@ -256,6 +262,8 @@ def test_coco_loads_in_pycocotools_and_ground_truth_scores_ap_1(fogdrive, tmp_pa
                          a["bbox"][3] / img["height"]] for a in anns]  # fmt: skip
             np.testing.assert_allclose(rows, np.reshape(expected, (-1, 5)), atol=1e-6)
     assert total == 4 * len(ds.sample)
+    # one Ultralytics label cache per split, none shared
+    assert caches and len(set(caches.values())) == len(caches) and all(s in str(c) for s, c in caches.items())
     config = (out / "dataset.yaml").read_text()  # YAML: train/val/test lists and the class names by YOLO id
     assert "\ntrain: train.txt\nval: val.txt\ntest: test.txt\n" in config
     assert config.endswith("names:\n  0: car\n  1: truck\n  2: large_vehicle\n")
@@ -309,7 +317,7 @@ def test_overwrite_replaces_an_export_and_resume_refuses_other_settings(fogdrive
     with pytest.raises(ExportError, match="other settings .*fog: 'light' there, 'dense' now"):
         export(fogdrive, out, "coco", fog="dense", cameras=["CAM_FRONT"], resume=True, progress=False)
     export(fogdrive, out, "coco", fog="dense", cameras=["CAM_LEFT"], overwrite=True, progress=False)
-    assert sorted(p.name for p in (out / "images").iterdir()) == ["CAM_LEFT"]
+    assert sorted(p.name for p in (out / "images").glob("*/*")) == ["CAM_LEFT"]
     assert json.loads((out / MANIFEST).read_text())["complete"] is True
 
 

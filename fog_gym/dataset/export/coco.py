@@ -1,4 +1,4 @@
-"""COCO export (one fog level, the cameras asked for): ``OUT/images/<CAMERA>/<scene folder>_<index>.png`` and
+"""COCO export (one fog level, the cameras asked for): ``OUT/images/<split>/<CAMERA>/<scene folder>_<index>.png`` and
 ``OUT/annotations/instances_<split>.json`` per FogDrive split exported, with the categories car (1), truck (2) and
 large_vehicle (3; FogDrive's "bigger car": vans, large SUVs, ambulances, buses).
 
@@ -6,9 +6,11 @@ A box is FogDrive's 2D box of the camera (inclusive pixel corners ``[[x0, y0], [
 ``[x0, y0, x1 − x0 + 1, y1 − y0 + 1]``: the pixels it covers, as the project's own COCO evaluation counts them.
 Images carry ``camera``, ``sample_token``, ``scene`` and ``fog``; annotations ``vehicle_id``.
 
-The same boxes go out in Ultralytics YOLO's layout beside them: ``labels/<CAMERA>/<name>.txt`` (class = COCO id − 1,
-centre and size normalised by the image size), ``<split>.txt`` image lists (``./images/…``) and ``dataset.yaml``
-(``yolo detect train data=<absolute path of OUT>/dataset.yaml``).
+The same boxes go out in Ultralytics YOLO's layout beside them: ``labels/<split>/<CAMERA>/<name>.txt`` (class = COCO
+id − 1, centre and size normalised by the image size), ``<split>.txt`` image lists (``./images/…``) and
+``dataset.yaml`` (``yolo detect train data=<absolute path of OUT>/dataset.yaml``). Each split has its own folders, so
+Ultralytics keeps one label cache per split and camera (``labels/<split>/<CAMERA>.cache``) instead of rebuilding a
+shared one on every run.
 """
 
 from __future__ import annotations
@@ -43,7 +45,7 @@ def write_coco(src: Source, sink: Sink, bar) -> list[str]:
         for k, sample in enumerate(src.samples(scene)):
             token = sample["token"]
             for cam in src.cameras:
-                rel = f"{cam}/{folder}_{k:06d}.png"
+                rel = f"{split}/{cam}/{folder}_{k:06d}.png"  # a folder per split: Ultralytics caches per split
                 sink.copy(f"images/{rel}", src.image_path(token, cam))
                 width, height = src.image_size(token, cam)
                 image_id += 1
