@@ -155,6 +155,8 @@ def _figure(rows: list[dict], args: argparse.Namespace, seconds: float) -> None:
     a2.set_xlabel("env steps")
     a2.set_ylabel(f"collision rate (mean of {k} episodes)")
     a2.set_ylim(0, 1)
+    for ax in (a1, a2):
+        ax.ticklabel_format(axis="x", style="sci", scilimits=(0, 0))
     fig.suptitle(f"CleanRL-style PPO on {args.env_id}, fog {args.fog}, seed {args.seed} ({seconds / 60:.1f} min)")
     fig.savefig(args.out / "curve.png", dpi=100)
     print(f"wrote {args.out / 'curve.csv'} and {args.out / 'curve.png'}")

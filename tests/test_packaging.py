@@ -12,6 +12,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parent.parent
+_WHEEL: list[Path] = []  # the wheel the fixture built
 
 SCRIPT = textwrap.dedent(
     """
@@ -58,7 +59,33 @@ def wheel_env(tmp_path_factory):
     (purelib / "zz_deps.pth").write_text("\n".join(site.getsitepackages()) + "\n")
     work = tmp_path / "work"  # not the repository root, so the source tree is not importable
     work.mkdir()
+    _WHEEL.append(wheel)
     return python, str(env_dir / "bin" / "fog-gym"), work
+
+
+#: Libraries a user's environment shares with fog-gym: a requirement may bound them, never pin one release.
+SHARED = ("torch", "numpy", "gymnasium", "opencv-python", "opencv-python-headless", "scipy", "matplotlib",
+          "stable-baselines3", "pycocotools", "scikit-image", "scikit-learn", "ray")  # fmt: skip
+
+
+def test_the_wheel_pins_no_release_of_a_library_users_share(wheel_env):
+    """The built wheel's metadata: every requirement on torch, numpy, gymnasium, OpenCV, … is a range (so
+    Ultralytics, mmdetection3d and the user's own torch can live beside fog-gym); torch is required only by extras."""
+    import re
+    import zipfile
+
+    with zipfile.ZipFile(_WHEEL[-1]) as z:
+        meta = z.read(next(n for n in z.namelist() if n.endswith(".dist-info/METADATA"))).decode()
+    requires = [line.split(":", 1)[1].strip() for line in meta.splitlines() if line.startswith("Requires-Dist:")]
+    assert requires
+    pinned = []
+    for req in requires:
+        name = re.match(r"[A-Za-z0-9_.-]+", req).group(0).lower()
+        if name in SHARED and re.search(r"==\s*[0-9]", req.split(";")[0]):
+            pinned.append(req)
+    assert pinned == []
+    torch = [r for r in requires if re.match(r"torch\b", r)]
+    assert torch and all("extra ==" in r and ">=" in r and "<" in r for r in torch), torch
 
 
 def test_the_wheel_imports_from_itself_and_every_command_answers_help(wheel_env):
