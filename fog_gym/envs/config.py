@@ -19,6 +19,9 @@ from fog_gym.sensors.rig import RigConfig
 from fog_gym.world.hazards import HazardConfig
 from fog_gym.world.towns import TIMES_OF_DAY, TOWNS, check_traffic_mode
 
+#: Allowed values of ``FogDriveConfig.geometry``: what the sensors see of a vehicle — ``"boxes"`` (a body and a
+#: cabin box, wheels and lamps) or ``"meshes"`` (a procedural body type, :mod:`fog_gym.world.bodies`).
+GEOMETRIES: tuple[str, ...] = ("boxes", "meshes")
 #: Allowed values of ``FogDriveConfig.static_world``.
 STATIC_WORLDS: tuple[str, ...] = ("episode", "town")
 
@@ -49,8 +52,11 @@ class FogDriveConfig:
     #: "episode": road surface and props built around each episode's start from its seed (FogDrive-v0, datasets);
     #: "town": built once per town and reused by every episode (resets in milliseconds; the RL presets)
     static_world: str = "episode"
+    geometry: str = "boxes"
 
     def __post_init__(self) -> None:
+        if self.geometry not in GEOMETRIES:
+            raise ValueError(f"geometry must be one of {GEOMETRIES}, got {self.geometry!r}")
         if self.town not in TOWNS:
             raise ValueError(f"town must be one of {TOWNS}, got {self.town!r}")
         check_traffic_mode(self.traffic)

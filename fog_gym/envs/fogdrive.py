@@ -22,7 +22,7 @@ from fog_gym.envs.config import FogDriveConfig
 from fog_gym.envs.warmup import ensure_compiled, path_of
 from fog_gym.world.hazards import HazardConfig, hazard_info
 from fog_gym.sensors.rig import RigConfig
-from fog_gym import geometry
+from fog_gym import geometry as geo
 from fog_gym.dataset.layout import extrinsic_key
 from fog_gym.labels.boxes import CameraView, LabelConfig, annotate
 from fog_gym.geometry import sensor_to_world
@@ -90,6 +90,7 @@ class FogDriveEnv(gym.Env):
         traffic: str | None = None,
         hazards: HazardConfig | None = None,
         static_world: str | None = None,
+        geometry: str | None = None,
         world: Any = None,
     ) -> None:
         cfg = config if config is not None else FogDriveConfig()
@@ -111,6 +112,7 @@ class FogDriveEnv(gym.Env):
                 town=town, time_of_day=time_of_day, episode_seconds=episode_seconds,
                 simulation_frequency=simulation_frequency, keyframe_frequency=keyframe_frequency,
                 highway_config=highway_config, traffic=traffic, hazards=hazards, static_world=static_world,
+                geometry=geometry,
             ).items()
             if v is not None
         }  # fmt: skip
@@ -139,7 +141,7 @@ class FogDriveEnv(gym.Env):
         label_lidar = c.rig.lidar or c.rig.semantic_lidar
         self._label_lidar_to_vehicle = sensor_to_world(label_lidar.pose if label_lidar else (0.0, 0.0, 2.0))
         self._extrinsics = {
-            cam.name: geometry.lidar_to_camera(self._label_lidar_to_vehicle, self.cameras.sensor_to_vehicle[cam.name])
+            cam.name: geo.lidar_to_camera(self._label_lidar_to_vehicle, self.cameras.sensor_to_vehicle[cam.name])
             for cam in c.rig.cameras
         }
         self.observation_space = spaces.Dict(obs_spaces)
@@ -221,7 +223,8 @@ class FogDriveEnv(gym.Env):
             vehicles=state,
             static=self._static,
             lighting=self._lighting,
-            primitives=vehicle_primitives(state, self._lighting.night, exclude_id=EGO_ID),  # never see the own body
+            primitives=vehicle_primitives(state, self._lighting.night, exclude_id=EGO_ID,  # never see the own body
+                                          meshes=self.config.geometry == "meshes"),
         )
 
     def _observe(self) -> dict[str, np.ndarray]:
@@ -268,7 +271,7 @@ class FogDriveEnv(gym.Env):
         if self.scene is None:
             raise RuntimeError("call reset() before ground_truth()")
         scene, rig = self.scene, self.config.rig
-        ego_to_world = geometry.yaw_transform(*scene.ego_pose)
+        ego_to_world = geo.yaw_transform(*scene.ego_pose)
         world_to_lidar = np.linalg.inv(ego_to_world @ self._label_lidar_to_vehicle)
         views = [
             CameraView(c.name, self._extrinsics[c.name], self.cameras.intrinsics[c.name], c.width, c.height,

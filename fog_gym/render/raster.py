@@ -30,6 +30,8 @@ from fog_gym._numba import pick, serial_twin
 from fog_gym.render.shading import (FACE_AXES, FACE_STEP, TONE_STEPS, encode_tone, face_sample, fix_irradiance, grid_axis,
                                     grid_bilinear, light_ground, night_ground_row, night_tone_table, tone_at)  # fmt: skip
 from fog_gym.render.surface import TiledSurface, surface_cell
+from fog_gym.world.mesh import MATERIAL_ALBEDO, MATERIAL_EMISSIVE, MATERIAL_PAINT, MATERIAL_TAG
+from fog_gym.world.meshlib import LIBRARY
 from fog_gym.world.primitives import Primitives
 
 # Box faces: corner indices (geometry.BOX_CORNER_SIGNS order) and local outward normals.
@@ -48,15 +50,106 @@ NEAR = 0.05
 BAND_ROWS = 32
 
 
+@njit(cache=True)
+def _emit(c, n_out, poly, k, ncx, ncy, ncz, d0, nwx, nwy, nwz, r, g, b, emis, tag, inst, prim, side, fx, fy, cx, cy,
+          width, height, far, clipped, verts, nverts, planes, face_rgb, face_tag, face_inst, bounds, face_nrm,
+          face_emis, face_prim, face_side):  # fmt: skip
+    """Clip the camera-frame polygon ``poly[:k]`` at the near plane, project it and, if it lands in the image within
+    ``far``, write face ``n_out`` of camera ``c`` (screen polygon, inverse-depth plane from the camera-frame normal
+    ``nc`` and offset ``d0``, colour, tag, instance, world normal, emissive, primitive, side); returns 1 if written."""
+    # clip against z >= NEAR (Sutherland-Hodgman, one plane)
+    m = 0
+    zmin = 1e30
+    for q in range(k):
+        a0 = poly[q]
+        a1 = poly[(q + 1) % k]
+        in0 = a0[2] >= NEAR
+        in1 = a1[2] >= NEAR
+        if in0:
+            clipped[m, 0] = a0[0]
+            clipped[m, 1] = a0[1]
+            clipped[m, 2] = a0[2]
+            m += 1
+        if in0 != in1:
+            s = (NEAR - a0[2]) / (a1[2] - a0[2])
+            clipped[m, 0] = a0[0] + s * (a1[0] - a0[0])
+            clipped[m, 1] = a0[1] + s * (a1[1] - a0[1])
+            clipped[m, 2] = NEAR
+            m += 1
+    if m < 3:
+        return 0
+    umin = 1e30
+    umax = -1e30
+    vmin = 1e30
+    vmax = -1e30
+    area = 0.0
+    for q in range(m):
+        zk = clipped[q, 2]
+        if zk < zmin:
+            zmin = zk
+        u = fx * clipped[q, 0] / zk + cx
+        v = fy * clipped[q, 1] / zk + cy
+        verts[c, n_out, q, 0] = u
+        verts[c, n_out, q, 1] = v
+        umin = min(umin, u)
+        umax = max(umax, u)
+        vmin = min(vmin, v)
+        vmax = max(vmax, v)
+    if zmin > far:
+        return 0
+    for q in range(m):
+        q1 = (q + 1) % m
+        area += verts[c, n_out, q, 0] * verts[c, n_out, q1, 1] - verts[c, n_out, q1, 0] * verts[c, n_out, q, 1]
+    if area < 0.0:  # make orientation positive (interior where every edge function >= 0)
+        for q in range(m // 2):
+            q2 = m - 1 - q
+            tu = verts[c, n_out, q, 0]
+            tv = verts[c, n_out, q, 1]
+            verts[c, n_out, q, 0] = verts[c, n_out, q2, 0]
+            verts[c, n_out, q, 1] = verts[c, n_out, q2, 1]
+            verts[c, n_out, q2, 0] = tu
+            verts[c, n_out, q2, 1] = tv
+    y0 = int(np.ceil(vmin - 0.5))
+    y1 = int(np.floor(vmax - 0.5))
+    x0 = int(np.ceil(umin - 0.5))
+    x1 = int(np.floor(umax - 0.5))
+    if y1 < 0 or x1 < 0 or y0 > height - 1 or x0 > width - 1 or y1 < y0 or x1 < x0:
+        return 0
+    bounds[c, n_out, 0] = max(y0, 0)
+    bounds[c, n_out, 1] = min(y1, height - 1)
+    bounds[c, n_out, 2] = max(x0, 0)
+    bounds[c, n_out, 3] = min(x1, width - 1)
+    nverts[c, n_out] = m
+    # inverse depth as an affine function of (u, v)
+    planes[c, n_out, 0] = ncx / fx / d0
+    planes[c, n_out, 1] = ncy / fy / d0
+    planes[c, n_out, 2] = (ncz - ncx * cx / fx - ncy * cy / fy) / d0
+    face_rgb[c, n_out, 0] = np.uint8(min(max(r, 0.0), 255.0))
+    face_rgb[c, n_out, 1] = np.uint8(min(max(g, 0.0), 255.0))
+    face_rgb[c, n_out, 2] = np.uint8(min(max(b, 0.0), 255.0))
+    face_tag[c, n_out] = tag
+    face_inst[c, n_out] = inst
+    face_nrm[c, n_out, 0] = nwx
+    face_nrm[c, n_out, 1] = nwy
+    face_nrm[c, n_out, 2] = nwz
+    face_emis[c, n_out] = emis
+    face_prim[c, n_out] = prim
+    face_side[c, n_out] = side
+    return 1
+
+
 @njit(cache=True, fastmath=False)  # one thread: parallel over cameras lost to its launch costs at every size
 def _setup_faces(
     cam_rot, cam_trans, cam_k, width, height, far,
-    centers, halves, yaws, colors, tags, insts, emissive,
+    centers, halves, yaws, colors, tags, insts, emissive, meshes,
+    lib_v, lib_t, lib_m, tri_start, mat_albedo, mat_paint, mat_tag, mat_emis,
     sun_dir, ambient, sun_intensity,
 ):  # fmt: skip
     n_cam = cam_rot.shape[0]
     n_prim = centers.shape[0]
-    max_faces = 3 * n_prim
+    max_faces = 0
+    for p in range(n_prim):  # a box shows at most three faces; a mesh at most all of its triangles
+        max_faces += 3 if meshes[p] == 0 else tri_start[meshes[p] + 1] - tri_start[meshes[p]]
     verts = np.zeros((n_cam, max_faces, MAX_VERTS, 2))
     nverts = np.zeros((n_cam, max_faces), dtype=np.int64)
     planes = np.zeros((n_cam, max_faces, 3))
@@ -67,9 +160,13 @@ def _setup_faces(
     face_nrm = np.zeros((n_cam, max_faces, 3), dtype=np.float32)  # world-frame outward normal
     face_emis = np.zeros((n_cam, max_faces), dtype=np.bool_)
     face_prim = np.zeros((n_cam, max_faces), dtype=np.int32)
-    face_side = np.zeros((n_cam, max_faces), dtype=np.int8)
+    face_side = np.zeros((n_cam, max_faces), dtype=np.int8)  # a box's face 0–5; −1: a mesh's triangle
     counts = np.zeros(n_cam, dtype=np.int64)
-    for c in prange(n_cam):
+    corners_c = np.empty((8, 3))
+    poly = np.empty((MAX_VERTS, 3))
+    clipped = np.empty((MAX_VERTS, 3))
+    wv = np.empty((3, 3))
+    for c in range(n_cam):
         R = cam_rot[c]
         T = cam_trans[c]
         fx, fy, cx, cy = cam_k[c, 0], cam_k[c, 1], cam_k[c, 2], cam_k[c, 3]
@@ -78,9 +175,6 @@ def _setup_faces(
         ccy = -(R[0, 1] * T[0] + R[1, 1] * T[1] + R[2, 1] * T[2])
         ccz = -(R[0, 2] * T[0] + R[1, 2] * T[1] + R[2, 2] * T[2])
         n_out = 0
-        corners_c = np.empty((8, 3))
-        poly = np.empty((MAX_VERTS, 3))
-        clipped = np.empty((MAX_VERTS, 3))
         for p in range(n_prim):
             cyaw = np.cos(yaws[p])
             syaw = np.sin(yaws[p])
@@ -89,6 +183,53 @@ def _setup_faces(
             radius = np.sqrt(hx * hx + hy * hy + hz * hz)
             pcz = R[2, 0] * centers[p, 0] + R[2, 1] * centers[p, 1] + R[2, 2] * centers[p, 2] + T[2]
             if pcz + radius < NEAR or pcz - radius > far:
+                continue
+            if meshes[p] != 0:  # a mesh: each front-facing triangle is a face
+                sx, sy, sz = 2.0 * hx, 2.0 * hy, 2.0 * hz
+                for t in range(tri_start[meshes[p]], tri_start[meshes[p] + 1]):
+                    for q in range(3):
+                        v = lib_t[t, q]
+                        lx = lib_v[v, 0] * sx
+                        ly = lib_v[v, 1] * sy
+                        wv[q, 0] = centers[p, 0] + lx * cyaw - ly * syaw
+                        wv[q, 1] = centers[p, 1] + lx * syaw + ly * cyaw
+                        wv[q, 2] = centers[p, 2] + lib_v[v, 2] * sz
+                    e1x, e1y, e1z = wv[1, 0] - wv[0, 0], wv[1, 1] - wv[0, 1], wv[1, 2] - wv[0, 2]
+                    e2x, e2y, e2z = wv[2, 0] - wv[0, 0], wv[2, 1] - wv[0, 1], wv[2, 2] - wv[0, 2]
+                    nwx = e1y * e2z - e1z * e2y
+                    nwy = e1z * e2x - e1x * e2z
+                    nwz = e1x * e2y - e1y * e2x
+                    if nwx * (ccx - wv[0, 0]) + nwy * (ccy - wv[0, 1]) + nwz * (ccz - wv[0, 2]) <= 1e-12:
+                        continue  # back face
+                    inv = 1.0 / np.sqrt(nwx * nwx + nwy * nwy + nwz * nwz)
+                    nwx *= inv
+                    nwy *= inv
+                    nwz *= inv
+                    for q in range(3):
+                        poly[q, 0] = R[0, 0] * wv[q, 0] + R[0, 1] * wv[q, 1] + R[0, 2] * wv[q, 2] + T[0]
+                        poly[q, 1] = R[1, 0] * wv[q, 0] + R[1, 1] * wv[q, 1] + R[1, 2] * wv[q, 2] + T[1]
+                        poly[q, 2] = R[2, 0] * wv[q, 0] + R[2, 1] * wv[q, 1] + R[2, 2] * wv[q, 2] + T[2]
+                    ncx = R[0, 0] * nwx + R[0, 1] * nwy + R[0, 2] * nwz
+                    ncy = R[1, 0] * nwx + R[1, 1] * nwy + R[1, 2] * nwz
+                    ncz = R[2, 0] * nwx + R[2, 1] * nwy + R[2, 2] * nwz
+                    d0 = ncx * poly[0, 0] + ncy * poly[0, 1] + ncz * poly[0, 2]
+                    if d0 > -1e-12:
+                        continue
+                    mat = lib_m[t]
+                    emis = mat_emis[mat] and emissive[p]
+                    if emis:
+                        shade = 1.0
+                    else:
+                        lam = nwx * sun_dir[0] + nwy * sun_dir[1] + nwz * sun_dir[2]
+                        shade = ambient + sun_intensity * max(lam, 0.0)
+                    k = mat_paint[mat]
+                    r = (mat_albedo[mat, 0] * (1.0 - k) + colors[p, 0] * k) * shade * 255.0
+                    g = (mat_albedo[mat, 1] * (1.0 - k) + colors[p, 1] * k) * shade * 255.0
+                    b = (mat_albedo[mat, 2] * (1.0 - k) + colors[p, 2] * k) * shade * 255.0
+                    tag = tags[p] if mat_tag[mat] == 255 else mat_tag[mat]
+                    n_out += _emit(c, n_out, poly, 3, ncx, ncy, ncz, d0, nwx, nwy, nwz, r, g, b, emis, tag, insts[p], p,
+                                   -1, fx, fy, cx, cy, width, height, far, clipped, verts, nverts, planes, face_rgb,
+                                   face_tag, face_inst, bounds, face_nrm, face_emis, face_prim, face_side)  # fmt: skip
                 continue
             for k in range(8):
                 lx = _CORNER_SIGNS[k, 0] * hx
@@ -123,90 +264,15 @@ def _setup_faces(
                     poly[k, 0] = ck[0]
                     poly[k, 1] = ck[1]
                     poly[k, 2] = ck[2]
-                # clip against z >= NEAR (Sutherland-Hodgman, one plane)
-                m = 0
-                zmin = 1e30
-                for k in range(4):
-                    a0 = poly[k]
-                    a1 = poly[(k + 1) % 4]
-                    in0 = a0[2] >= NEAR
-                    in1 = a1[2] >= NEAR
-                    if in0:
-                        clipped[m, 0] = a0[0]
-                        clipped[m, 1] = a0[1]
-                        clipped[m, 2] = a0[2]
-                        m += 1
-                    if in0 != in1:
-                        s = (NEAR - a0[2]) / (a1[2] - a0[2])
-                        clipped[m, 0] = a0[0] + s * (a1[0] - a0[0])
-                        clipped[m, 1] = a0[1] + s * (a1[1] - a0[1])
-                        clipped[m, 2] = NEAR
-                        m += 1
-                if m < 3:
-                    continue
-                umin = 1e30
-                umax = -1e30
-                vmin = 1e30
-                vmax = -1e30
-                area = 0.0
-                for k in range(m):
-                    zk = clipped[k, 2]
-                    if zk < zmin:
-                        zmin = zk
-                    u = fx * clipped[k, 0] / zk + cx
-                    v = fy * clipped[k, 1] / zk + cy
-                    verts[c, n_out, k, 0] = u
-                    verts[c, n_out, k, 1] = v
-                    umin = min(umin, u)
-                    umax = max(umax, u)
-                    vmin = min(vmin, v)
-                    vmax = max(vmax, v)
-                if zmin > far:
-                    continue
-                for k in range(m):
-                    k1 = (k + 1) % m
-                    area += verts[c, n_out, k, 0] * verts[c, n_out, k1, 1] - verts[c, n_out, k1, 0] * verts[c, n_out, k, 1]
-                if area < 0.0:  # make orientation positive (interior where every edge function >= 0)
-                    for k in range(m // 2):
-                        k2 = m - 1 - k
-                        tu = verts[c, n_out, k, 0]
-                        tv = verts[c, n_out, k, 1]
-                        verts[c, n_out, k, 0] = verts[c, n_out, k2, 0]
-                        verts[c, n_out, k, 1] = verts[c, n_out, k2, 1]
-                        verts[c, n_out, k2, 0] = tu
-                        verts[c, n_out, k2, 1] = tv
-                y0 = int(np.ceil(vmin - 0.5))
-                y1 = int(np.floor(vmax - 0.5))
-                x0 = int(np.ceil(umin - 0.5))
-                x1 = int(np.floor(umax - 0.5))
-                if y1 < 0 or x1 < 0 or y0 > height - 1 or x0 > width - 1 or y1 < y0 or x1 < x0:
-                    continue
-                bounds[c, n_out, 0] = max(y0, 0)
-                bounds[c, n_out, 1] = min(y1, height - 1)
-                bounds[c, n_out, 2] = max(x0, 0)
-                bounds[c, n_out, 3] = min(x1, width - 1)
-                nverts[c, n_out] = m
-                # inverse depth as an affine function of (u, v)
-                planes[c, n_out, 0] = ncx / fx / d0
-                planes[c, n_out, 1] = ncy / fy / d0
-                planes[c, n_out, 2] = (ncz - ncx * cx / fx - ncy * cy / fy) / d0
                 if emissive[p]:
                     shade = 1.0
                 else:
                     lam = nwx * sun_dir[0] + nwy * sun_dir[1] + nwz * sun_dir[2]
                     shade = ambient + sun_intensity * max(lam, 0.0)
-                for ch in range(3):
-                    val = colors[p, ch] * shade * 255.0
-                    face_rgb[c, n_out, ch] = np.uint8(min(max(val, 0.0), 255.0))
-                face_tag[c, n_out] = tags[p]
-                face_inst[c, n_out] = insts[p]
-                face_nrm[c, n_out, 0] = nwx
-                face_nrm[c, n_out, 1] = nwy
-                face_nrm[c, n_out, 2] = nwz
-                face_emis[c, n_out] = emissive[p]
-                face_prim[c, n_out] = p
-                face_side[c, n_out] = f
-                n_out += 1
+                n_out += _emit(c, n_out, poly, 4, ncx, ncy, ncz, d0, nwx, nwy, nwz, colors[p, 0] * shade * 255.0,
+                               colors[p, 1] * shade * 255.0, colors[p, 2] * shade * 255.0, emissive[p], tags[p],
+                               insts[p], p, f, fx, fy, cx, cy, width, height, far, clipped, verts, nverts, planes,
+                               face_rgb, face_tag, face_inst, bounds, face_nrm, face_emis, face_prim, face_side)  # fmt: skip
         counts[c] = n_out
     return verts, nverts, planes, face_rgb, face_tag, face_inst, bounds, counts, face_nrm, face_emis, face_prim, face_side
 
@@ -533,10 +599,12 @@ def render(
     cam_rot = np.ascontiguousarray(cam_rot, np.float64)
     cam_trans = np.ascontiguousarray(cam_trans, np.float64)
     cam_k = np.ascontiguousarray(cam_k, np.float64)
+    lib = LIBRARY.arrays()
     faces = _setup_faces(
         cam_rot, cam_trans, cam_k, int(width), int(height), float(far),
-        prims.centers, prims.halves, prims.yaws, prims.colors, prims.tags, prims.insts,
-        prims.emissive, np.asarray(sun_dir, np.float64), float(ambient), float(sun_intensity),
+        prims.centers, prims.halves, prims.yaws, prims.colors, prims.tags, prims.insts, prims.emissive, prims.meshes,
+        lib.vertices, lib.triangles, lib.materials, lib.tri_start, MATERIAL_ALBEDO, MATERIAL_PAINT, MATERIAL_TAG,
+        MATERIAL_EMISSIVE, np.asarray(sun_dir, np.float64), float(ambient), float(sun_intensity),
     )  # fmt: skip
     face = np.empty((n_cam, height, width), np.int32) if face_ids else np.empty((1, 1, 1), np.int32)
     pick(_raster_bands, _raster_bands_serial, n_cam * int(width) * int(height))(

@@ -3,8 +3,7 @@
 Each :class:`BodyType` is lofted through cross-sections along the vehicle (:func:`fog_gym.world.mesh.loft`): a
 rounded lower body up to the beltline and a narrower glasshouse above it, whose height along the car draws the
 silhouette — a sloped bonnet, windscreen, roof, rear window and boot. Glass is the glasshouse's sides and its steep
-top quads (windscreen, rear window); head and tail lamps and the licence plates are wedges of the front and rear
-faces; wheels are 12-sided tyres with 8-sided rims; mirrors small boxes at the A-pillars. Trucks add a cargo box (or a
+top quads (windscreen, rear window); head and tail lamps and the licence plates are thin boxes on the end faces; wheels are 12-sided tyres with 8-sided rims; mirrors small boxes at the A-pillars. Trucks add a cargo box (or a
 trailer, or an open bed) behind their cab.
 
 Every body is built once per process at its nominal size and placed per frame with a per-axis scale to the
@@ -40,8 +39,8 @@ from fog_gym.world.mesh import (BODY, CARGO, GLASS, HEADLAMP, PLATE, TAILLAMP, T
 _RING = [(-0.80, "w", "b"), (0.80, "w", "b"), (0.97, "w", 0.15), (1.0, "w", 0.45), (0.98, "w", 0.80), (0.93, "w", "t"),
          (1.0, "g", "r"), (-1.0, "g", "r"), (-0.93, "w", "t"), (-0.98, "w", 0.80), (-1.0, "w", 0.45), (-0.97, "w", 0.15)]  # fmt: skip
 #: Ring edges: 0 bottom, 1–4 right lower side, 5 right glasshouse side, 6 roof, 7 left glasshouse side, 8–11 left
-#: lower side. Cap wedges (centre → edge j): lamps at the beltline corners (4, 8), the licence plate at the bottom (0).
-_LAMP_EDGES, _PLATE_EDGE, _GLASS_SIDES, _ROOF_EDGE = (4, 8), 0, (5, 7), 6
+#: lower side.
+_GLASS_SIDES, _ROOF_EDGE = (5, 7), 6
 _CABIN = 0.10  # a station whose glasshouse is at least this tall (share of the height) has windows
 _STEEP = 0.45  # a roof quad rising more than this per unit length is a windscreen or rear window
 
@@ -144,6 +143,8 @@ def _hull(body: BodyType) -> Mesh:
     L, W, H = body.size
     st = np.array(body.stations, np.float64)
     x = st[:, 0] * L
+    x[0] += PROUD if st[0, 0] <= -0.49 else 0.0  # the lamps and plates stand proud of the end faces
+    x[-1] -= PROUD if st[-1, 0] >= 0.49 else 0.0
     rings = [_ring(b * H, t * H, r * H, w * W / 2, g * W / 2) for _, b, t, r, w, g in st]
     mats = np.full((len(st) - 1, len(_RING)), BODY, np.uint8)
     cabin = (st[:, 3] - st[:, 2]) >= _CABIN
@@ -157,17 +158,32 @@ def _hull(body: BodyType) -> Mesh:
             mats[i, _ROOF_EDGE] = GLASS  # windscreen / rear window
         mats[i, 0] = TRIM  # the underside
     hull = loft(x, rings, mats)
-    # lamps and plates: wedges of the end caps (loft builds the caps last: rear ring's fan, then the front's)
-    materials = hull.materials.copy()
-    p = len(_RING)
-    rear_cap, front_cap = len(materials) - 2 * p, len(materials) - p
-    for j in _LAMP_EDGES:
-        materials[front_cap + j] = HEADLAMP if st[-1, 0] >= 0.49 else materials[front_cap + j]
-        materials[rear_cap + j] = TAILLAMP if st[0, 0] <= -0.49 else materials[rear_cap + j]
-    materials[front_cap + _PLATE_EDGE] = PLATE
-    if st[0, 0] <= -0.49:
-        materials[rear_cap + _PLATE_EDGE] = PLATE
-    return Mesh(hull.vertices, hull.triangles, materials)
+    return Mesh(hull.vertices, hull.triangles, hull.materials)
+
+
+#: Lamps and licence plates stand this far proud of the body's end faces (the body stops short by as much, so the
+#: box stays the tight bound).
+PROUD = 0.015
+
+
+def _lamps(body: BodyType) -> list[Mesh]:
+    """Head and tail lamps and the licence plates: thin boxes on the end faces, from the face to ±length/2."""
+    L, W, H = body.size
+    st = np.array(body.stations, np.float64)
+    out = []
+    for end, lamp in ((st[-1], HEADLAMP), (st[0], TAILLAMP)):
+        if abs(end[0]) < 0.49:  # this end is a cargo box's or a bed's: _rear adds its lamps
+            continue
+        sign = 1.0 if end[0] > 0 else -1.0
+        x = sign * (L / 2 - PROUD / 2)
+        bottom, belt, w = end[1] * H, end[2] * H, end[4] * W / 2
+        z_lamp = bottom + 0.72 * (belt - bottom)
+        lamp_w, lamp_h = min(0.30, 0.35 * w), min(0.12, 0.22 * (belt - bottom))
+        for s in (-1.0, 1.0):
+            out.append(box_mesh((PROUD, lamp_w, lamp_h), lamp, center=(x, s * (0.80 * w - lamp_w / 2), z_lamp)))
+        z_plate = bottom + 0.30 * (belt - bottom)
+        out.append(box_mesh((PROUD, min(0.52, 0.6 * w), min(0.12, 0.2 * (belt - bottom))), PLATE, center=(x, 0.0, z_plate)))
+    return out
 
 
 def _rear(body: BodyType) -> list[Mesh]:
@@ -179,6 +195,7 @@ def _rear(body: BodyType) -> list[Mesh]:
     x0, x1 = x0 * L, x1 * L
     floor = 0.16 * H + 0.02
     parts: list[Mesh] = []
+    x0 += PROUD  # the tail lamps and the plate stand proud of the rear face
     if kind == "box":
         parts.append(box_mesh((x1 - x0, W, H - floor), material, center=((x0 + x1) / 2, 0.0, (H + floor) / 2)))
     else:  # an open bed: floor and three walls
@@ -191,8 +208,8 @@ def _rear(body: BodyType) -> list[Mesh]:
                                   center=((x0 + x1 + t) / 2, s * (0.93 * W / 2 - t / 2), (top + floor) / 2)))  # fmt: skip
     lamp_z = 0.30 * H if kind == "box" else 0.40 * H
     for s in (-1, 1):  # tail lamps proud of the rear face, inside the box
-        parts.append(box_mesh((0.03, 0.22, 0.12), TAILLAMP, center=(-L / 2 + 0.015, s * (W / 2 - 0.25), lamp_z)))
-    parts.append(box_mesh((0.03, 0.52, 0.12), PLATE, center=(-L / 2 + 0.015, 0.0, lamp_z - 0.2)))
+        parts.append(box_mesh((PROUD, 0.22, 0.12), TAILLAMP, center=(-L / 2 + PROUD / 2, s * (W / 2 - 0.25), lamp_z)))
+    parts.append(box_mesh((PROUD, 0.52, 0.12), PLATE, center=(-L / 2 + PROUD / 2, 0.0, lamp_z - 0.2)))
     if kind == "box":  # the cargo box begins a little above the road: underrun bar in the gap
         parts.append(box_mesh((0.10, 0.90 * W, 0.10), TRIM, center=(x0 + 0.05, 0.0, floor - 0.12)))
     return parts
@@ -229,4 +246,4 @@ def body_mesh(name: str) -> Mesh:
     if name not in BODY_TYPES:
         raise ValueError(f"body type must be one of {sorted(BODY_TYPES)}, got {name!r}")
     body = BODY_TYPES[name]
-    return Mesh.join(_hull(body), *_rear(body), *_wheels(body), *_mirrors(body))
+    return Mesh.join(_hull(body), *_lamps(body), *_rear(body), *_wheels(body), *_mirrors(body))

@@ -1,4 +1,6 @@
-"""``Primitives``: the upright oriented boxes every sensor sees (vehicle parts and static props), as one typed value.
+"""``Primitives``: what every sensor sees (vehicles and static props), as one typed value: per row an upright oriented
+box and the mesh drawn in it (``meshes``: an id of :mod:`fog_gym.world.meshlib`, 0 for the box itself), scaled to
+fill it.
 
 Scene building makes them (:func:`fog_gym.world.scene.vehicle_primitives`, :func:`fog_gym.world.scene.prop_primitives`); the
 rasteriser, the night lighting and the ray caster read them. Pure numpy; imports nothing from the project.
@@ -26,7 +28,8 @@ LAYOUT: dict[str, tuple[type, tuple[int, ...]]] = {
     "colors": (np.float64, (3,)),  # albedo (or emitted colour) in [0, 1]
     "tags": (np.uint8, ()),  # CARLA semantic tag
     "insts": (np.uint16, ()),  # vehicle id; 0 = static world
-    "emissive": (np.bool_, ()),  # lamps: drawn at their colour, unlit
+    "emissive": (np.bool_, ()),  # lamps: drawn at their colour, unlit (a mesh: its lamp materials are)
+    "meshes": (np.int32, ()),  # the mesh drawn in the box (fog_gym.world.meshlib; 0: the box itself)
 }
 
 
@@ -41,6 +44,7 @@ class Primitives:
     tags: np.ndarray
     insts: np.ndarray
     emissive: np.ndarray
+    meshes: np.ndarray
 
     def __len__(self) -> int:
         return len(self.yaws)
@@ -61,10 +65,11 @@ class Primitives:
             raise TypeError(f"primitives must be Primitives or a mapping of arrays, got {type(value).__name__}")
         unknown = set(value) - set(LAYOUT)
         if unknown or not {"centers", "halves", "yaws"} <= set(value):
-            raise ValueError(f"primitives need centers, halves and yaws (optional: colors, tags, insts, emissive), "
+            raise ValueError(f"primitives need centers, halves and yaws (optional: colors, tags, insts, emissive, meshes), "
                              f"got {sorted(value)}")  # fmt: skip
         n = len(np.asarray(value["yaws"]).reshape(-1))
-        defaults = {"colors": np.full((n, 3), 0.5), "tags": np.zeros(n), "insts": np.zeros(n), "emissive": np.zeros(n)}
+        defaults = {"colors": np.full((n, 3), 0.5), "tags": np.zeros(n), "insts": np.zeros(n), "emissive": np.zeros(n),
+                    "meshes": np.zeros(n)}
         out = {}
         for k, (dtype, shape) in LAYOUT.items():
             a = np.ascontiguousarray(np.asarray(value.get(k, defaults.get(k)), dtype))

@@ -185,11 +185,14 @@ def _layout(state: VehicleState, night: bool, exclude_id: int | None) -> tuple |
 _LAYOUTS: dict[tuple, tuple | None] = {}
 
 
-def vehicle_primitives(state: VehicleState, night: bool, exclude_id: int | None = None) -> Primitives:
-    """Boxes for every vehicle (all inside its ground-truth box), as renderer primitive arrays.
+def vehicle_primitives(state: VehicleState, night: bool, exclude_id: int | None = None, meshes: bool = False) -> Primitives:
+    """Boxes for every vehicle (all inside its ground-truth box), as renderer primitive arrays; with ``meshes`` one
+    primitive per vehicle drawing its body type's mesh (:mod:`fog_gym.world.bodies`) in its ground-truth box.
 
     A vehicle's boxes in its own frame depend only on its class, size and colour (and the time of day), so they are
     laid out once per set of vehicles and only placed in the world each frame."""
+    if meshes:
+        return _mesh_primitives(state, night, exclude_id)
     key = (state.ids.tobytes(), state.classes.tobytes(), state.sizes.tobytes(), state.colors.tobytes(), bool(night),
            exclude_id)  # fmt: skip
     layout = _LAYOUTS.get(key)
@@ -213,7 +216,37 @@ def vehicle_primitives(state: VehicleState, night: bool, exclude_id: int | None 
         tags=tags,
         insts=state.ids[vi].astype(np.uint16),
         emissive=emissive,
+        meshes=np.zeros(len(vi), np.int32),
     )
+
+
+def _mesh_primitives(state: VehicleState, night: bool, exclude_id: int | None) -> Primitives:
+    from fog_gym.world.bodies import body_type_of
+    from fog_gym.world.meshlib import body_mesh_id
+
+    keep = np.ones(len(state), bool) if exclude_id is None else state.ids != exclude_id
+    ids, classes = state.ids[keep], state.classes[keep]
+    key = (ids.tobytes(), classes.tobytes())
+    meshes = _BODIES.get(key)
+    if meshes is None:
+        meshes = np.array([body_mesh_id(body_type_of(int(i), int(c))) for i, c in zip(ids, classes)], np.int32)
+        if len(_BODIES) >= 256:
+            _BODIES.pop(next(iter(_BODIES)))
+        _BODIES[key] = meshes
+    n = len(ids)
+    return Primitives(
+        centers=np.ascontiguousarray(state.centers[keep], np.float64),
+        halves=np.ascontiguousarray(state.sizes[keep] / 2, np.float64),
+        yaws=np.ascontiguousarray(state.yaws[keep], np.float64),
+        colors=np.ascontiguousarray(state.colors[keep], np.float64),
+        tags=np.array([CLASS_TAGS[int(k)] for k in classes], np.uint8).reshape(n),
+        insts=ids.astype(np.uint16),
+        emissive=np.full(n, bool(night)),
+        meshes=meshes,
+    )
+
+
+_BODIES: dict[tuple, np.ndarray] = {}
 
 
 def lamp_heights(state: VehicleState) -> np.ndarray:
@@ -237,4 +270,5 @@ def prop_primitives(props: Props) -> Primitives:
         tags=np.ascontiguousarray(props.tags, np.uint8),
         insts=np.zeros(n, np.uint16),
         emissive=np.zeros(n, bool),
+        meshes=np.zeros(n, np.int32),
     )
