@@ -27,6 +27,8 @@ from numba import njit, prange
 
 import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
 from fog_gym._numba import pick, readonly, serial_twin
+from fog_gym.world.mesh import MATERIAL_IDS
+from fog_gym.world.meshlib import LIBRARY
 from fog_gym.world.primitives import Primitives
 
 
@@ -34,6 +36,10 @@ from fog_gym.world.primitives import Primitives
 GROUND = -1
 #: ``index`` of a ray that hit nothing within ``max_range`` (its distance is ``inf``).
 MISS = -2
+#: ``material`` of a ray that hit the ground or nothing.
+NO_MATERIAL = 255
+#: ``material`` of a ray that hit a plain box (its tag and reflectivity are the primitive's).
+BOX_MATERIAL = MATERIAL_IDS["box"]
 #: A box whose footprint comes this close (metres, horizontally) to the origin is put in every azimuth bin.
 NEAR_ALL = 0.05
 _PAD = 1e-9  # widening of every box's bin interval against rounding at cell borders
@@ -201,8 +207,89 @@ def _slab(o, d, h, t0, t1):
     return t0, t1, moved
 
 
+@njit(cache=True)
+def _mesh_hit(ox, oy, oz, dx, dy, dz, sx, sy, sz, m, lib_v, lib_t, chunk_start, chunk_lo, chunk_hi, chunk_tri, t_lo, best):
+    """Nearest front-facing triangle of library mesh ``m`` (scaled by ``s`` = the box's size, in its box frame) that
+    the ray o + t·d (box frame, d unit) meets with ``t_lo < t < best``: (t, triangle, |cos incidence|), triangle −1
+    for none. The mesh's chunks are skipped when the ray misses their bounds."""
+    # the ray in the mesh's normalised frame (v / size): same t
+    nox, noy, noz = ox / sx, oy / sy, oz / sz
+    ndx, ndy, ndz = dx / sx, dy / sy, dz / sz
+    hit = -1
+    cos_hit = 0.0
+    for k in range(chunk_start[m], chunk_start[m + 1]):
+        t0 = t_lo
+        t1 = best
+        # slab test against the chunk's bounds
+        empty = False
+        for a in range(3):
+            o = nox if a == 0 else (noy if a == 1 else noz)
+            d = ndx if a == 0 else (ndy if a == 1 else ndz)
+            lo = chunk_lo[k, a]
+            hi = chunk_hi[k, a]
+            if abs(d) < 1e-15:
+                if o < lo or o > hi:
+                    empty = True
+                    break
+                continue
+            ta = (lo - o) / d
+            tb = (hi - o) / d
+            if ta > tb:
+                ta, tb = tb, ta
+            t0 = max(t0, ta)
+            t1 = min(t1, tb)
+            if t0 > t1:
+                empty = True
+                break
+        if empty:
+            continue
+        for t in range(chunk_tri[k], chunk_tri[k + 1]):
+            i0, i1, i2 = lib_t[t, 0], lib_t[t, 1], lib_t[t, 2]
+            e1x = lib_v[i1, 0] - lib_v[i0, 0]
+            e1y = lib_v[i1, 1] - lib_v[i0, 1]
+            e1z = lib_v[i1, 2] - lib_v[i0, 2]
+            e2x = lib_v[i2, 0] - lib_v[i0, 0]
+            e2y = lib_v[i2, 1] - lib_v[i0, 1]
+            e2z = lib_v[i2, 2] - lib_v[i0, 2]
+            nx = e1y * e2z - e1z * e2y
+            ny = e1z * e2x - e1x * e2z
+            nz = e1x * e2y - e1y * e2x
+            if ndx * nx + ndy * ny + ndz * nz >= 0.0:
+                continue  # a back face: seen from inside the solid, or edge-on
+            # Möller–Trumbore
+            px = ndy * e2z - ndz * e2y
+            py = ndz * e2x - ndx * e2z
+            pz = ndx * e2y - ndy * e2x
+            det = e1x * px + e1y * py + e1z * pz
+            if abs(det) < 1e-18:
+                continue
+            inv = 1.0 / det
+            qx0 = nox - lib_v[i0, 0]
+            qy0 = noy - lib_v[i0, 1]
+            qz0 = noz - lib_v[i0, 2]
+            u = (qx0 * px + qy0 * py + qz0 * pz) * inv
+            if u < 0.0 or u > 1.0:
+                continue
+            qx = qy0 * e1z - qz0 * e1y
+            qy = qz0 * e1x - qx0 * e1z
+            qz = qx0 * e1y - qy0 * e1x
+            v = (ndx * qx + ndy * qy + ndz * qz) * inv
+            if v < 0.0 or u + v > 1.0:
+                continue
+            tt = (e2x * qx + e2y * qy + e2z * qz) * inv
+            if tt <= t_lo or tt >= best:
+                continue
+            best = tt
+            hit = t
+            # the normal in the box's metric frame: the normalised one over the scale (inverse transpose)
+            mx, my, mz = nx / sx, ny / sy, nz / sz
+            cos_hit = abs(dx * mx + dy * my + dz * mz) / np.sqrt(mx * mx + my * my + mz * mz)
+    return best, hit, cos_hit
+
+
 @njit(cache=True, parallel=True)
-def _cast(origin, rotation, directions, max_range, centers, halves, yaws, n_az, n_el):
+def _cast(origin, rotation, directions, max_range, centers, halves, yaws, meshes, n_az, n_el,
+          lib_v, lib_t, lib_m, chunk_start, chunk_lo, chunk_hi, chunk_tri):  # fmt: skip
     n_rays = directions.shape[0]
     ox, oy, oz = origin[0], origin[1], origin[2]
     R = rotation
@@ -222,6 +309,7 @@ def _cast(origin, rotation, directions, max_range, centers, halves, yaws, n_az, 
     dist = np.empty(n_rays, dtype=np.float32)
     index = np.empty(n_rays, dtype=np.int32)
     cosine = np.empty(n_rays, dtype=np.float32)
+    material = np.empty(n_rays, dtype=np.uint8)
     for i in prange(n_rays):
         # unit world direction
         ax, ay, az = directions[i, 0], directions[i, 1], directions[i, 2]
@@ -232,6 +320,7 @@ def _cast(origin, rotation, directions, max_range, centers, halves, yaws, n_az, 
         best = max_range
         hit = MISS
         cos_hit = 0.0
+        mat = NO_MATERIAL
         if dz < -1e-12 and oz > 0.0:
             tg = -oz / dz
             if tg < best:
@@ -255,10 +344,24 @@ def _cast(origin, rotation, directions, max_range, centers, halves, yaws, n_az, 
             t0, t1, mx = _slab(table[k, 0], lx, table[k, 3], t0, t1)
             t0, t1, my = _slab(table[k, 1], ly, table[k, 4], t0, t1)
             t0, t1, mz = _slab(table[k, 2], dz, table[k, 5], t0, t1)
+            m = meshes[prim[k]]
+            if m != 0:  # a mesh in the box: its nearest front triangle within the box's interval
+                if t0 > t1 or t1 < _T_MIN or t0 >= best:
+                    continue
+                tm, tri, cm = _mesh_hit(table[k, 0], table[k, 1], table[k, 2], lx, ly, dz, 2.0 * table[k, 3],
+                                        2.0 * table[k, 4], 2.0 * table[k, 5], m, lib_v, lib_t, chunk_start, chunk_lo,
+                                        chunk_hi, chunk_tri, max(t0 - 1e-9, _T_MIN), min(t1 + 1e-9, best))  # fmt: skip
+                if tri >= 0:
+                    best = tm
+                    hit = prim[k]
+                    cos_hit = cm
+                    mat = lib_m[tri]
+                continue
             if t0 > t1 or t0 < _T_MIN or t0 >= best:
                 continue
             best = t0
             hit = prim[k]
+            mat = BOX_MATERIAL
             # the entry face is the slab that moved the entry last (z, then y, then x in test order)
             cos_hit = abs(dz) if mz else (abs(ly) if my else abs(lx))
         if hit == MISS:
@@ -267,7 +370,8 @@ def _cast(origin, rotation, directions, max_range, centers, halves, yaws, n_az, 
             dist[i] = best
         index[i] = hit
         cosine[i] = cos_hit
-    return dist, index, cosine
+        material[i] = mat
+    return dist, index, cosine, material
 
 
 _cast_serial = serial_twin(_cast)
@@ -279,6 +383,7 @@ class RayHits(NamedTuple):
     distance: np.ndarray  # (N,) float32 metres along the ray; inf for a miss
     index: np.ndarray  # (N,) int32 primitive index, GROUND (-1) or MISS (-2)
     cos_incidence: np.ndarray  # (N,) float32 |cos| of the angle between ray and surface normal; 0 for a miss
+    material: np.ndarray  # (N,) uint8 material id of the surface hit (fog_gym.world.mesh), NO_MATERIAL for ground/miss
 
 
 def cast_rays(
@@ -313,9 +418,10 @@ def cast_rays(
     directions = readonly(np.ascontiguousarray(directions, np.float64).reshape(-1, 3))  # one signature for both
     n = directions.shape[0]
     if n == 0:
-        return RayHits(np.zeros(0, np.float32), np.zeros(0, np.int32), np.zeros(0, np.float32))
+        return RayHits(np.zeros(0, np.float32), np.zeros(0, np.int32), np.zeros(0, np.float32), np.zeros(0, np.uint8))
     rotation = np.eye(3) if rotation is None else np.ascontiguousarray(rotation, np.float64).reshape(3, 3)
-    dist, index, cosine = pick(_cast, _cast_serial, n)(
+    lib = LIBRARY.arrays()
+    dist, index, cosine, material = pick(_cast, _cast_serial, n)(
         np.ascontiguousarray(origin, np.float64).reshape(3),
         rotation,
         directions,
@@ -323,7 +429,9 @@ def cast_rays(
         prims.centers,
         prims.halves,
         prims.yaws,
+        prims.meshes,
         int(n_azimuth_bins),
         int(n_elevation_bins),
+        lib.vertices, lib.triangles, lib.materials, lib.chunk_start, lib.chunk_lo, lib.chunk_hi, lib.chunk_tri,
     )
-    return RayHits(dist, index, cosine)
+    return RayHits(dist, index, cosine, material)

@@ -22,13 +22,16 @@ from fog_gym.sensors.base import PointSensor, register
 from fog_gym.sensors.lidar import LidarConfig, SemanticLidarConfig, lidar_directions, lidar_space, split_transform
 from fog_gym.dataset.packing import SEMANTIC_LIDAR
 from fog_gym.sensors.raycast import MISS, cast_rays
+from fog_gym.world.mesh import MATERIAL_TAG
 from fog_gym.world.primitives import Primitives
 from fog_gym.world.scenery import SURFACE_TAGS, SurfaceMap
 
 
 @njit(cache=True)
-def _semantic_points(dirs, dist, index, cosine, rotation, origin, insts, tags, grid, gx0, gy0, res, surface_tags):
-    """Returns as (N, 6) float32 x, y, z, cos, id, tag; ground tags from the surface grid (as SurfaceMap.class_at)."""
+def _semantic_points(dirs, dist, index, cosine, material, rotation, origin, insts, tags, mat_tag, grid, gx0, gy0, res,
+                     surface_tags):  # fmt: skip
+    """Returns as (N, 6) float32 x, y, z, cos, id, tag; ground tags from the surface grid (as SurfaceMap.class_at),
+    a mesh's tag from the material hit (its instance's where the material has none)."""
     n = dirs.shape[0]
     count = 0
     for i in range(n):
@@ -48,7 +51,8 @@ def _semantic_points(dirs, dist, index, cosine, rotation, origin, insts, tags, g
         out[k, 3] = cosine[i]
         if p >= 0:
             out[k, 4] = insts[p]
-            out[k, 5] = tags[p]
+            mt = mat_tag[material[i]] if material[i] < mat_tag.shape[0] else 255
+            out[k, 5] = tags[p] if mt == 255 else mt
         else:
             ux, uy, uz = dirs[i, 0], dirs[i, 1], dirs[i, 2]
             wx = origin[0] + d * (rotation[0, 0] * ux + rotation[0, 1] * uy + rotation[0, 2] * uz)
@@ -75,7 +79,8 @@ def simulate_semantic_lidar(
 
     Same ray pattern as :func:`simulate_lidar` but no intensity, drop-off or noise, so ``rng`` is not used.
     The object id is the primitive's ``insts`` (vehicle id; 0 for the static world and the ground); the ground's
-    tag is ``SURFACE_TAGS[surface.class_at(x, y)]`` at the hit. cos(incidence) is ``|ray · surface normal|``.
+    tag is ``SURFACE_TAGS[surface.class_at(x, y)]`` at the hit, a mesh's that of the material hit (a tree's trunk and
+    crown: vegetation; a car's tyres: the car's class). cos(incidence) is ``|ray · surface normal|``.
 
     >>> from fog_gym.world.scenery import SurfaceMap
     >>> surface = SurfaceMap(np.zeros((10, 10), np.uint8), (-5.0, -5.0), 1.0)
@@ -93,8 +98,8 @@ def simulate_semantic_lidar(
     hits = cast_rays(origin, dirs, cfg.range, prims, rotation=rot)
     grid = np.ascontiguousarray(surface.grid, np.uint8)
     return _semantic_points(
-        dirs, hits.distance, hits.index, hits.cos_incidence, rot, origin,
-        prims.insts, prims.tags, grid,
+        dirs, hits.distance, hits.index, hits.cos_incidence, hits.material, rot, origin,
+        prims.insts, prims.tags, MATERIAL_TAG, grid,
         float(surface.origin[0]), float(surface.origin[1]), float(surface.resolution), SURFACE_TAGS,
     )  # fmt: skip
 

@@ -1,0 +1,154 @@
+"""Every sensor on the meshes: a triangle covers exactly the pixels its projection says, a ray stops at the
+analytically nearest front-facing triangle (with its material and incidence), and on a frame of mesh vehicles no
+LiDAR return lies outside its vehicle's box while the camera sees shapes that boxes cannot make."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from fog_gym.render.raster import render
+from fog_gym.render.surface import tile_surface
+from fog_gym.sensors.raycast import GROUND, MISS, cast_rays
+from fog_gym.world.mesh import MATERIAL_IDS, Mesh
+from fog_gym.world.meshlib import LIBRARY, body_mesh_id
+from fog_gym.world.primitives import Primitives
+
+SIGN = MATERIAL_IDS["sign"]
+
+
+def _prims(center, size, yaw, mesh, inst=7, tag=14):
+    return Primitives.coerce({"centers": np.array([center], float), "halves": np.array([size], float) / 2,
+                              "yaws": np.array([yaw], float), "insts": np.array([inst]), "tags": np.array([tag]),
+                              "meshes": np.array([mesh]), "colors": np.array([[0.5, 0.4, 0.3]])})  # fmt: skip
+
+
+def _brute_force(origin, dirs, prims):
+    """Nearest front-facing triangle per ray by testing every triangle in the world frame (numpy)."""
+    lib = LIBRARY.arrays()
+    m = int(prims.meshes[0])
+    t0, t1 = lib.tri_start[m], lib.tri_start[m + 1]
+    v = lib.vertices * (2 * prims.halves[0])
+    c, s = np.cos(prims.yaws[0]), np.sin(prims.yaws[0])
+    w = np.c_[v[:, 0] * c - v[:, 1] * s, v[:, 0] * s + v[:, 1] * c, v[:, 2]] + prims.centers[0]
+    tri = w[lib.triangles[t0:t1]]
+    e1, e2 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
+    n = np.cross(e1, e2)
+    best = np.full(len(dirs), np.inf)
+    mat = np.full(len(dirs), 255)
+    for i, d in enumerate(dirs):
+        p = np.cross(d, e2)
+        det = np.einsum("ij,ij->i", e1, p)
+        q0 = origin - tri[:, 0]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            u = np.einsum("ij,ij->i", q0, p) / det
+            q = np.cross(q0, e1)
+            vv = q @ d / det
+            t = np.einsum("ij,ij->i", e2, q) / det
+        ok = (n @ d < 0) & (np.abs(det) > 1e-18) & (u >= 0) & (u <= 1) & (vv >= 0) & (u + vv <= 1) & (t > 1e-6)
+        if ok.any():
+            k = np.flatnonzero(ok)[np.argmin(t[ok])]
+            best[i], mat[i] = t[k], lib.materials[t0 + k]
+    return best, mat
+
+
+@settings(max_examples=25, deadline=None)
+@given(st.floats(0, 2 * np.pi), st.floats(-3, 3), st.floats(0.3, 2.5), st.integers(0, 2**31 - 1))
+def test_a_ray_stops_at_the_nearest_front_triangle_of_a_mesh(yaw, lateral, height, seed):
+    prims = _prims((12.0, lateral, 0.75), (4.6, 1.9, 1.5), yaw, body_mesh_id("sedan"))
+    origin = np.array([0.0, 0.0, height])
+    rng = np.random.default_rng(seed)
+    target = prims.centers[0] + rng.uniform(-1, 1, (300, 3)) * [2.6, 1.2, 0.9]
+    dirs = target - origin
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    hits = cast_rays(origin, dirs, 100.0, prims)
+    want, mat = _brute_force(origin, dirs, prims)
+    on_mesh = hits.index == 0
+    assert on_mesh.sum() > 30  # most of these rays meet the car
+    np.testing.assert_allclose(hits.distance[on_mesh], want[on_mesh], rtol=1e-6)
+    np.testing.assert_array_equal(hits.material[on_mesh], mat[on_mesh])
+    # a ray the mesh lets through (between the wheels, past the glasshouse) goes on to the ground or beyond
+    assert np.all(np.isinf(want[~on_mesh]) | (want[~on_mesh] > hits.distance[~on_mesh]))
+    assert set(np.unique(hits.index[~on_mesh])) <= {GROUND, MISS}
+    # incidence: |cos| between the ray and the triangle's normal
+    assert ((hits.cos_incidence[on_mesh] > 0) & (hits.cos_incidence[on_mesh] <= 1 + 1e-6)).all()
+
+
+def _triangle_mesh() -> int:
+    """A single triangle facing −x (towards a camera at the origin looking along +x), in the library."""
+    v = np.array([[0.0, -1.0, 0.2], [0.0, 1.2, 0.6], [0.0, 0.1, 2.0]])
+    tri = Mesh(v, np.array([[0, 2, 1]]), np.array([SIGN], np.uint8))
+    if tri.normals()[0, 0] > 0:
+        tri = Mesh(v, np.array([[0, 1, 2]]), np.array([SIGN], np.uint8))
+    return LIBRARY.add("test:triangle", tri)
+
+
+def test_a_triangle_covers_exactly_the_pixels_its_projection_says():
+    mesh = _triangle_mesh()
+    m = LIBRARY.mesh(mesh)
+    lo, hi = m.bounds()
+    size = np.array([0.01, 2.2, 1.8])  # the triangle's extent (x flat: any small depth)
+    prims = _prims((3.5, 0.1, 1.1), size, 0.0, mesh, tag=8)
+    # camera at (0, 0, 1.1) looking along +x: camera frame x right (= world y), y down (= −z), z forward (= x)
+    R = np.array([[[0.0, 1.0, 0.0], [0.0, 0.0, -1.0], [1.0, 0.0, 0.0]]])
+    t = -R[0] @ np.array([0.0, 0.0, 1.1])
+    w, h, f = 96, 72, 60.0
+    k = np.array([[f, f, w / 2, h / 2]])
+    surface = tile_surface(np.zeros((4, 4), np.uint8), (-1000.0, -1000.0), 500.0)
+    out = render(R, t[None], k, w, h, 1000.0, prims, surface, np.zeros((1, 3), np.uint8), np.zeros(1, np.uint8),
+                 np.zeros(3), np.zeros(3), np.array([0.0, 0.0, 1.0]), 0.5, 0.5)  # fmt: skip
+    # the analytic projection of the world triangle, and pixel centres inside it
+    verts = LIBRARY.arrays().vertices[LIBRARY.arrays().triangles[LIBRARY.arrays().tri_start[mesh]]] * size
+    world = verts + prims.centers[0]
+    cam = (R[0] @ world.T).T + t
+    uv = np.c_[f * cam[:, 0] / cam[:, 2] + w / 2, f * cam[:, 1] / cam[:, 2] + h / 2]
+    jj, ii = np.meshgrid(np.arange(w) + 0.5, np.arange(h) + 0.5)
+    p = np.stack([jj, ii], -1)
+
+    def edge(a, b):
+        return (b[0] - a[0]) * (p[..., 1] - a[1]) - (b[1] - a[1]) * (p[..., 0] - a[0])
+
+    e = np.stack([edge(uv[0], uv[1]), edge(uv[1], uv[2]), edge(uv[2], uv[0])])
+    inside = (e >= 0).all(axis=0) | (e <= 0).all(axis=0)
+    margin = np.abs(e).min(axis=0) < 1e-6 * np.abs(e).max()  # pixel centres on an edge may go either way
+    drawn = out["inst"][0] == 7
+    assert inside.sum() > 300
+    assert np.array_equal(drawn[~margin], inside[~margin])
+    assert (out["sem"][0][drawn] == 8).all()  # the material's tag (traffic sign), not the instance's
+    np.testing.assert_allclose(out["depth"][0][drawn], 3.5, atol=1e-5)  # a plane at x = 3.5: planar depth 3.5 m
+
+
+def test_lidar_returns_of_mesh_vehicles_lie_inside_their_boxes_and_the_camera_sees_more_than_boxes():
+    import gymnasium as gym
+
+    import fog_gym  # noqa: F401
+    from fog_gym.geometry import box_corners
+
+    env = gym.make("FogDrive-v0", resolution=(320, 240), geometry="meshes", labels=None)
+    env.reset(seed=4)
+    for _ in range(3):
+        env.step(1)
+    base = env.unwrapped
+    sem = base.points["SEM_LIDAR_TOP"]
+    scene = base.scene
+    v = scene.vehicles
+    lidar_to_world = base._label_lidar_to_vehicle
+    from fog_gym import geometry as geo
+
+    world = (geo.yaw_transform(*scene.ego_pose) @ lidar_to_world @ np.c_[sem[:, :3], np.ones(len(sem))].T).T[:, :3]
+    checked = 0
+    for vid in np.unique(sem[:, 4]).astype(int):
+        if vid == 0:
+            continue
+        k = int(np.flatnonzero(v.ids == vid)[0])
+        pts = world[sem[:, 4] == vid]
+        c, s = np.cos(v.yaws[k]), np.sin(v.yaws[k])
+        d = pts - v.centers[k]
+        local = np.c_[d[:, 0] * c + d[:, 1] * s, -d[:, 0] * s + d[:, 1] * c, d[:, 2]]
+        assert (np.abs(local) <= v.sizes[k] / 2 + 1e-3).all(), vid  # the box is the mesh's bound
+        checked += len(pts)
+    assert checked > 50
+    assert box_corners is not None
+    env.close()
