@@ -206,11 +206,45 @@ def compile_jobs() -> int:
         return max(1, os.cpu_count() or 1)
 
 
+def _bins(entries: list[KernelEntry], jobs: int) -> list[list[KernelEntry]]:
+    """``entries`` (longest first) dealt to ``jobs`` workers, each to the least loaded one (by recorded seconds)."""
+    bins: list[list[KernelEntry]] = [[] for _ in range(jobs)]
+    load = [0.0] * jobs
+    for e in entries:
+        k = load.index(min(load))
+        bins[k].append(e)
+        load[k] += max(e.seconds, 0.1)
+    return [b for b in bins if b]
+
+
+def _compile_worker() -> None:
+    """A worker process of :func:`compile_kernels`: reads its entries as JSON from stdin and reports ``start``,
+    ``done`` or ``error`` per kernel on stdout, one JSON line each."""
+    import json
+
+    for module, name, sigs, seconds in json.loads(sys.stdin.read()):
+        label = KernelEntry(module, name, (), 0.0).label
+        print(json.dumps(["start", label]), flush=True)
+        try:
+            _compile_entry(module, name, tuple(tuple(s) for s in sigs))
+            print(json.dumps(["done", label]), flush=True)
+        except Exception as e:  # noqa: BLE001 - reported; the kernel then compiles on its first call
+            print(json.dumps(["error", label, f"{type(e).__name__}: {e}".splitlines()[0][:300]]), flush=True)
+
+
 def compile_kernels(entries: list[KernelEntry], jobs: int | None = None, file=None) -> list[KernelEntry]:
     """Compile the cold ``entries`` ahead of their first call, in ``jobs`` worker processes (default
     :func:`compile_jobs`), longest first, with a progress bar on ``file`` (stderr) that names the kernels; returns the
     entries it compiled (none when everything is cached). ``FOG_GYM_COMPILE=lazy`` turns this off (kernels then
-    compile on their first call, one after the other)."""
+    compile on their first call, one after the other).
+
+    The workers are fresh interpreters (``python -c``), not ``multiprocessing`` children, so a user's script without
+    an ``if __name__ == "__main__":`` guard is never imported again. A kernel a worker cannot compile is named on
+    ``file`` and compiles on its first call instead."""
+    import json
+    import queue
+    import subprocess
+    import threading
     import time
 
     from tqdm import tqdm
@@ -220,38 +254,57 @@ def compile_kernels(entries: list[KernelEntry], jobs: int | None = None, file=No
     todo = sorted(cold(list(dict.fromkeys(entries))), key=lambda e: -e.seconds)
     if not todo:
         return []
-    jobs = min(jobs or compile_jobs(), len(todo))
+    bins = _bins(todo, min(jobs or compile_jobs(), len(todo)))
     file = sys.stderr if file is None else file
     tty = hasattr(file, "isatty") and file.isatty()
     tick = 1.0 if tty else 5.0  # a log file gets a line every 5 s, a terminal one line redrawn every second
-    bar = tqdm(total=len(todo), desc=f"fog-gym: compiling kernels (first run only, {jobs} process{'es' * (jobs > 1)})",
+    n = len(bins)
+    bar = tqdm(total=len(todo), desc=f"fog-gym: compiling kernels (first run only, {n} process{'es' * (n > 1)})",
                unit="kernel", file=file, mininterval=tick, bar_format="{desc}: {n}/{total} [{elapsed}]{postfix}")
+    events: queue.Queue = queue.Queue()
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(p for p in sys.path if p), "FOG_GYM_COMPILE_NOTICES": "0"}
+    procs = []
     t0 = time.perf_counter()
     try:
-        if jobs == 1:
-            for e in todo:
-                bar.set_postfix_str(e.label)
-                _compile_entry(e.module, e.name, e.signatures)
+        for b in bins:
+            proc = subprocess.Popen([sys.executable, "-c", "from fog_gym._numba import _compile_worker; _compile_worker()"],
+                                    stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
+                                    env=env)  # fmt: skip
+            proc.stdin.write(json.dumps([list(e) for e in b]))
+            proc.stdin.close()
+            procs.append(proc)
+            threading.Thread(target=lambda p=proc: [events.put(json.loads(line)) for line in p.stdout] + [events.put(None)],
+                             daemon=True).start()  # fmt: skip
+        running: dict[str, None] = {}
+        finished = 0
+        errors = []
+        while finished < len(procs):
+            try:
+                ev = events.get(timeout=tick)
+            except queue.Empty:
+                bar.refresh()
+                continue
+            if ev is None:
+                finished += 1
+                continue
+            if ev[0] == "start":
+                running[ev[1]] = None
+            else:
+                running.pop(ev[1], None)
                 bar.update()
-        else:
-            import multiprocessing
-            from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
-
-            with ProcessPoolExecutor(jobs, mp_context=multiprocessing.get_context("spawn")) as pool:
-                futures = {pool.submit(_compile_entry, e.module, e.name, e.signatures): e for e in todo}
-                pending = set(futures)
-                order = list(futures)
-                while pending:
-                    running = [futures[f].label for f in order if f in pending][:jobs]  # longest first: these run
-                    bar.set_postfix_str(", ".join(running), refresh=False)
-                    bar.refresh()
-                    done, pending = wait(pending, timeout=tick, return_when=FIRST_COMPLETED)
-                    for f in done:
-                        f.result()  # a kernel that fails to compile fails here, as it would on its first call
-                        bar.update()
+                if ev[0] == "error":
+                    errors.append(f"{ev[1]} ({ev[2]})")
+            bar.set_postfix_str(", ".join(running), refresh=True)
+        for proc in procs:
+            proc.wait()
         bar.set_postfix_str(f"done in {time.perf_counter() - t0:.0f} s")
     finally:
+        for proc in procs:
+            if proc.poll() is None:
+                proc.kill()
         bar.close()
+    for err in errors:
+        print(f"fog-gym: could not compile {err} ahead; it compiles on its first call", file=file, flush=True)
     return todo
 
 

@@ -225,6 +225,7 @@ class FogDriveEnv(gym.Env):
             lighting=self._lighting,
             primitives=vehicle_primitives(state, self._lighting.night, exclude_id=EGO_ID,  # never see the own body
                                           meshes=self.config.geometry == "meshes"),
+            geometry=self.config.geometry,
         )
 
     def _observe(self) -> dict[str, np.ndarray]:

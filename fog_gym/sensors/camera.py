@@ -124,7 +124,7 @@ class CameraRig:
         for c in cameras:
             groups.setdefault((c.width, c.height), []).append(c)
         self._groups = list(groups.items())
-        self._props_cache: tuple[object, Primitives] | None = None
+        self._props_cache: tuple[object, Primitives, str] | None = None
         self._near_cache: tuple[np.ndarray, Primitives] | None = None
         self._lamps_cache: tuple | None = None
         #: Auto-exposure gain of each camera in the latest frame (1 by day).
@@ -137,8 +137,9 @@ class CameraRig:
     def primitives(self, scene: Scene, in_view: bool = True) -> Primitives:
         """Render primitives near the ego: static props (cached per static world) + vehicles; with ``in_view`` only the
         props some camera can see (other sensors, the LiDAR's 360° sweep, take ``in_view=False``)."""
-        if self._props_cache is None or self._props_cache[0] is not scene.static:
-            self._props_cache = (scene.static, prop_primitives(scene.static.props))
+        if self._props_cache is None or self._props_cache[0] is not scene.static or self._props_cache[2] != scene.geometry:
+            self._props_cache = (scene.static, prop_primitives(scene.static.props, scene.geometry == "meshes"),
+                                 scene.geometry)  # fmt: skip
             self._near_cache = None
         ego = np.asarray(scene.ego_pose[:2], np.float64)
         near = self._near_cache

@@ -207,43 +207,52 @@ def _slab(o, d, h, t0, t1):
     return t0, t1, moved
 
 
+@njit(cache=True, inline="always")
+def _box_entry(ox, oy, oz, ix, iy, iz, lo, hi, k, t_lo, t_hi):
+    """Entry distance of the ray (origin o, inverse direction i) into node ``k``'s bounds within (t_lo, t_hi), or
+    ``inf`` when it misses them there."""
+    ta = (lo[k, 0] - ox) * ix
+    tb = (hi[k, 0] - ox) * ix
+    t0 = min(ta, tb)
+    t1 = max(ta, tb)
+    ta = (lo[k, 1] - oy) * iy
+    tb = (hi[k, 1] - oy) * iy
+    t0 = max(t0, min(ta, tb))
+    t1 = min(t1, max(ta, tb))
+    ta = (lo[k, 2] - oz) * iz
+    tb = (hi[k, 2] - oz) * iz
+    t0 = max(t0, min(ta, tb))
+    t1 = min(t1, max(ta, tb))
+    t0 = max(t0, t_lo)
+    t1 = min(t1, t_hi)
+    return t0 if t0 <= t1 else np.inf
+
+
 @njit(cache=True)
-def _mesh_hit(ox, oy, oz, dx, dy, dz, sx, sy, sz, m, lib_v, lib_t, chunk_start, chunk_lo, chunk_hi, chunk_tri, t_lo, best):
+def _mesh_hit(ox, oy, oz, dx, dy, dz, sx, sy, sz, m, lib_v, lib_t, node_start, node_lo, node_hi, node_skip,
+              node_first, node_count, t_lo, best):  # fmt: skip
     """Nearest front-facing triangle of library mesh ``m`` (scaled by ``s`` = the box's size, in its box frame) that
     the ray o + t·d (box frame, d unit) meets with ``t_lo < t < best``: (t, triangle, |cos incidence|), triangle −1
-    for none. The mesh's chunks are skipped when the ray misses their bounds."""
+    for none. Walks the mesh's hierarchy depth first without a stack, past every subtree whose bounds the ray meets
+    only beyond ``best``."""
     # the ray in the mesh's normalised frame (v / size): same t
     nox, noy, noz = ox / sx, oy / sy, oz / sz
     ndx, ndy, ndz = dx / sx, dy / sy, dz / sz
+    ix = 1.0 / ndx if abs(ndx) > 1e-300 else 1e300
+    iy = 1.0 / ndy if abs(ndy) > 1e-300 else 1e300
+    iz = 1.0 / ndz if abs(ndz) > 1e-300 else 1e300
     hit = -1
     cos_hit = 0.0
-    for k in range(chunk_start[m], chunk_start[m + 1]):
-        t0 = t_lo
-        t1 = best
-        # slab test against the chunk's bounds
-        empty = False
-        for a in range(3):
-            o = nox if a == 0 else (noy if a == 1 else noz)
-            d = ndx if a == 0 else (ndy if a == 1 else ndz)
-            lo = chunk_lo[k, a]
-            hi = chunk_hi[k, a]
-            if abs(d) < 1e-15:
-                if o < lo or o > hi:
-                    empty = True
-                    break
-                continue
-            ta = (lo - o) / d
-            tb = (hi - o) / d
-            if ta > tb:
-                ta, tb = tb, ta
-            t0 = max(t0, ta)
-            t1 = min(t1, tb)
-            if t0 > t1:
-                empty = True
-                break
-        if empty:
+    k = node_start[m]
+    end = node_start[m + 1]
+    while k < end:
+        if _box_entry(nox, noy, noz, ix, iy, iz, node_lo, node_hi, k, t_lo, best) == np.inf:
+            k = node_skip[k]
             continue
-        for t in range(chunk_tri[k], chunk_tri[k + 1]):
+        if node_count[k] == 0:
+            k += 1  # into the first child
+            continue
+        for t in range(node_first[k], node_first[k] + node_count[k]):
             i0, i1, i2 = lib_t[t, 0], lib_t[t, 1], lib_t[t, 2]
             e1x = lib_v[i1, 0] - lib_v[i0, 0]
             e1y = lib_v[i1, 1] - lib_v[i0, 1]
@@ -284,12 +293,13 @@ def _mesh_hit(ox, oy, oz, dx, dy, dz, sx, sy, sz, m, lib_v, lib_t, chunk_start, 
             # the normal in the box's metric frame: the normalised one over the scale (inverse transpose)
             mx, my, mz = nx / sx, ny / sy, nz / sz
             cos_hit = abs(dx * mx + dy * my + dz * mz) / np.sqrt(mx * mx + my * my + mz * mz)
+        k += 1
     return best, hit, cos_hit
 
 
 @njit(cache=True, parallel=True)
 def _cast(origin, rotation, directions, max_range, centers, halves, yaws, meshes, n_az, n_el,
-          lib_v, lib_t, lib_m, chunk_start, chunk_lo, chunk_hi, chunk_tri):  # fmt: skip
+          lib_v, lib_t, lib_m, node_start, node_lo, node_hi, node_skip, node_first, node_count):  # fmt: skip
     n_rays = directions.shape[0]
     ox, oy, oz = origin[0], origin[1], origin[2]
     R = rotation
@@ -349,8 +359,9 @@ def _cast(origin, rotation, directions, max_range, centers, halves, yaws, meshes
                 if t0 > t1 or t1 < _T_MIN or t0 >= best:
                     continue
                 tm, tri, cm = _mesh_hit(table[k, 0], table[k, 1], table[k, 2], lx, ly, dz, 2.0 * table[k, 3],
-                                        2.0 * table[k, 4], 2.0 * table[k, 5], m, lib_v, lib_t, chunk_start, chunk_lo,
-                                        chunk_hi, chunk_tri, max(t0 - 1e-9, _T_MIN), min(t1 + 1e-9, best))  # fmt: skip
+                                        2.0 * table[k, 4], 2.0 * table[k, 5], m, lib_v, lib_t, node_start, node_lo,
+                                        node_hi, node_skip, node_first, node_count, max(t0 - 1e-9, _T_MIN),
+                                        min(t1 + 1e-9, best))  # fmt: skip
                 if tri >= 0:
                     best = tm
                     hit = prim[k]
@@ -432,6 +443,7 @@ def cast_rays(
         prims.meshes,
         int(n_azimuth_bins),
         int(n_elevation_bins),
-        lib.vertices, lib.triangles, lib.materials, lib.chunk_start, lib.chunk_lo, lib.chunk_hi, lib.chunk_tri,
+        lib.vertices, lib.triangles, lib.materials, lib.node_start, lib.node_lo, lib.node_hi, lib.node_skip,
+        lib.node_first, lib.node_count,
     )
     return RayHits(dist, index, cosine, material)

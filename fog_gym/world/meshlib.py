@@ -6,8 +6,10 @@ extent), so a primitive row (centre, half sizes, yaw; :class:`~fog_gym.world.pri
 itself (12 triangles). Meshes are added once per process (by name; adding a name twice returns its id) and never
 change; the arrays grow when one is added.
 
-For the ray caster, each mesh's triangles are sorted along the mesh's longest axis into chunks of at most
-:data:`CHUNK` with their own bounds, so a ray tests a chunk's triangles only when it meets the chunk's bounds.
+For the ray caster, each mesh carries a bounding-volume hierarchy: its triangles split at the median centroid along
+the longest axis, recursively, down to leaves of at most :data:`LEAF` triangles, each node with its bounds. The
+nodes are stored depth first with a *skip* index (the node after the subtree), so a ray walks it without a stack:
+into a node whose bounds it meets before its nearest hit so far, past the subtree otherwise.
 
 Example:
     >>> LIBRARY.id("box"), LIBRARY.arrays().triangles[:12].shape
@@ -25,24 +27,27 @@ import numpy as np
 
 from fog_gym.world.mesh import Mesh, box_mesh
 
-#: Triangles per ray-casting chunk at most.
-CHUNK = 24
+#: Triangles per leaf of a mesh's bounding-volume hierarchy at most.
+LEAF = 4
 
 
 class LibraryArrays(NamedTuple):
     """The library as flat arrays: normalised ``vertices`` (V, 3), ``triangles`` (T, 3) into them, ``materials``
-    (T,), ``tri_start`` (M + 1,) each mesh's first triangle, ``chunk_start`` (M + 1,) each mesh's first chunk,
-    ``chunk_lo`` / ``chunk_hi`` (K, 3) the chunks' bounds, ``chunk_tri`` (K + 1,) each chunk's first triangle
-    (triangles are stored chunk by chunk)."""
+    (T,), ``tri_start`` (M + 1,) each mesh's first triangle, ``node_start`` (M + 1,) each mesh's first node (its
+    root; its nodes run depth first to the next mesh's); per node ``node_lo`` / ``node_hi`` (N, 3) its bounds,
+    ``node_skip`` (N,) the node after its subtree and ``node_first`` / ``node_count`` (N,) a leaf's triangles
+    (count 0: an inner node, whose first child is the next node; the triangles are stored leaf by leaf)."""
 
     vertices: np.ndarray
     triangles: np.ndarray
     materials: np.ndarray
     tri_start: np.ndarray
-    chunk_start: np.ndarray
-    chunk_lo: np.ndarray
-    chunk_hi: np.ndarray
-    chunk_tri: np.ndarray
+    node_start: np.ndarray
+    node_lo: np.ndarray
+    node_hi: np.ndarray
+    node_skip: np.ndarray
+    node_first: np.ndarray
+    node_count: np.ndarray
 
 
 def normalised(mesh: Mesh) -> Mesh:
@@ -52,23 +57,40 @@ def normalised(mesh: Mesh) -> Mesh:
     return Mesh((mesh.vertices - (lo + hi) / 2) / extent, mesh.triangles, mesh.materials)
 
 
-def _chunks(mesh: Mesh) -> tuple[Mesh, list[np.ndarray]]:
-    """The mesh with its triangles reordered chunk by chunk, and each chunk's triangle indices."""
+def _bvh(mesh: Mesh) -> tuple[Mesh, list[tuple]]:
+    """The mesh with its triangles reordered leaf by leaf, and its hierarchy's nodes depth first (root first) as
+    (lo, hi, skip, first, count) with the skip index relative to the root."""
     v, t = mesh.vertices, mesh.triangles
-    centroid = v[t].mean(axis=1)
-    axis = int(np.argmax(v.max(axis=0) - v.min(axis=0)))
-    order = np.lexsort((centroid[:, 2], centroid[:, 1 - (axis == 1)], centroid[:, axis]))
-    mesh = Mesh(v, t[order], mesh.materials[order])
-    return mesh, [np.arange(k, min(k + CHUNK, len(t))) for k in range(0, len(t), CHUNK)]
+    tri_v = v[t]
+    centroid = tri_v.mean(axis=1)
+    order: list[int] = []
+    nodes: list[list] = []
 
+    def build(idx: np.ndarray) -> None:
+        k = len(nodes)
+        nodes.append([tri_v[idx].reshape(-1, 3).min(axis=0), tri_v[idx].reshape(-1, 3).max(axis=0), 0, 0, 0])
+        if len(idx) <= LEAF:
+            nodes[k][3], nodes[k][4] = len(order), len(idx)
+            order.extend(idx.tolist())
+        else:
+            c = centroid[idx]
+            axis = int(np.argmax(c.max(axis=0) - c.min(axis=0)))
+            idx = idx[np.argsort(c[:, axis], kind="stable")]
+            half = len(idx) // 2
+            build(idx[:half])
+            build(idx[half:])
+        nodes[k][2] = len(nodes)  # skip: the node after this subtree
 
+    build(np.arange(len(t)))
+    order_a = np.array(order)
+    return Mesh(v, t[order_a], mesh.materials[order_a]), [tuple(n) for n in nodes]
 class MeshLibrary:
     """Meshes by name and id (see the module docstring); thread-safe additions."""
 
     def __init__(self) -> None:
         self._names: dict[str, int] = {}
         self._meshes: list[Mesh] = []
-        self._chunks: list[list[np.ndarray]] = []
+        self._nodes: list[list[tuple]] = []
         self._arrays: LibraryArrays | None = None
         self._lock = threading.Lock()
 
@@ -77,10 +99,10 @@ class MeshLibrary:
         with self._lock:
             if name in self._names:
                 return self._names[name]
-            m, chunks = _chunks(normalised(mesh))
+            m, nodes = _bvh(normalised(mesh))
             self._names[name] = len(self._meshes)
             self._meshes.append(m)
-            self._chunks.append(chunks)
+            self._nodes.append(nodes)
             self._arrays = None
             return self._names[name]
 
@@ -106,25 +128,26 @@ class MeshLibrary:
             return self._arrays
 
     def _build(self) -> LibraryArrays:
-        verts, tris, mats, lo, hi = [], [], [], [], []
-        tri_start, chunk_start, chunk_tri = [0], [0], [0]
+        verts, tris, mats, nodes = [], [], [], []
+        tri_start, node_start = [0], [0]
         v0 = 0
-        for m, chunks in zip(self._meshes, self._chunks):
+        for m, mesh_nodes in zip(self._meshes, self._nodes):
             verts.append(m.vertices)
             tris.append(m.triangles + v0)
             mats.append(m.materials)
             v0 += len(m.vertices)
-            for c in chunks:
-                pts = m.vertices[m.triangles[c].ravel()]
-                lo.append(pts.min(axis=0))
-                hi.append(pts.max(axis=0))
-                chunk_tri.append(chunk_tri[-1] + len(c))
+            base = len(nodes)
+            for lo, hi, skip, first, count in mesh_nodes:
+                nodes.append((lo, hi, skip + base, first + tri_start[-1], count))
+            node_start.append(len(nodes))
             tri_start.append(tri_start[-1] + len(m.triangles))
-            chunk_start.append(chunk_start[-1] + len(chunks))
-        return LibraryArrays(np.ascontiguousarray(np.concatenate(verts)), np.ascontiguousarray(np.concatenate(tris)),
-                             np.ascontiguousarray(np.concatenate(mats)), np.array(tri_start, np.int64),
-                             np.array(chunk_start, np.int64), np.ascontiguousarray(np.array(lo)),
-                             np.ascontiguousarray(np.array(hi)), np.array(chunk_tri, np.int64))  # fmt: skip
+        return LibraryArrays(
+            np.ascontiguousarray(np.concatenate(verts)), np.ascontiguousarray(np.concatenate(tris)),
+            np.ascontiguousarray(np.concatenate(mats)), np.array(tri_start, np.int64), np.array(node_start, np.int64),
+            np.ascontiguousarray(np.array([n[0] for n in nodes])), np.ascontiguousarray(np.array([n[1] for n in nodes])),
+            np.array([n[2] for n in nodes], np.int64), np.array([n[3] for n in nodes], np.int64),
+            np.array([n[4] for n in nodes], np.int64),
+        )  # fmt: skip
 
 
 #: The process's library; id 0 is the box.

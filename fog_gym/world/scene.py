@@ -111,6 +111,7 @@ class Scene:
     static: StaticWorld
     lighting: Lighting
     primitives: Primitives
+    geometry: str = "boxes"  # "meshes": the props are drawn as their meshes (fog_gym.world.prop_meshes) too
 
 
 def _parts(cls: int, L, W, H):
@@ -259,10 +260,12 @@ def lamp_heights(state: VehicleState) -> np.ndarray:
     return lamp_z
 
 
-def prop_primitives(props: Props) -> Primitives:
-    """Static props as renderer primitives (instance id 0: static world)."""
+def prop_primitives(props: Props, meshes: bool = False) -> Primitives:
+    """Static props as renderer primitives (instance id 0: static world); with ``meshes`` each draws its kind's mesh
+    (:mod:`fog_gym.world.prop_meshes`: trees, poles) in its box, and guard rails and buildings are their parts
+    (a beam on posts; wall, parapet and window panes), all within the prop's box."""
     n = len(props)
-    return Primitives(
+    prims = Primitives(
         centers=np.ascontiguousarray(props.centers, np.float64),
         halves=np.ascontiguousarray(props.sizes / 2, np.float64),
         yaws=np.ascontiguousarray(props.yaws, np.float64),
@@ -272,3 +275,12 @@ def prop_primitives(props: Props) -> Primitives:
         emissive=np.zeros(n, bool),
         meshes=np.zeros(n, np.int32),
     )
+    if not (meshes and n):
+        return prims
+    from fog_gym.world.prop_meshes import BUILDING_TAG, RAIL_TAG, building_parts, prop_mesh_ids, rail_parts
+
+    seeds = np.abs(np.round(props.centers[:, 0] * 7.0 + props.centers[:, 1] * 13.0)).astype(np.int64)
+    prims = Primitives(**{**prims.__dict__, "meshes": prop_mesh_ids(props.sizes, props.tags, seeds)})
+    rails, buildings = props.tags == RAIL_TAG, props.tags == BUILDING_TAG
+    return Primitives.concat(prims.take(~(rails | buildings)), rail_parts(prims.take(rails)),
+                             building_parts(prims.take(buildings)))

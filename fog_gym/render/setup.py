@@ -1,0 +1,258 @@
+"""Face set-up of the rasteriser: per camera, every primitive's visible surface as convex screen polygons.
+
+A box (mesh 0) gives at most three front faces; a mesh (:mod:`fog_gym.world.meshlib`) each front-facing triangle,
+placed by the primitive's pose and scaled to its box. Each face is clipped against the near plane and projected, with
+its inverse depth as an affine function of the pixel coordinates, its shaded colour (albedo, or a material's share
+of the primitive's colour, times ambient plus Lambert sun), semantic tag (a material's or the primitive's), instance,
+world normal and night emission — what :mod:`fog_gym.render.raster`'s band pass scan-converts.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
+
+# Box faces: corner indices (geometry.BOX_CORNER_SIGNS order) and local outward normals.
+_FACE_CORNERS = np.array(
+    [[0, 1, 5, 4], [2, 3, 7, 6], [0, 4, 7, 3], [1, 2, 6, 5], [4, 5, 6, 7], [0, 3, 2, 1]], dtype=np.int64
+)
+_FACE_NORMALS = np.array(
+    [[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], dtype=np.float64
+)
+_CORNER_SIGNS = np.array(
+    [[1, 1, -1], [1, -1, -1], [-1, -1, -1], [-1, 1, -1], [1, 1, 1], [1, -1, 1], [-1, -1, 1], [-1, 1, 1]],
+    dtype=np.float64,
+)
+MAX_VERTS = 8
+NEAR = 0.05
+
+
+@njit(cache=True)
+def _emit(c, n_out, poly, k, ncx, ncy, ncz, d0, nwx, nwy, nwz, r, g, b, emis, tag, inst, prim, side, fx, fy, cx, cy,
+          width, height, far, clipped, verts, nverts, planes, face_rgb, face_tag, face_inst, bounds, face_nrm,
+          face_emis, face_prim, face_side):  # fmt: skip
+    """Clip the camera-frame polygon ``poly[:k]`` at the near plane, project it and, if it lands in the image within
+    ``far``, write face ``n_out`` of camera ``c`` (screen polygon, inverse-depth plane from the camera-frame normal
+    ``nc`` and offset ``d0``, colour, tag, instance, world normal, emissive, primitive, side); returns 1 if written."""
+    # clip against z >= NEAR (Sutherland-Hodgman, one plane)
+    m = 0
+    zmin = 1e30
+    for q in range(k):
+        a0 = poly[q]
+        a1 = poly[(q + 1) % k]
+        in0 = a0[2] >= NEAR
+        in1 = a1[2] >= NEAR
+        if in0:
+            clipped[m, 0] = a0[0]
+            clipped[m, 1] = a0[1]
+            clipped[m, 2] = a0[2]
+            m += 1
+        if in0 != in1:
+            s = (NEAR - a0[2]) / (a1[2] - a0[2])
+            clipped[m, 0] = a0[0] + s * (a1[0] - a0[0])
+            clipped[m, 1] = a0[1] + s * (a1[1] - a0[1])
+            clipped[m, 2] = NEAR
+            m += 1
+    if m < 3:
+        return 0
+    umin = 1e30
+    umax = -1e30
+    vmin = 1e30
+    vmax = -1e30
+    area = 0.0
+    for q in range(m):
+        zk = clipped[q, 2]
+        if zk < zmin:
+            zmin = zk
+        u = fx * clipped[q, 0] / zk + cx
+        v = fy * clipped[q, 1] / zk + cy
+        verts[c, n_out, q, 0] = u
+        verts[c, n_out, q, 1] = v
+        umin = min(umin, u)
+        umax = max(umax, u)
+        vmin = min(vmin, v)
+        vmax = max(vmax, v)
+    if zmin > far:
+        return 0
+    for q in range(m):
+        q1 = (q + 1) % m
+        area += verts[c, n_out, q, 0] * verts[c, n_out, q1, 1] - verts[c, n_out, q1, 0] * verts[c, n_out, q, 1]
+    if area < 0.0:  # make orientation positive (interior where every edge function >= 0)
+        for q in range(m // 2):
+            q2 = m - 1 - q
+            tu = verts[c, n_out, q, 0]
+            tv = verts[c, n_out, q, 1]
+            verts[c, n_out, q, 0] = verts[c, n_out, q2, 0]
+            verts[c, n_out, q, 1] = verts[c, n_out, q2, 1]
+            verts[c, n_out, q2, 0] = tu
+            verts[c, n_out, q2, 1] = tv
+    y0 = int(np.ceil(vmin - 0.5))
+    y1 = int(np.floor(vmax - 0.5))
+    x0 = int(np.ceil(umin - 0.5))
+    x1 = int(np.floor(umax - 0.5))
+    if y1 < 0 or x1 < 0 or y0 > height - 1 or x0 > width - 1 or y1 < y0 or x1 < x0:
+        return 0
+    bounds[c, n_out, 0] = max(y0, 0)
+    bounds[c, n_out, 1] = min(y1, height - 1)
+    bounds[c, n_out, 2] = max(x0, 0)
+    bounds[c, n_out, 3] = min(x1, width - 1)
+    nverts[c, n_out] = m
+    # inverse depth as an affine function of (u, v)
+    planes[c, n_out, 0] = ncx / fx / d0
+    planes[c, n_out, 1] = ncy / fy / d0
+    planes[c, n_out, 2] = (ncz - ncx * cx / fx - ncy * cy / fy) / d0
+    face_rgb[c, n_out, 0] = np.uint8(min(max(r, 0.0), 255.0))
+    face_rgb[c, n_out, 1] = np.uint8(min(max(g, 0.0), 255.0))
+    face_rgb[c, n_out, 2] = np.uint8(min(max(b, 0.0), 255.0))
+    face_tag[c, n_out] = tag
+    face_inst[c, n_out] = inst
+    face_nrm[c, n_out, 0] = nwx
+    face_nrm[c, n_out, 1] = nwy
+    face_nrm[c, n_out, 2] = nwz
+    face_emis[c, n_out] = emis
+    face_prim[c, n_out] = prim
+    face_side[c, n_out] = side
+    return 1
+
+
+@njit(cache=True, fastmath=False)  # one thread: parallel over cameras lost to its launch costs at every size
+def setup_faces(
+    cam_rot, cam_trans, cam_k, width, height, far,
+    centers, halves, yaws, colors, tags, insts, emissive, meshes,
+    lib_v, lib_t, lib_m, tri_start, mat_albedo, mat_paint, mat_tag, mat_emis,
+    sun_dir, ambient, sun_intensity,
+):  # fmt: skip
+    n_cam = cam_rot.shape[0]
+    n_prim = centers.shape[0]
+    max_faces = 0
+    for p in range(n_prim):  # a box shows at most three faces; a mesh at most all of its triangles
+        max_faces += 3 if meshes[p] == 0 else tri_start[meshes[p] + 1] - tri_start[meshes[p]]
+    verts = np.zeros((n_cam, max_faces, MAX_VERTS, 2))
+    nverts = np.zeros((n_cam, max_faces), dtype=np.int64)
+    planes = np.zeros((n_cam, max_faces, 3))
+    face_rgb = np.zeros((n_cam, max_faces, 3), dtype=np.uint8)
+    face_tag = np.zeros((n_cam, max_faces), dtype=np.uint8)
+    face_inst = np.zeros((n_cam, max_faces), dtype=np.uint16)
+    bounds = np.zeros((n_cam, max_faces, 4), dtype=np.int64)  # y0, y1, x0, x1 inclusive
+    face_nrm = np.zeros((n_cam, max_faces, 3), dtype=np.float32)  # world-frame outward normal
+    face_emis = np.zeros((n_cam, max_faces), dtype=np.bool_)
+    face_prim = np.zeros((n_cam, max_faces), dtype=np.int32)
+    face_side = np.zeros((n_cam, max_faces), dtype=np.int8)  # a box's face 0–5; −1: a mesh's triangle
+    counts = np.zeros(n_cam, dtype=np.int64)
+    corners_c = np.empty((8, 3))
+    poly = np.empty((MAX_VERTS, 3))
+    clipped = np.empty((MAX_VERTS, 3))
+    wv = np.empty((3, 3))
+    for c in range(n_cam):
+        R = cam_rot[c]
+        T = cam_trans[c]
+        fx, fy, cx, cy = cam_k[c, 0], cam_k[c, 1], cam_k[c, 2], cam_k[c, 3]
+        # camera centre in world: -R^T T
+        ccx = -(R[0, 0] * T[0] + R[1, 0] * T[1] + R[2, 0] * T[2])
+        ccy = -(R[0, 1] * T[0] + R[1, 1] * T[1] + R[2, 1] * T[2])
+        ccz = -(R[0, 2] * T[0] + R[1, 2] * T[1] + R[2, 2] * T[2])
+        n_out = 0
+        for p in range(n_prim):
+            cyaw = np.cos(yaws[p])
+            syaw = np.sin(yaws[p])
+            # quick reject: whole box beyond far or behind camera (bounding sphere)
+            hx, hy, hz = halves[p, 0], halves[p, 1], halves[p, 2]
+            radius = np.sqrt(hx * hx + hy * hy + hz * hz)
+            pcz = R[2, 0] * centers[p, 0] + R[2, 1] * centers[p, 1] + R[2, 2] * centers[p, 2] + T[2]
+            if pcz + radius < NEAR or pcz - radius > far:
+                continue
+            if meshes[p] != 0:  # a mesh: each front-facing triangle is a face
+                sx, sy, sz = 2.0 * hx, 2.0 * hy, 2.0 * hz
+                for t in range(tri_start[meshes[p]], tri_start[meshes[p] + 1]):
+                    for q in range(3):
+                        v = lib_t[t, q]
+                        lx = lib_v[v, 0] * sx
+                        ly = lib_v[v, 1] * sy
+                        wv[q, 0] = centers[p, 0] + lx * cyaw - ly * syaw
+                        wv[q, 1] = centers[p, 1] + lx * syaw + ly * cyaw
+                        wv[q, 2] = centers[p, 2] + lib_v[v, 2] * sz
+                    e1x, e1y, e1z = wv[1, 0] - wv[0, 0], wv[1, 1] - wv[0, 1], wv[1, 2] - wv[0, 2]
+                    e2x, e2y, e2z = wv[2, 0] - wv[0, 0], wv[2, 1] - wv[0, 1], wv[2, 2] - wv[0, 2]
+                    nwx = e1y * e2z - e1z * e2y
+                    nwy = e1z * e2x - e1x * e2z
+                    nwz = e1x * e2y - e1y * e2x
+                    if nwx * (ccx - wv[0, 0]) + nwy * (ccy - wv[0, 1]) + nwz * (ccz - wv[0, 2]) <= 1e-12:
+                        continue  # back face
+                    inv = 1.0 / np.sqrt(nwx * nwx + nwy * nwy + nwz * nwz)
+                    nwx *= inv
+                    nwy *= inv
+                    nwz *= inv
+                    for q in range(3):
+                        poly[q, 0] = R[0, 0] * wv[q, 0] + R[0, 1] * wv[q, 1] + R[0, 2] * wv[q, 2] + T[0]
+                        poly[q, 1] = R[1, 0] * wv[q, 0] + R[1, 1] * wv[q, 1] + R[1, 2] * wv[q, 2] + T[1]
+                        poly[q, 2] = R[2, 0] * wv[q, 0] + R[2, 1] * wv[q, 1] + R[2, 2] * wv[q, 2] + T[2]
+                    ncx = R[0, 0] * nwx + R[0, 1] * nwy + R[0, 2] * nwz
+                    ncy = R[1, 0] * nwx + R[1, 1] * nwy + R[1, 2] * nwz
+                    ncz = R[2, 0] * nwx + R[2, 1] * nwy + R[2, 2] * nwz
+                    d0 = ncx * poly[0, 0] + ncy * poly[0, 1] + ncz * poly[0, 2]
+                    if d0 > -1e-12:
+                        continue
+                    mat = lib_m[t]
+                    emis = mat_emis[mat] and emissive[p]
+                    if emis:
+                        shade = 1.0
+                    else:
+                        lam = nwx * sun_dir[0] + nwy * sun_dir[1] + nwz * sun_dir[2]
+                        shade = ambient + sun_intensity * max(lam, 0.0)
+                    k = mat_paint[mat]
+                    r = (mat_albedo[mat, 0] * (1.0 - k) + colors[p, 0] * k) * shade * 255.0
+                    g = (mat_albedo[mat, 1] * (1.0 - k) + colors[p, 1] * k) * shade * 255.0
+                    b = (mat_albedo[mat, 2] * (1.0 - k) + colors[p, 2] * k) * shade * 255.0
+                    tag = tags[p] if mat_tag[mat] == 255 else mat_tag[mat]
+                    n_out += _emit(c, n_out, poly, 3, ncx, ncy, ncz, d0, nwx, nwy, nwz, r, g, b, emis, tag, insts[p], p,
+                                   -1, fx, fy, cx, cy, width, height, far, clipped, verts, nverts, planes, face_rgb,
+                                   face_tag, face_inst, bounds, face_nrm, face_emis, face_prim, face_side)  # fmt: skip
+                continue
+            for k in range(8):
+                lx = _CORNER_SIGNS[k, 0] * hx
+                ly = _CORNER_SIGNS[k, 1] * hy
+                wx = centers[p, 0] + lx * cyaw - ly * syaw
+                wy = centers[p, 1] + lx * syaw + ly * cyaw
+                wz = centers[p, 2] + _CORNER_SIGNS[k, 2] * hz
+                corners_c[k, 0] = R[0, 0] * wx + R[0, 1] * wy + R[0, 2] * wz + T[0]
+                corners_c[k, 1] = R[1, 0] * wx + R[1, 1] * wy + R[1, 2] * wz + T[1]
+                corners_c[k, 2] = R[2, 0] * wx + R[2, 1] * wy + R[2, 2] * wz + T[2]
+            for f in range(6):
+                ln = _FACE_NORMALS[f]
+                nwx = ln[0] * cyaw - ln[1] * syaw
+                nwy = ln[0] * syaw + ln[1] * cyaw
+                nwz = ln[2]
+                # face centre in world
+                fcx = centers[p, 0] + (ln[0] * hx) * cyaw - (ln[1] * hy) * syaw
+                fcy = centers[p, 1] + (ln[0] * hx) * syaw + (ln[1] * hy) * cyaw
+                fcz = centers[p, 2] + ln[2] * hz
+                if nwx * (ccx - fcx) + nwy * (ccy - fcy) + nwz * (ccz - fcz) <= 1e-9:
+                    continue  # back face
+                # camera-frame normal and plane offset
+                ncx = R[0, 0] * nwx + R[0, 1] * nwy + R[0, 2] * nwz
+                ncy = R[1, 0] * nwx + R[1, 1] * nwy + R[1, 2] * nwz
+                ncz = R[2, 0] * nwx + R[2, 1] * nwy + R[2, 2] * nwz
+                c0 = corners_c[_FACE_CORNERS[f, 0]]
+                d0 = ncx * c0[0] + ncy * c0[1] + ncz * c0[2]
+                if d0 > -1e-9:
+                    continue
+                for k in range(4):
+                    ck = corners_c[_FACE_CORNERS[f, k]]
+                    poly[k, 0] = ck[0]
+                    poly[k, 1] = ck[1]
+                    poly[k, 2] = ck[2]
+                if emissive[p]:
+                    shade = 1.0
+                else:
+                    lam = nwx * sun_dir[0] + nwy * sun_dir[1] + nwz * sun_dir[2]
+                    shade = ambient + sun_intensity * max(lam, 0.0)
+                n_out += _emit(c, n_out, poly, 4, ncx, ncy, ncz, d0, nwx, nwy, nwz, colors[p, 0] * shade * 255.0,
+                               colors[p, 1] * shade * 255.0, colors[p, 2] * shade * 255.0, emissive[p], tags[p],
+                               insts[p], p, f, fx, fy, cx, cy, width, height, far, clipped, verts, nverts, planes,
+                               face_rgb, face_tag, face_inst, bounds, face_nrm, face_emis, face_prim, face_side)  # fmt: skip
+        counts[c] = n_out
+    return verts, nverts, planes, face_rgb, face_tag, face_inst, bounds, counts, face_nrm, face_emis, face_prim, face_side
+
+
