@@ -31,6 +31,7 @@ from fog_gym.render.shading import (FACE_AXES, FACE_STEP, TONE_STEPS, encode_ton
                                     grid_bilinear, light_ground, night_ground_row, night_tone_table, tone_at)  # fmt: skip
 from fog_gym.render.surface import TiledSurface, surface_cell
 from fog_gym.render.setup import NEAR, setup_faces
+from fog_gym.render.shadows import ShadowMap
 from fog_gym.world.mesh import MATERIAL_ALBEDO, MATERIAL_EMISSIVE, MATERIAL_PAINT, MATERIAL_TAG
 from fog_gym.world.meshlib import LIBRARY
 from fog_gym.world.primitives import Primitives
@@ -40,11 +41,18 @@ BAND_ROWS = 32
 
 
 @njit(cache=True, inline="always")
-def _ground_pixel(out_rgb, out_sem, c, i, j, fxw, fyw, surface, s_rows, s_cols, tiles_x, surf_lut, surf_tag):
+def _ground_pixel(out_rgb, out_sem, c, i, j, fxw, fyw, surface, s_rows, s_cols, tiles_x, surf_lut, surf_tag, shadow,
+                  shx, shy, shadow_lut):  # fmt: skip
+    """One ground pixel at surface-grid coordinates (fxw, fyw); in the sun's shadow (shadow-map cell (shx, shy) set)
+    it takes the ambient-only colours."""
     cls, k = surface_cell(fxw, fyw, surface, s_rows, s_cols, tiles_x)
-    out_rgb[c, i, j, 0] = surf_lut[k, 0]
-    out_rgb[c, i, j, 1] = surf_lut[k, 1]
-    out_rgb[c, i, j, 2] = surf_lut[k, 2]
+    lut = surf_lut
+    if shx >= 0.0 and shy >= 0.0 and shy < shadow.shape[0] and shx < shadow.shape[1]:
+        if shadow[int(shy), int(shx)]:
+            lut = shadow_lut
+    out_rgb[c, i, j, 0] = lut[k, 0]
+    out_rgb[c, i, j, 1] = lut[k, 1]
+    out_rgb[c, i, j, 2] = lut[k, 2]
     out_sem[c, i, j] = surf_tag[cls]
 
 
@@ -57,8 +65,13 @@ def _raster_bands(
     out_rgb, out_depth, out_sem, out_inst, want_face, out_face,
     night, gains, knee, ambient, emis_gain, sky_gain, wmap, w_ox, w_oy, w_inv, smap, s_ox, s_oy, s_inv,
     face_emis, face_prim, face_side, centers, halves, cossin, g_off, g_dims, g_data, tone,
+    shadow, sh_ox, sh_oy, sh_inv, shadow_lut,
 ):  # fmt: skip
     n_cam = cam_rot.shape[0]
+    # shadow-map cell coordinates as affine functions of surface-grid coordinates
+    sh_k = surf_res * sh_inv
+    sh_x0 = (surf_x0 - sh_ox) * sh_inv
+    sh_y0 = (surf_y0 - sh_oy) * sh_inv
     n_bands = (height + BAND_ROWS - 1) // BAND_ROWS
     inv_res = 1.0 / surf_res
     for task in prange(n_cam * n_bands):
@@ -113,8 +126,11 @@ def _raster_bands(
                                           escale, ambient, wmap, w_ox, w_oy, w_inv, smap, s_ox, s_oy, s_inv, tone)
                     else:
                         for j in range(width):
-                            _ground_pixel(out_rgb, out_sem, c, i, j, fxw + kx * j, fyw + ky * j, surface,
-                                          s_rows, s_cols, tiles_x, surf_lut, surf_tag)
+                            gx = fxw + kx * j
+                            gy = fyw + ky * j
+                            _ground_pixel(out_rgb, out_sem, c, i, j, gx, gy, surface, s_rows, s_cols, tiles_x,
+                                          surf_lut, surf_tag, shadow, sh_x0 + sh_k * gx, sh_y0 + sh_k * gy,
+                                          shadow_lut)  # fmt: skip
                             out_depth[c, i, j] = tf
                 else:
                     for j in range(width):
@@ -131,9 +147,10 @@ def _raster_bands(
                 if dz < -1e-12:
                     t = -ccz / dz
                 if t > 0.0 and t < far:
-                    _ground_pixel(out_rgb, out_sem, c, i, j, (ccx + t * (bx + sx * u) - surf_x0) * inv_res,
-                                  (ccy + t * (by + sy * u) - surf_y0) * inv_res, surface,
-                                  s_rows, s_cols, tiles_x, surf_lut, surf_tag)
+                    gx = (ccx + t * (bx + sx * u) - surf_x0) * inv_res
+                    gy = (ccy + t * (by + sy * u) - surf_y0) * inv_res
+                    _ground_pixel(out_rgb, out_sem, c, i, j, gx, gy, surface, s_rows, s_cols, tiles_x, surf_lut,
+                                  surf_tag, shadow, sh_x0 + sh_k * gx, sh_y0 + sh_k * gy, shadow_lut)  # fmt: skip
                     out_depth[c, i, j] = t
                     if night:
                         light_ground(out_rgb, c, i, j, ccx + t * (bx + sx * u), ccy + t * (by + sy * u), gains[c],
@@ -331,6 +348,8 @@ def render(
     out: dict[str, np.ndarray] | None = None,
     face_ids: bool = False,
     night: dict | None = None,
+    shadows: ShadowMap | None = None,
+    shadow_lut: np.ndarray | None = None,
 ) -> dict[str, np.ndarray]:
     """Render ``C`` cameras of one resolution.
 
@@ -348,6 +367,8 @@ def render(
 
     ``night`` (from :func:`fog_gym.render.lights.night_inputs`) lights, exposes and encodes the RGB in the same
     pass (the surface map and face colours then hold albedo); depth, semantics and instances are unaffected.
+    ``shadows`` (a :class:`~fog_gym.render.shadows.ShadowMap`) and ``shadow_lut`` (the ground's colours in shade)
+    darken the ground where the sun's shadows fall.
     """
     prims = Primitives.coerce(prims)
     n_cam = cam_rot.shape[0]
@@ -361,6 +382,7 @@ def render(
     cam_rot = np.ascontiguousarray(cam_rot, np.float64)
     cam_trans = np.ascontiguousarray(cam_trans, np.float64)
     cam_k = np.ascontiguousarray(cam_k, np.float64)
+    sm = ShadowMap.empty() if shadows is None else shadows
     lib = LIBRARY.arrays()
     faces = setup_faces(
         cam_rot, cam_trans, cam_k, int(width), int(height), float(far),
@@ -376,7 +398,8 @@ def render(
         np.asarray(sky_horizon, np.float64), np.asarray(sky_zenith, np.float64),
         *faces[:8], out["rgb"], out["depth"], out["sem"], out["inst"], bool(face_ids), face,
         *_night_args(night, n_cam), faces[9], faces[10], faces[11], *_night_prims(night),
-        _night_tone(night),
+        _night_tone(night), sm.grid, sm.origin[0], sm.origin[1], 1.0 / sm.resolution,
+        surface_lut_rgb if shadow_lut is None else shadow_lut,
     )  # fmt: skip
     if face_ids:
         out = {**out, "face": face, "face_normal": faces[8], "face_emissive": faces[9], "face_prim": faces[10],

@@ -88,6 +88,11 @@ def ground_lut(lighting: Any) -> np.ndarray:
     return surface_lut(SURFACE_RGB * lighting.ground_shade, lighting.texture_amp)
 
 
+def shadow_lut(lighting: Any) -> np.ndarray:
+    """The road-surface colours of a day :class:`~fog_gym.world.scene.Lighting` in shade: its ambient light only."""
+    return surface_lut(SURFACE_RGB * lighting.ambient, lighting.texture_amp)
+
+
 def albedo_lut() -> np.ndarray:
     """Unshaded surface colours (day texture) for the night lighting pass."""
     return surface_lut(SURFACE_RGB, 1.0)

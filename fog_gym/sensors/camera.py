@@ -34,9 +34,10 @@ from fog_gym.sensors.base import check_sensor_name, register
 from fog_gym.render.lights import (beam_window, concat_lights, cull_lights, headlights, lamp_light_map, render_night,
                                    street_lamp_lights)  # fmt: skip
 from fog_gym.render.raster import render
-from fog_gym.render.surface import albedo_lut, ground_lut, tiled_surface
+from fog_gym.render.shadows import shadow_map
+from fog_gym.render.surface import albedo_lut, ground_lut, shadow_lut, tiled_surface
 from fog_gym.world.primitives import Primitives
-from fog_gym.world.scene import Scene, prop_primitives
+from fog_gym.world.scene import Scene, ego_primitives, prop_primitives
 from fog_gym.encoding import SEMANTIC_TAGS
 from fog_gym.world.scenery import SURFACE_TAGS, lamp_heads
 
@@ -188,6 +189,11 @@ class CameraRig:
             heads, lights, ground = self.night_lights(scene)
         else:
             lut, ambient, sun = ground_lut(light), light.ambient, light.sun_intensity
+        shadows = shade = None
+        if not night and scene.geometry == "meshes":  # sun shadows on the ground, the ego's own among them
+            casters = Primitives.concat(prims, ego_primitives(scene))
+            shadows = shadow_map(casters, light.sun_dir, scene.ego_pose[:2])
+            shade = shadow_lut(light)
         frames: dict[str, CameraFrame] = {}
         for (width, height), cams in self._groups:
             mats = np.array([self.world_to_camera(scene, c.name) for c in cams])
@@ -201,6 +207,7 @@ class CameraRig:
                 out = render(
                     mats[:, :3, :3], mats[:, :3, 3], ks, width, height, self.far, prims, tiled_surface(scene.static), lut,
                     SURFACE_TAGS, light.sky_horizon, light.sky_zenith, light.sun_dir, ambient, sun,
+                    shadows=shadows, shadow_lut=shade,
                 )  # fmt: skip
                 gains = np.ones(len(cams))
             for i, c in enumerate(cams):

@@ -33,7 +33,8 @@ LEAF = 4
 
 class LibraryArrays(NamedTuple):
     """The library as flat arrays: normalised ``vertices`` (V, 3), ``triangles`` (T, 3) into them, ``materials``
-    (T,), ``tri_start`` (M + 1,) each mesh's first triangle, ``node_start`` (M + 1,) each mesh's first node (its
+    (T,), ``tri_start`` (M + 1,) each mesh's first triangle, ``vert_start`` (M + 1,) its first vertex,
+    ``node_start`` (M + 1,) each mesh's first node (its
     root; its nodes run depth first to the next mesh's); per node ``node_lo`` / ``node_hi`` (N, 3) its bounds,
     ``node_skip`` (N,) the node after its subtree and ``node_first`` / ``node_count`` (N,) a leaf's triangles
     (count 0: an inner node, whose first child is the next node; the triangles are stored leaf by leaf)."""
@@ -42,6 +43,7 @@ class LibraryArrays(NamedTuple):
     triangles: np.ndarray
     materials: np.ndarray
     tri_start: np.ndarray
+    vert_start: np.ndarray
     node_start: np.ndarray
     node_lo: np.ndarray
     node_hi: np.ndarray
@@ -129,13 +131,14 @@ class MeshLibrary:
 
     def _build(self) -> LibraryArrays:
         verts, tris, mats, nodes = [], [], [], []
-        tri_start, node_start = [0], [0]
+        tri_start, node_start, vert_start = [0], [0], [0]
         v0 = 0
         for m, mesh_nodes in zip(self._meshes, self._nodes):
             verts.append(m.vertices)
             tris.append(m.triangles + v0)
             mats.append(m.materials)
             v0 += len(m.vertices)
+            vert_start.append(v0)
             base = len(nodes)
             for lo, hi, skip, first, count in mesh_nodes:
                 nodes.append((lo, hi, skip + base, first + tri_start[-1], count))
@@ -143,7 +146,8 @@ class MeshLibrary:
             tri_start.append(tri_start[-1] + len(m.triangles))
         return LibraryArrays(
             np.ascontiguousarray(np.concatenate(verts)), np.ascontiguousarray(np.concatenate(tris)),
-            np.ascontiguousarray(np.concatenate(mats)), np.array(tri_start, np.int64), np.array(node_start, np.int64),
+            np.ascontiguousarray(np.concatenate(mats)), np.array(tri_start, np.int64), np.array(vert_start, np.int64),
+            np.array(node_start, np.int64),
             np.ascontiguousarray(np.array([n[0] for n in nodes])), np.ascontiguousarray(np.array([n[1] for n in nodes])),
             np.array([n[2] for n in nodes], np.int64), np.array([n[3] for n in nodes], np.int64),
             np.array([n[4] for n in nodes], np.int64),

@@ -250,6 +250,16 @@ def _mesh_primitives(state: VehicleState, night: bool, exclude_id: int | None) -
 _BODIES: dict[tuple, np.ndarray] = {}
 
 
+def ego_primitives(scene: Scene) -> Primitives:
+    """The ego's own primitive (the sensors never see it; its shadow they do)."""
+    import dataclasses
+
+    v = scene.vehicles
+    mine = v.ids == scene.ego_id
+    state = VehicleState(**{f.name: getattr(v, f.name)[mine] for f in dataclasses.fields(v)})
+    return vehicle_primitives(state, scene.lighting.night, meshes=scene.geometry == "meshes")
+
+
 def lamp_heights(state: VehicleState) -> np.ndarray:
     """Height of every vehicle's head and tail lamps above the road (m), as :func:`vehicle_primitives` draws them."""
     lamp_z = np.zeros(len(state))

@@ -152,3 +152,46 @@ def test_lidar_returns_of_mesh_vehicles_lie_inside_their_boxes_and_the_camera_se
     assert checked > 50
     assert box_corners is not None
     env.close()
+
+
+@settings(max_examples=20, deadline=None)
+@given(st.floats(0, 2 * np.pi), st.floats(20, 70), st.floats(2, 12))
+def test_a_shadow_falls_away_from_the_sun_as_long_as_the_caster_over_the_tangent_of_its_elevation(azimuth, elevation,
+                                                                                                 height):  # fmt: skip
+    from fog_gym.render.shadows import shadow_map
+
+    e = np.radians(elevation)
+    sun = np.array([np.cos(e) * np.cos(azimuth), np.cos(e) * np.sin(azimuth), np.sin(e)])
+    pole = {"centers": [[0.0, 0.0, height / 2]], "halves": [[0.1, 0.1, height / 2]], "yaws": [0.0]}
+    sm = shadow_map(pole, sun, (0.0, 0.0), half=60.0, resolution=0.1)
+    rows, cols = np.nonzero(sm.grid)
+    xy = np.c_[sm.origin[0] + (cols + 0.5) * 0.1, sm.origin[1] + (rows + 0.5) * 0.1]
+    away = -sun[:2] / np.linalg.norm(sun[:2])
+    along = xy @ away
+    assert along.max() == pytest.approx(height / np.tan(e), abs=0.25)  # the caster's projected length
+    assert along.min() > -0.3  # nothing on the sun's side beyond the pole's own footprint
+    side = xy @ np.array([-away[1], away[0]])
+    assert np.abs(side).max() < 0.3  # as wide as the pole
+
+
+def test_shadows_darken_the_ground_only_and_leave_depth_and_tags_alone():
+    import dataclasses
+
+    import gymnasium as gym
+
+    import fog_gym  # noqa: F401
+
+    env = gym.make("FogDrive-v0", resolution=(320, 240), geometry="meshes", labels=None, cameras=["CAM_FRONT"])
+    env.reset(seed=4)
+    base = env.unwrapped
+    scene = base.scene
+    prims = base.cameras.primitives(scene)
+    lit = base.cameras.render(scene, prims)["CAM_FRONT"]
+    flat = base.cameras.render(dataclasses.replace(scene, geometry="boxes"), prims)["CAM_FRONT"]  # no shadow map
+    np.testing.assert_array_equal(lit.depth, flat.depth)
+    np.testing.assert_array_equal(lit.semantic, flat.semantic)
+    np.testing.assert_array_equal(lit.instance, flat.instance)
+    differ = np.any(lit.rgb != flat.rgb, axis=-1)
+    assert differ.any() and (lit.instance[differ] == 0).all()  # only the ground changes
+    assert (lit.rgb[differ].astype(int).sum(-1) < flat.rgb[differ].astype(int).sum(-1)).all()  # and only darker
+    env.close()

@@ -1,0 +1,156 @@
+"""Sun shadows on the ground: every primitive's silhouette cast along the sun onto the road, as a grid around the ego.
+
+Each primitive's points (a box's eight corners; a mesh's placed vertices) move along the sun's rays down to z = 0,
+``p − (p_z / s_z) · s`` for the sun direction ``s``; the convex hull of those footprints is the primitive's shadow
+(exact for a box; for a vehicle body, a tree's trunk or crown, a building's part, their convex outline), filled into a
+:class:`ShadowMap` of :data:`RESOLUTION` metres around the ego. The rasteriser shades a ground pixel in shadow with the
+ambient light alone (:func:`fog_gym.render.surface.shadow_lut`). Shadows fall on the side away from the sun, as long
+as the caster is tall divided by the tangent of the sun's elevation.
+
+Example:
+    >>> prims = {"centers": [[0.0, 0.0, 5.0]], "halves": [[0.5, 0.5, 5.0]], "yaws": [0.0]}
+    >>> sun = np.array([1.0, 0.0, 1.0]) / np.sqrt(2.0)         # 45° elevation, towards +x
+    >>> sm = shadow_map(prims, sun, (0.0, 0.0), half=20.0, resolution=0.5)
+    >>> xs = np.flatnonzero(sm.grid[int((0.0 - sm.origin[1]) / 0.5)]) * 0.5 + sm.origin[0] + 0.25
+    >>> float(xs.min()), float(xs.max())                      # the 10 m pole's shadow runs 10 m away from the sun
+    (-10.25, 0.25)
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any, NamedTuple
+
+import numpy as np
+from numba import njit
+
+import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
+from fog_gym.world.meshlib import LIBRARY
+from fog_gym.world.primitives import Primitives
+
+#: Shadow-map cell [m] and half-width of the window around the ego [m].
+RESOLUTION, HALF = 0.2, 80.0
+_SIGNS = np.array([[1, 1, -1], [1, -1, -1], [-1, -1, -1], [-1, 1, -1], [1, 1, 1], [1, -1, 1], [-1, -1, 1], [-1, 1, 1]],
+                  np.float64)  # fmt: skip
+
+
+class ShadowMap(NamedTuple):
+    """Ground cells in shadow (rows = y, cols = x) uint8; cell (0, 0)'s corner at ``origin``; ``resolution`` m."""
+
+    grid: np.ndarray
+    origin: tuple[float, float]
+    resolution: float
+
+    @classmethod
+    def empty(cls) -> ShadowMap:
+        """No shadows (nights, and the boxes' geometry)."""
+        return cls(np.zeros((1, 1), np.uint8), (1e18, 1e18), 1.0)
+
+
+@njit(cache=True)
+def _hull_fill(pts, n, grid, ox, oy, inv):
+    """Fill the convex hull of the first ``n`` points (x, y) into ``grid`` (cells whose centre lies inside)."""
+    # monotone chain
+    order = np.argsort(pts[:n, 0] + 1e-9 * pts[:n, 1])
+    hull = np.empty((2 * n + 1, 2))
+    m = 0
+    for rep in range(2):
+        start = m
+        for q in range(n):
+            k = order[q] if rep == 0 else order[n - 1 - q]
+            x, y = pts[k, 0], pts[k, 1]
+            while m >= start + 2:
+                ux = hull[m - 1, 0] - hull[m - 2, 0]
+                uy = hull[m - 1, 1] - hull[m - 2, 1]
+                if ux * (y - hull[m - 2, 1]) - uy * (x - hull[m - 2, 0]) <= 0.0:
+                    m -= 1
+                else:
+                    break
+            hull[m, 0] = x
+            hull[m, 1] = y
+            m += 1
+        m -= 1  # the last point of each chain starts the other
+    if m < 3:
+        return
+    rows, cols = grid.shape
+    ymin, ymax = hull[:m, 1].min(), hull[:m, 1].max()
+    r0 = max(int(np.ceil((ymin - oy) * inv - 0.5)), 0)
+    r1 = min(int(np.floor((ymax - oy) * inv - 0.5)), rows - 1)
+    for r in range(r0, r1 + 1):
+        y = oy + (r + 0.5) / inv
+        lo = 1e30
+        hi = -1e30
+        for q in range(m):
+            x0, y0 = hull[q, 0], hull[q, 1]
+            x1, y1 = hull[(q + 1) % m, 0], hull[(q + 1) % m, 1]
+            if (y0 <= y <= y1) or (y1 <= y <= y0):
+                if abs(y1 - y0) < 1e-12:
+                    lo = min(lo, min(x0, x1))
+                    hi = max(hi, max(x0, x1))
+                else:
+                    x = x0 + (y - y0) * (x1 - x0) / (y1 - y0)
+                    lo = min(lo, x)
+                    hi = max(hi, x)
+        c0 = max(int(np.ceil((lo - ox) * inv - 0.5)), 0)
+        c1 = min(int(np.floor((hi - ox) * inv - 0.5)), cols - 1)
+        for c in range(c0, c1 + 1):
+            grid[r, c] = 1
+
+
+@njit(cache=True)
+def _shadow_map(centers, halves, yaws, meshes, lib_v, vert_start, sun, ox, oy, inv, rows, cols, reach):
+    grid = np.zeros((rows, cols), np.uint8)
+    kx = sun[0] / sun[2]
+    ky = sun[1] / sun[2]
+    cx0 = ox + 0.5 * cols / inv
+    cy0 = oy + 0.5 * rows / inv
+    max_v = 8
+    for p in range(centers.shape[0]):
+        if meshes[p] != 0:
+            max_v = max(max_v, vert_start[meshes[p] + 1] - vert_start[meshes[p]])
+    pts = np.empty((max_v, 2))
+    for p in range(centers.shape[0]):
+        # skip casters whose shadow cannot reach the window (its half-diagonal plus the top's displacement)
+        top = centers[p, 2] + halves[p, 2]
+        span = np.sqrt(halves[p, 0] ** 2 + halves[p, 1] ** 2) + top * np.sqrt(kx * kx + ky * ky)
+        if abs(centers[p, 0] - cx0) > reach + span or abs(centers[p, 1] - cy0) > reach + span:
+            continue
+        c = np.cos(yaws[p])
+        s = np.sin(yaws[p])
+        n = 0
+        if meshes[p] == 0:
+            for k in range(8):
+                lx = _SIGNS[k, 0] * halves[p, 0]
+                ly = _SIGNS[k, 1] * halves[p, 1]
+                z = centers[p, 2] + _SIGNS[k, 2] * halves[p, 2]
+                pts[n, 0] = centers[p, 0] + lx * c - ly * s - z * kx
+                pts[n, 1] = centers[p, 1] + lx * s + ly * c - z * ky
+                n += 1
+        else:
+            for v in range(vert_start[meshes[p]], vert_start[meshes[p] + 1]):
+                lx = lib_v[v, 0] * 2.0 * halves[p, 0]
+                ly = lib_v[v, 1] * 2.0 * halves[p, 1]
+                z = centers[p, 2] + lib_v[v, 2] * 2.0 * halves[p, 2]
+                pts[n, 0] = centers[p, 0] + lx * c - ly * s - z * kx
+                pts[n, 1] = centers[p, 1] + lx * s + ly * c - z * ky
+                n += 1
+        _hull_fill(pts, n, grid, ox, oy, inv)
+    return grid
+
+
+def shadow_map(prims: Primitives | Mapping[str, Any], sun_dir: np.ndarray, center: tuple[float, float],
+               half: float = HALF, resolution: float = RESOLUTION) -> ShadowMap:  # fmt: skip
+    """The ground cells that ``prims`` shade from a sun in direction ``sun_dir`` (pointing at the sun, above the
+    horizon), in a square ``half`` metres around ``center``, cells ``resolution`` metres wide."""
+    sun = np.asarray(sun_dir, np.float64)
+    if sun.shape != (3,) or not np.isfinite(sun).all() or sun[2] <= 1e-6:
+        raise ValueError(f"sun_dir must be a finite direction above the horizon, got {sun.tolist()}")
+    if not (half > 0 and resolution > 0):
+        raise ValueError(f"half and resolution must be > 0, got {half!r}, {resolution!r}")
+    prims = Primitives.coerce(prims)
+    n = int(np.ceil(2 * half / resolution))
+    ox, oy = float(center[0]) - half, float(center[1]) - half
+    lib = LIBRARY.arrays()
+    grid = _shadow_map(prims.centers, prims.halves, prims.yaws, prims.meshes, lib.vertices, lib.vert_start,
+                       sun / np.linalg.norm(sun), ox, oy, 1.0 / resolution, n, n, float(half))  # fmt: skip
+    return ShadowMap(grid, (ox, oy), float(resolution))
