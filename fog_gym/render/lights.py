@@ -47,6 +47,7 @@ import numpy as np
 from numba import njit, prange
 
 import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
+from fog_gym.world.meshlib import LIBRARY
 from fog_gym.world.primitives import Primitives
 from fog_gym.world.scene import lamp_heights
 from fog_gym.render.shading import FACE_AXES, KNEE, face_irradiance, ground_irradiance, tone, tone_curve
@@ -256,6 +257,57 @@ def _prim_lights(centers, halves, lpos, lrad, max_per):
     return idx, cnt
 
 
+@njit(cache=True, parallel=True)
+def _triangle_irradiance(centers, halves, yaws, meshes, emissive, prim_l, prim_n, lib_v, lib_t, tri_start, tri_base,
+                         total, lpos, laxis, lcol, lint, lrad, lkind, lheight):  # fmt: skip
+    """Irradiance (RGB, float32) at the centroid of every triangle of every lit mesh primitive, on its normal: row
+    ``tri_base[p] + k`` for triangle k of primitive p (a mesh's triangles are small: one value each)."""
+    out = np.zeros((max(total, 1), 3), np.float32)
+    for p in prange(centers.shape[0]):
+        m = meshes[p]
+        if m == 0 or prim_n[p] == 0:
+            continue
+        c = math.cos(yaws[p])
+        s = math.sin(yaws[p])
+        sx, sy, sz = 2.0 * halves[p, 0], 2.0 * halves[p, 1], 2.0 * halves[p, 2]
+        for t in range(tri_start[m], tri_start[m + 1]):
+            a, b, d = lib_t[t, 0], lib_t[t, 1], lib_t[t, 2]
+            ax = centers[p, 0] + lib_v[a, 0] * sx * c - lib_v[a, 1] * sy * s
+            ay = centers[p, 1] + lib_v[a, 0] * sx * s + lib_v[a, 1] * sy * c
+            az = centers[p, 2] + lib_v[a, 2] * sz
+            bx = centers[p, 0] + lib_v[b, 0] * sx * c - lib_v[b, 1] * sy * s
+            by = centers[p, 1] + lib_v[b, 0] * sx * s + lib_v[b, 1] * sy * c
+            bz = centers[p, 2] + lib_v[b, 2] * sz
+            dx = centers[p, 0] + lib_v[d, 0] * sx * c - lib_v[d, 1] * sy * s
+            dy = centers[p, 1] + lib_v[d, 0] * sx * s + lib_v[d, 1] * sy * c
+            dz = centers[p, 2] + lib_v[d, 2] * sz
+            e1x, e1y, e1z = bx - ax, by - ay, bz - az
+            e2x, e2y, e2z = dx - ax, dy - ay, dz - az
+            nx = e1y * e2z - e1z * e2y
+            ny = e1z * e2x - e1x * e2z
+            nz = e1x * e2y - e1y * e2x
+            inv = 1.0 / max(math.sqrt(nx * nx + ny * ny + nz * nz), 1e-30)
+            nx *= inv
+            ny *= inv
+            nz *= inv
+            px = (ax + bx + dx) / 3.0 + 0.01 * nx
+            py = (ay + by + dy) / 3.0 + 0.01 * ny
+            pz = (az + bz + dz) / 3.0 + 0.01 * nz
+            e0 = e1 = e2 = 0.0
+            for k in range(prim_n[p]):
+                li = prim_l[p, k]
+                w = _light_at(px, py, pz, nx, ny, nz, li, lpos, laxis, lint, lrad, lkind, lheight)
+                if w > 0.0:
+                    e0 += w * lcol[li, 0]
+                    e1 += w * lcol[li, 1]
+                    e2 += w * lcol[li, 2]
+            o = tri_base[p] + t - tri_start[m]
+            out[o, 0] = e0
+            out[o, 1] = e1
+            out[o, 2] = e2
+    return out
+
+
 _FACE_AXES = FACE_AXES
 _FACE_SIGN = np.array([1.0, -1.0, 1.0, -1.0, 1.0, -1.0])
 
@@ -328,7 +380,7 @@ def _face_grids(centers, halves, yaws, emissive, prim_l, prim_n, lpos, laxis, lc
 @njit(cache=True, parallel=True, fastmath=False)
 def _shade_pass(
     cam_rot, cam_trans, cam_k, far, rgb, depth, face, face_emis, face_prim, face_side,
-    centers, halves, yaws, g_off, g_dims, g_data,
+    centers, halves, yaws, g_off, g_dims, g_data, tri_base, tri_irr,
     smap, s_ox, s_oy, s_inv, wmap, w_ox, w_oy, w_inv,
     ambient, emissive_gain, sky_gain, step, gains, knee, encode, hist, log_min, log_max,
 ):  # fmt: skip
@@ -369,7 +421,12 @@ def _shade_pass(
                         p = face_prim[c, f]
                         fs = face_side[c, f]
                         wz = R[0, 2] * xc + R[1, 2] * yc + R[2, 2] * zc
-                        f0, f1, f2 = face_irradiance(p, fs, wx, wy, wz, centers, halves, yaws, g_off, g_dims, g_data)
+                        if fs < 0:  # a mesh's triangle: one value
+                            q = tri_base[p] - 1 - fs
+                            f0, f1, f2 = tri_irr[q, 0], tri_irr[q, 1], tri_irr[q, 2]
+                        else:
+                            f0, f1, f2 = face_irradiance(p, fs, wx, wy, wz, centers, halves, yaws, g_off, g_dims,
+                                                         g_data)  # fmt: skip
                         e0 += f0
                         e1 += f1
                         e2 += f2
@@ -550,6 +607,12 @@ def render_night(
     g_off, g_dims, g_data = _face_grids(prims.centers, prims.halves, prims.yaws, prims.emissive, prim_l,
                                         prim_n, *_light_args(lights), FACE_CELL, FACE_MAX_CELLS)  # fmt: skip
     cossin = np.ascontiguousarray(np.c_[np.cos(prims.yaws), np.sin(prims.yaws)])
+    lib = LIBRARY.arrays()
+    counts = np.where(prims.meshes > 0, lib.tri_start[prims.meshes + 1] - lib.tri_start[prims.meshes], 0)
+    tri_base = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64) if len(counts) else np.zeros(1, np.int64)
+    tri_irr = _triangle_irradiance(prims.centers, prims.halves, prims.yaws, prims.meshes, prims.emissive, prim_l, prim_n,
+                                   lib.vertices, lib.triangles, lib.tri_start, tri_base, int(counts.sum()),
+                                   *_light_args(lights))  # fmt: skip
     smap, wmap = ground
     lap("light set-up")
     # 1. exposure on a small render
@@ -563,7 +626,7 @@ def render_night(
     _shade_pass(
         np.ascontiguousarray(cam_rot, np.float64), np.ascontiguousarray(cam_trans, np.float64), k_low, float(far),
         low["rgb"], low["depth"], low["face"], low["face_emissive"], low["face_prim"], low["face_side"],
-        prims.centers, prims.halves, cossin, g_off, g_dims, g_data,
+        prims.centers, prims.halves, cossin, g_off, g_dims, g_data, tri_base, tri_irr,
         smap.irradiance, smap.origin[0], smap.origin[1], 1.0 / smap.resolution,
         wmap.irradiance, wmap.origin[0], wmap.origin[1], 1.0 / wmap.resolution,
         float(ambient), float(EMISSIVE_GAIN), float(SKY_GAIN), 1, np.ones(n_cam), float(KNEE), False, hist,
@@ -574,7 +637,8 @@ def render_night(
     # 2. the lit full-size render
     night = {"gains": gains, "knee": KNEE, "ambient": ambient, "emissive_gain": EMISSIVE_GAIN, "sky_gain": SKY_GAIN,
              "window": wmap, "static": smap, "centers": prims.centers, "halves": prims.halves,
-             "cossin": cossin, "g_off": g_off, "g_dims": g_dims, "g_data": g_data}  # fmt: skip
+             "cossin": cossin, "g_off": g_off, "g_dims": g_dims, "g_data": g_data, "tri_base": tri_base,
+             "tri_irr": tri_irr}  # fmt: skip
     out = render(cam_rot, cam_trans, cam_k, width, height, far, prims, surface, albedo_lut, surface_tag,
                  sky_horizon, sky_zenith, sun, 1.0, 0.0, night=night)  # fmt: skip
     lap("lit render")

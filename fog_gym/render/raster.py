@@ -64,7 +64,7 @@ def _raster_bands(
     verts, nverts, planes, face_rgb, face_tag, face_inst, bounds, counts,
     out_rgb, out_depth, out_sem, out_inst, want_face, out_face,
     night, gains, knee, ambient, emis_gain, sky_gain, wmap, w_ox, w_oy, w_inv, smap, s_ox, s_oy, s_inv,
-    face_emis, face_prim, face_side, centers, halves, cossin, g_off, g_dims, g_data, tone,
+    face_emis, face_prim, face_side, centers, halves, cossin, g_off, g_dims, g_data, tri_base, tri_irr, tone,
     shadow, sh_ox, sh_oy, sh_inv, shadow_lut,
 ):  # fmt: skip
     n_cam = cam_rot.shape[0]
@@ -186,6 +186,11 @@ def _raster_bands(
                     fr0 = encode_tone(face_rgb[c, f, 0] * kf * emis_gain, knee)
                     fr1 = encode_tone(face_rgb[c, f, 1] * kf * emis_gain, knee)
                     fr2 = encode_tone(face_rgb[c, f, 2] * kf * emis_gain, knee)
+                elif s_f < 0:  # a mesh's triangle: its irradiance is one value (small triangles)
+                    q = tri_base[p_f] - 1 - s_f
+                    fr0 = encode_tone(face_rgb[c, f, 0] * kf * (ambient + tri_irr[q, 0]), knee)
+                    fr1 = encode_tone(face_rgb[c, f, 1] * kf * (ambient + tri_irr[q, 1]), knee)
+                    fr2 = encode_tone(face_rgb[c, f, 2] * kf * (ambient + tri_irr[q, 2]), knee)
                 else:
                     lit = g_off[p_f, s_f] >= 0
                     fr0 = encode_tone(face_rgb[c, f, 0] * kf * ambient, knee)
@@ -325,8 +330,9 @@ def _night_prims(night: dict | None) -> tuple:
     if night is None:
         z3 = np.zeros((1, 3))
         return (z3, z3, np.zeros((1, 2)), np.full((1, 6), -1, np.int64), np.ones((1, 6, 2), np.int64),
-                np.zeros((1, 3), np.float32))  # fmt: skip
-    return night["centers"], night["halves"], night["cossin"], night["g_off"], night["g_dims"], night["g_data"]
+                np.zeros((1, 3), np.float32), np.zeros(1, np.int64), np.zeros((1, 3), np.float32))  # fmt: skip
+    return (night["centers"], night["halves"], night["cossin"], night["g_off"], night["g_dims"], night["g_data"],
+            night["tri_base"], night["tri_irr"])  # fmt: skip
 
 
 def render(
@@ -362,7 +368,7 @@ def render(
     ``inst`` (C, H, W) uint16. With ``face_ids`` (for lighting passes) also ``face`` (C, H, W) int32, the index of
     the face seen at each pixel (−1: ground or sky), ``face_normal`` (C, F, 3) float32 world-frame normals and
     ``face_emissive`` (C, F) bool, ``face_prim`` (C, F) int32 (the primitive each face belongs to) and
-    ``face_side`` (C, F) int8 (which of its
+    ``face_side`` (C, F) int32 (a mesh's triangle k: −1 − k; a box: which of its
     six faces: +x, −x, +y, −y, +z, −z in the primitive's frame).
 
     ``night`` (from :func:`fog_gym.render.lights.night_inputs`) lights, exposes and encodes the RGB in the same

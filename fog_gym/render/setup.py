@@ -139,7 +139,7 @@ def setup_faces(
     face_nrm = np.zeros((n_cam, max_faces, 3), dtype=np.float32)  # world-frame outward normal
     face_emis = np.zeros((n_cam, max_faces), dtype=np.bool_)
     face_prim = np.zeros((n_cam, max_faces), dtype=np.int32)
-    face_side = np.zeros((n_cam, max_faces), dtype=np.int8)  # a box's face 0–5; −1: a mesh's triangle
+    face_side = np.zeros((n_cam, max_faces), dtype=np.int32)  # a box's face 0–5; a mesh's triangle k: −1 − k
     counts = np.zeros(n_cam, dtype=np.int64)
     corners_c = np.empty((8, 3))
     poly = np.empty((MAX_VERTS, 3))
@@ -207,7 +207,7 @@ def setup_faces(
                     b = (mat_albedo[mat, 2] * (1.0 - k) + colors[p, 2] * k) * shade * 255.0
                     tag = tags[p] if mat_tag[mat] == 255 else mat_tag[mat]
                     n_out += _emit(c, n_out, poly, 3, ncx, ncy, ncz, d0, nwx, nwy, nwz, r, g, b, emis, tag, insts[p], p,
-                                   -1, fx, fy, cx, cy, width, height, far, clipped, verts, nverts, planes, face_rgb,
+                                   -1 - (t - tri_start[meshes[p]]), fx, fy, cx, cy, width, height, far, clipped, verts, nverts, planes, face_rgb,
                                    face_tag, face_inst, bounds, face_nrm, face_emis, face_prim, face_side)  # fmt: skip
                 continue
             for k in range(8):
