@@ -55,6 +55,7 @@ def shade_night(
             rot, trans, ks, float(far), rgb, buffers["depth"], buffers["face"], buffers["face_emissive"],
             buffers["face_prim"], buffers["face_side"], prims.centers, prims.halves,
             np.ascontiguousarray(np.c_[np.cos(prims.yaws), np.sin(prims.yaws)]), g_off, g_dims, g_data,
+            np.zeros(1, np.int64), np.zeros((1, 3), np.float32),  # no mesh triangles in this reference
             smap.irradiance, smap.origin[0], smap.origin[1], 1.0 / smap.resolution,
             wmap.irradiance, wmap.origin[0], wmap.origin[1], 1.0 / wmap.resolution,
             float(ambient), float(EMISSIVE_GAIN), float(SKY_GAIN), step, gains, float(KNEE), encode, hist,
