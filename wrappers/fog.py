@@ -177,8 +177,10 @@ class FogWrapper(gym.Wrapper):
         """Fogged channels per level name (all levels of a channel in one pass)."""
         base = self.env.unwrapped
         out: dict[str, dict[str, np.ndarray]] = {lv.name: {} for lv in levels}
+        lidar = base.config.rig.lidar if hasattr(base, "config") else None
+        reflect = lidar.atmosphere_attenuation_rate if lidar is not None and lidar.intensity == "reflectance" else None
         context = FogContext(base.intrinsics, self.airlight, self._rngs,
-                             base.scene is not None and base.scene.lighting.night, self.lidar_noise)  # fmt: skip
+                             base.scene is not None and base.scene.lighting.night, self.lidar_noise, reflect)  # fmt: skip
         for channel, model in self.models.items():  # the model of each sensor kind (fog_gym.fog.models)
             for name, fogged in model.apply(obs, channel, levels, context).items():
                 out[name][channel] = fogged

@@ -56,7 +56,10 @@ class FogDriveEnv(gym.Env):
     "reference", highway-env's own Python path; same trajectories), ``hazards`` (a :class:`HazardConfig`: stalled
     vehicles ahead of the ego at every reset; ``info["hazards"]`` then holds, per stalled vehicle (the first
     ``info["hazard_count"]`` rows of a fixed ``(capacity, 4)`` array, zeros after), its offset from the
-    ego in metres ahead and to the right, its length and width), or ``config`` (a complete :class:`FogDriveConfig`).
+    ego in metres ahead and to the right, its length and width), ``geometry`` ("boxes" or "meshes": what the sensors
+    see of vehicles and props, :mod:`fog_gym.world.bodies`, :mod:`fog_gym.world.prop_meshes`), ``lidar_intensity``
+    ("carla", FogDrive's distance model, or "reflectance": the surface's reflectivity × incidence × range loss), or
+    ``config`` (a complete :class:`FogDriveConfig`).
 
     Public attributes (what wrappers and tools may use): ``config`` (the validated :class:`FogDriveConfig`),
     ``episode_seed`` (set by ``reset``; every random stream of the episode derives from it), ``scene`` (the
@@ -91,6 +94,7 @@ class FogDriveEnv(gym.Env):
         hazards: HazardConfig | None = None,
         static_world: str | None = None,
         geometry: str | None = None,
+        lidar_intensity: str | None = None,
         world: Any = None,
     ) -> None:
         cfg = config if config is not None else FogDriveConfig()
@@ -103,6 +107,11 @@ class FogDriveEnv(gym.Env):
             rig_cfg = replace(rig_cfg, cameras=tuple(_camera(rig_cfg, n) for n in cameras))
         if resolution is not None:
             rig_cfg = rig_cfg.with_resolution(resolution)
+        if lidar_intensity is not None:  # "reflectance": reflectivity × incidence × range loss (fog_gym.sensors.lidar)
+            if rig_cfg.lidar is None:
+                raise ValueError("lidar_intensity needs a rig with a LiDAR")
+            lidar = replace(rig_cfg.lidar, intensity=lidar_intensity)  # checked by LidarConfig
+            rig_cfg = RigConfig(tuple((n, lidar if c is rig_cfg.lidar else c) for n, c in rig_cfg.sensors))
         label_cfg = cfg.labels if isinstance(labels, str) and labels == "default" else labels
         if visibility is not None:
             label_cfg = replace(label_cfg if label_cfg is not None else LabelConfig(), visibility=visibility)

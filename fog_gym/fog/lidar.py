@@ -102,11 +102,15 @@ def hahner_keeps(r0, intensity, table_i, table_r, alpha, beta_ratio):
 
 
 @njit(cache=True, parallel=True)
-def _hahner(pts, table_i, table_r, alpha, beta_ratio, log_noise, u, out):
+def _hahner(pts, table_i, table_r, alpha, beta_ratio, log_noise, u, out, attenuation):
     for n in prange(pts.shape[0]):
         x, y, z = np.float64(pts[n, 0]), np.float64(pts[n, 1]), np.float64(pts[n, 2])
         r0 = np.sqrt(x * x + y * y + z * z)
-        i_hard, i_soft, key = hahner_intensities(r0, np.float64(pts[n, 3]), table_i, alpha, beta_ratio)
+        ratio = beta_ratio
+        if attenuation >= 0.0:  # reflectance intensities: the point's own reflectivity stands in for Γ
+            rho = min(max(np.float64(pts[n, 3]) / np.exp(-attenuation * r0), 1e-3), 1.0)
+            ratio = beta_ratio * REFERENCE_REFLECTIVITY / rho
+        i_hard, i_soft, key = hahner_intensities(r0, np.float64(pts[n, 3]), table_i, alpha, ratio)
         if i_soft > i_hard:  # the fog's own return is stronger: a fog point on the same ray
             scale = table_r[key] / max(r0, 1e-12) * np.exp(log_noise * u[n])
             out[n, 0] = np.float32(x * scale)
@@ -125,7 +129,13 @@ def _hahner(pts, table_i, table_r, alpha, beta_ratio, log_noise, u, out):
 _hahner_serial = serial_twin(_hahner)
 
 
-def fog_lidar(points: np.ndarray, level: FogLevel, rng: np.random.Generator, noise: float = 10.0) -> np.ndarray:
+#: With reflectance intensities (:func:`fog_lidar`'s ``reflectance``), the reflectivity decided about as CARLA's
+#: intensities are under Hahner et al.'s constant Γ.
+REFERENCE_REFLECTIVITY = 0.3
+
+
+def fog_lidar(points: np.ndarray, level: FogLevel, rng: np.random.Generator, noise: float = 10.0,
+              reflectance: float | None = None) -> np.ndarray:  # fmt: skip
     """Hahner et al. fog on CARLA LiDAR points ``(N, 4)`` x, y, z, intensity ∈ [0, 1] → ``(N, 4)`` float32.
 
     Intensities are scaled to 0–255 and rounded; each point either stays with ``round(i·exp(−2αR))`` or, when the
@@ -137,6 +147,14 @@ def fog_lidar(points: np.ndarray, level: FogLevel, rng: np.random.Generator, noi
     >>> out = fog_lidar(pts, parse_fog("dense"), np.random.default_rng(0))
     >>> bool(np.linalg.norm(out[0, :3]) < 10), out[1, :3].tolist()  # far point → fog return, near point kept
     (True, [10.0, 0.0, 0.0])
+
+    ``reflectance`` (the LiDAR's atmosphere attenuation rate, for intensities ``ρ·|cos θ|·exp(−a·d)`` of the
+    ``"reflectance"`` intensity model) makes the fog see each target's own reflectivity: Hahner et al. derive the
+    sensor's constant from a point's intensity under one assumed target reflectivity Γ, so with CARLA's intensities
+    the fog's decision does not depend on the target; with reflectance intensities the sensor constant stays fixed
+    (a target of :data:`REFERENCE_REFLECTIVITY` is decided about as CARLA's intensities are, within the rounding of
+    0–255 intensities) and the hard return scales with ``ρ|cos θ|`` while the fog's own backscatter does not — bright
+    surfaces (licence plates, lane markings) outlast dark paint.
     """
     pts = np.asarray(points, np.float32)
     if pts.ndim != 2 or pts.shape[1] < 4:
@@ -152,6 +170,6 @@ def fog_lidar(points: np.ndarray, level: FogLevel, rng: np.random.Generator, noi
     out = np.empty_like(pts)
     pick(_hahner, _hahner_serial, len(pts))(
         pts, table_i, table_r, level.alpha, BETA_PER_MOR / level.visibility_m / (GAMMA / math.pi),
-        math.log(max(1.0, noise / 5.0)) if noise > 0 else 0.0, u, out,
+        math.log(max(1.0, noise / 5.0)) if noise > 0 else 0.0, u, out, -1.0 if reflectance is None else float(reflectance),
     )  # fmt: skip
     return out

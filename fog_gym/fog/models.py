@@ -43,6 +43,8 @@ class FogContext:
     rngs: Mapping[str, np.random.Generator] = field(default_factory=dict)
     night: bool = False
     lidar_noise: float = 10.0
+    #: The LiDAR's atmosphere attenuation rate when its intensities follow the "reflectance" model (None: CARLA's)
+    lidar_reflectance: float | None = None
 
 
 @runtime_checkable
@@ -103,5 +105,6 @@ class Hahner:
     def apply(self, obs, channel, levels, context):
         clean = unpack_points(obs, channel)
         capacity = obs[channel].shape[0]
-        return {lv.name: pack_points(fog_lidar(clean, lv, context.rngs[lv.name], context.lidar_noise), capacity)
+        return {lv.name: pack_points(fog_lidar(clean, lv, context.rngs[lv.name], context.lidar_noise,
+                                               context.lidar_reflectance), capacity)
                 for lv in levels}  # fmt: skip

@@ -38,9 +38,9 @@ from fog_gym.dataset.layout import FOG_LEVELS
 from fog_gym.geometry import Pose, sensor_to_world
 from fog_gym.sensors.base import PointSensor, point_space, register
 from fog_gym.dataset.packing import LIDAR
-from fog_gym.sensors.raycast import MISS, cast_rays
+from fog_gym.sensors.raycast import GROUND, MISS, cast_rays
 from fog_gym.world.primitives import Primitives
-from fog_gym.world.scenery import SurfaceMap
+from fog_gym.world.scenery import ROAD, SurfaceMap
 
 _EPS = float(np.finfo(np.float32).eps)  # CARLA switches drop-off / noise on above float epsilon
 
@@ -80,6 +80,9 @@ class LidarConfig:
     dropoff_intensity_limit: float = 0.8
     dropoff_zero_intensity: float = 0.4
     noise_stddev: float = 0.0
+    #: "carla": CARLA's ``exp(−attenuation · d)`` (FogDrive's data); "reflectance": the surface's LiDAR reflectivity
+    #: (its material, or the road surface's class) × |cos incidence| × ``exp(−attenuation · d)``
+    intensity: str = "carla"
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "pose", Pose.coerce(self.pose))
@@ -107,6 +110,8 @@ class LidarConfig:
             if v < 0.0:
                 raise ValueError(f"{name} must be >= 0, got {getattr(self, name)!r}")
             object.__setattr__(self, name, v)
+        if self.intensity not in INTENSITY_MODELS:
+            raise ValueError(f"intensity must be one of {INTENSITY_MODELS}, got {self.intensity!r}")
 
     @classmethod
     def fogdrive(cls, **overrides: Any) -> LidarConfig:
@@ -204,9 +209,14 @@ def split_transform(sensor_to_world: np.ndarray) -> tuple[np.ndarray, np.ndarray
     return m[:3, :3], m[:3, 3].copy()
 
 
+#: Values of :attr:`LidarConfig.intensity`.
+INTENSITY_MODELS: tuple[str, ...] = ("carla", "reflectance")
+
+
 @njit(cache=True)
-def _lidar_points(dirs, dist, index, noise, uniform, attenuation, limit, alpha, beta):
-    """Kept returns as (N, 4) float32 x, y, z, intensity; ``noise`` / ``uniform`` empty when switched off.
+def _lidar_points(dirs, dist, index, noise, uniform, attenuation, limit, alpha, beta, reflect):
+    """Kept returns as (N, 4) float32 x, y, z, intensity; ``noise`` / ``uniform`` empty when switched off;
+    ``reflect`` (N,) float32 the reflectivity × incidence factor of each ray's hit, or empty (CARLA's model).
 
     Intensity and the drop-off test are float32, as CARLA computes them."""
     n = dirs.shape[0]
@@ -221,6 +231,8 @@ def _lidar_points(dirs, dist, index, noise, uniform, attenuation, limit, alpha, 
         if index[i] == MISS:
             continue
         value = np.exp(neg_a * dist[i])
+        if reflect.shape[0] > 0:
+            value = value * reflect[i]
         intensity[i] = value
         if value > limit32 or uniform.shape[0] == 0 or uniform[i] < alpha32 * value + beta32:
             keep[i] = True
@@ -259,7 +271,8 @@ def simulate_lidar(
     ``noise_stddev > 0`` the point moves along its ray by N(0, σ); then it is kept if ``I >
     dropoff_intensity_limit``, else with probability ``I · dropoff_zero_intensity / dropoff_intensity_limit +
     1 − dropoff_zero_intensity``. Misses give no point. Points are in laser order (channel-major).
-    ``surface`` is not used (CARLA's intensity has no reflectivity term); it keeps the LiDAR signatures alike.
+    ``surface`` gives the ground's reflectivity for ``cfg.intensity == "reflectance"`` (CARLA's intensity has no
+    reflectivity term): then ``I = ρ · |cos θ| · exp(−attenuation · d)`` with ``ρ`` the surface's LiDAR reflectivity.
     The random draws (a uniform per ray for the general drop-off, then per traced ray a normal for the noise and a
     uniform for the intensity drop-off, each only when switched on) all come from ``rng``: a seed fixes the result.
 
@@ -280,8 +293,47 @@ def simulate_lidar(
     uniform = rng.random(n) if cfg.dropoff_zero_intensity > 0.0 else _NONE
     limit = cfg.dropoff_intensity_limit
     alpha = cfg.dropoff_zero_intensity / limit if limit > 0.0 else 0.0
+    reflect = _NONE32 if cfg.intensity == "carla" else reflectance(hits, dirs, rot, origin, surface, prims.colors)
     return _lidar_points(readonly(dirs), hits.distance, hits.index, noise, uniform, cfg.atmosphere_attenuation_rate, limit,
-                         alpha, 1.0 - cfg.dropoff_zero_intensity)  # fmt: skip
+                         alpha, 1.0 - cfg.dropoff_zero_intensity, reflect)  # fmt: skip
+
+
+_NONE32 = np.zeros(0, np.float32)
+
+
+def paint_reflectivity(colors: np.ndarray) -> np.ndarray:
+    """LiDAR reflectivity of paint of albedo ``colors`` (N, 3): 0.05 + 0.6 × its luminance (dark paint ≈ 0.1, white
+    paint ≈ 0.6).
+
+    >>> paint_reflectivity(np.array([[0.08, 0.08, 0.09], [0.92, 0.92, 0.92]])).round(2).tolist()
+    [0.1, 0.6]
+    """
+    return 0.05 + 0.6 * (np.asarray(colors, np.float64) @ np.array([0.2126, 0.7152, 0.0722]))
+
+
+def reflectance(hits, dirs: np.ndarray, rot: np.ndarray, origin: np.ndarray, surface: SurfaceMap | None,
+                colors: np.ndarray) -> np.ndarray:  # fmt: skip
+    """Each ray's reflectivity × |cos incidence| (float32): a surface's LiDAR reflectivity from the material it hit
+    (:data:`fog_gym.world.mesh.MATERIAL_REFLECTIVITY`; a material that shows the primitive's colour, such as a car's
+    paint, takes :func:`paint_reflectivity` of ``colors[primitive]`` for that share), on the ground from the road
+    surface's class (lane markings' retroreflective paint, asphalt, pavement, grass:
+    :data:`fog_gym.world.scenery.SURFACE_REFLECTIVITY`)."""
+    from fog_gym.world.mesh import MATERIAL_PAINT, MATERIAL_REFLECTIVITY
+    from fog_gym.world.scenery import SURFACE_REFLECTIVITY
+
+    rho = np.zeros(len(hits.index), np.float64)
+    obj = np.flatnonzero(hits.index >= 0)
+    mat = np.minimum(hits.material[obj], len(MATERIAL_REFLECTIVITY) - 1)
+    share = MATERIAL_PAINT[mat]
+    rho[obj] = MATERIAL_REFLECTIVITY[mat] * (1.0 - share) + share * paint_reflectivity(colors[hits.index[obj]])
+    ground = np.flatnonzero(hits.index == GROUND)
+    if len(ground):
+        if surface is None:
+            rho[ground] = SURFACE_REFLECTIVITY[ROAD]
+        else:
+            p = origin + (dirs[ground] @ rot.T) * hits.distance[ground, None]
+            rho[ground] = SURFACE_REFLECTIVITY[surface.class_at(p[:, 0], p[:, 1])]
+    return (rho * hits.cos_incidence).astype(np.float32)
 
 
 def lidar_space(cfg, simulation_frequency: float, semantic: bool) -> Any:

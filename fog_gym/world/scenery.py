@@ -24,6 +24,8 @@ import numpy as np
 TERRAIN, ROAD, SIDEWALK, MARKING = 0, 1, 2, 3
 #: Semantic tag (CARLA ≥ 0.9.14) of each surface class.
 SURFACE_TAGS = np.array([10, 1, 2, 24], dtype=np.uint8)
+#: LiDAR reflectivity of each surface class (near infrared): grass, asphalt, pavement, retroreflective lane paint.
+SURFACE_REFLECTIVITY = np.array([0.30, 0.12, 0.25, 0.75])
 #: Day albedo (0–255) of each surface class.
 SURFACE_RGB = np.array([[96, 118, 68], [82, 82, 86], [150, 146, 140], [225, 225, 220]], dtype=np.float64)
 
