@@ -52,7 +52,7 @@ class FogDriveConfig:
     #: "episode": road surface and props built around each episode's start from its seed (FogDrive-v0, datasets);
     #: "town": built once per town and reused by every episode (resets in milliseconds; the RL presets)
     static_world: str = "episode"
-    geometry: str = "boxes"
+    geometry: str = "meshes"
 
     def __post_init__(self) -> None:
         if self.geometry not in GEOMETRIES:

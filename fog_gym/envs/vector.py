@@ -52,7 +52,8 @@ VECTOR_PRESETS: dict[str, tuple[dict, bool, float]] = {
 PRESET_DEFAULTS: dict[str, dict[str, Any]] = {"FogDriveRLObjects-v0": OBJECTS_PRESET}
 #: Keyword arguments the vector env accepts besides the presets' own (``make_fogdrive_rl``'s).
 PRESET_ARGS = ("fog", "town", "camera_size", "grayscale", "bev_size", "frame_stack", "highway_config", "bev_ahead",
-               "observation", "hazards", "episode_seconds", "traffic", "static_world", "time_of_day", *OBJECT_ARGS)  # fmt: skip
+               "observation", "hazards", "episode_seconds", "traffic", "static_world", "time_of_day", "geometry",
+               *OBJECT_ARGS)  # fmt: skip
 
 
 def check_vector_arguments(env_id: str, num_envs: Any, autoreset_mode: Any, kwargs: dict) -> AutoresetMode:

@@ -47,10 +47,12 @@ import numpy as np
 from numba import njit, prange
 
 import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
+from fog_gym.render.exposure import (GAIN_MAX, GAIN_MIN, HIGH_PERCENT, KEY, LOG_MAX, LOG_MIN, LOW_PERCENT, N_BINS,
+                                     exposure_gains, gains_from_histograms)  # noqa: F401  (part of this module's API)
 from fog_gym.world.meshlib import LIBRARY
 from fog_gym.world.primitives import Primitives
 from fog_gym.world.scene import lamp_heights
-from fog_gym.render.shading import FACE_AXES, KNEE, face_irradiance, ground_irradiance, tone, tone_curve
+from fog_gym.render.shading import FACE_AXES, KNEE, draw_heads, face_irradiance, ground_irradiance, tone, tone_curve
 
 LAMP, HEADLIGHT = 0, 1
 #: Street lamp: luminous intensity in albedo·m² units, radius of influence [m], colour (warm white LED).
@@ -66,11 +68,6 @@ BEAM_HALF_ANGLE, BEAM_FADE_ANGLE, BEAM_CUTOFF = math.radians(12.0), math.radians
 NIGHT_AMBIENT = 0.02
 EMISSIVE_GAIN = 4.0
 SKY_GAIN = 0.1
-#: Auto-exposure.
-LOG_MIN, LOG_MAX, N_BINS = -12.0, 4.0, 128
-LOW_PERCENT, HIGH_PERCENT = 0.5, 0.98
-KEY = 0.18
-GAIN_MIN, GAIN_MAX = 1.0, 16.0
 TILE = 32
 MAX_LIGHTS = 4096
 
@@ -257,6 +254,11 @@ def _prim_lights(centers, halves, lpos, lrad, max_per):
     return idx, cnt
 
 
+@njit(cache=True, inline="always")
+def _placed(v, center, sx, sy, sz, c, s):
+    return center[0] + v[0] * sx * c - v[1] * sy * s, center[1] + v[0] * sx * s + v[1] * sy * c, center[2] + v[2] * sz
+
+
 @njit(cache=True, parallel=True)
 def _triangle_irradiance(centers, halves, yaws, meshes, emissive, prim_l, prim_n, lib_v, lib_t, tri_start, tri_base,
                          total, lpos, laxis, lcol, lint, lrad, lkind, lheight):  # fmt: skip
@@ -271,16 +273,9 @@ def _triangle_irradiance(centers, halves, yaws, meshes, emissive, prim_l, prim_n
         s = math.sin(yaws[p])
         sx, sy, sz = 2.0 * halves[p, 0], 2.0 * halves[p, 1], 2.0 * halves[p, 2]
         for t in range(tri_start[m], tri_start[m + 1]):
-            a, b, d = lib_t[t, 0], lib_t[t, 1], lib_t[t, 2]
-            ax = centers[p, 0] + lib_v[a, 0] * sx * c - lib_v[a, 1] * sy * s
-            ay = centers[p, 1] + lib_v[a, 0] * sx * s + lib_v[a, 1] * sy * c
-            az = centers[p, 2] + lib_v[a, 2] * sz
-            bx = centers[p, 0] + lib_v[b, 0] * sx * c - lib_v[b, 1] * sy * s
-            by = centers[p, 1] + lib_v[b, 0] * sx * s + lib_v[b, 1] * sy * c
-            bz = centers[p, 2] + lib_v[b, 2] * sz
-            dx = centers[p, 0] + lib_v[d, 0] * sx * c - lib_v[d, 1] * sy * s
-            dy = centers[p, 1] + lib_v[d, 0] * sx * s + lib_v[d, 1] * sy * c
-            dz = centers[p, 2] + lib_v[d, 2] * sz
+            ax, ay, az = _placed(lib_v[lib_t[t, 0]], centers[p], sx, sy, sz, c, s)
+            bx, by, bz = _placed(lib_v[lib_t[t, 1]], centers[p], sx, sy, sz, c, s)
+            dx, dy, dz = _placed(lib_v[lib_t[t, 2]], centers[p], sx, sy, sz, c, s)
             e1x, e1y, e1z = bx - ax, by - ay, bz - az
             e2x, e2y, e2z = dx - ax, dy - ay, dz - az
             nx = e1y * e2z - e1z * e2y
@@ -443,76 +438,6 @@ def _shade_pass(
                 hist[c, task % n_rows, b] += 1
 
 
-@njit(cache=True)
-def _draw_heads(cam_rot, cam_trans, cam_k, depth, rgb, heads, head_rad, color):
-    """Lamp heads as discs (RGB only) where nothing nearer hides them; ``color`` is the encoded uint8 triple."""
-    n_cam, height, width = depth.shape
-    for c in range(n_cam):
-        R = cam_rot[c]
-        T = cam_trans[c]
-        fx, fy, cx, cy = cam_k[c, 0], cam_k[c, 1], cam_k[c, 2], cam_k[c, 3]
-        for k in range(heads.shape[0]):
-            pxc = R[0, 0] * heads[k, 0] + R[0, 1] * heads[k, 1] + R[0, 2] * heads[k, 2] + T[0]
-            pyc = R[1, 0] * heads[k, 0] + R[1, 1] * heads[k, 1] + R[1, 2] * heads[k, 2] + T[1]
-            pzc = R[2, 0] * heads[k, 0] + R[2, 1] * heads[k, 1] + R[2, 2] * heads[k, 2] + T[2]
-            if pzc < 0.5:
-                continue
-            u = fx * pxc / pzc + cx
-            v = fy * pyc / pzc + cy
-            rp = max(fx * head_rad / pzc, 0.75)
-            for i in range(max(int(v - rp), 0), min(int(v + rp) + 1, height)):
-                for j in range(max(int(u - rp), 0), min(int(u + rp) + 1, width)):
-                    du = j + 0.5 - u
-                    dv = i + 0.5 - v
-                    if du * du + dv * dv <= rp * rp and pzc < depth[c, i, j]:
-                        rgb[c, i, j, 0] = color[0]
-                        rgb[c, i, j, 1] = color[1]
-                        rgb[c, i, j, 2] = color[2]
-
-
-@njit(cache=True, parallel=True)
-def _log_histograms(lin, log_min, log_max, n_bins):
-    n_cam, height, width, _ = lin.shape
-    hist = np.zeros((n_cam, height, n_bins), np.int64)
-    scale = n_bins / (log_max - log_min)
-    for task in prange(n_cam * height):
-        c = task // height
-        i = task % height
-        for j in range(width):
-            y = 0.2126 * lin[c, i, j, 0] + 0.7152 * lin[c, i, j, 1] + 0.0722 * lin[c, i, j, 2]
-            b = 0
-            if y > 0.0:
-                b = int((math.log2(y) - log_min) * scale)
-                b = min(max(b, 0), n_bins - 1)
-            hist[c, i, b] += 1
-    return hist.sum(axis=1)
-
-
-def exposure_gains(lin: np.ndarray) -> np.ndarray:
-    """Auto-exposure gain per camera from linear radiance ``lin`` (C, H, W, 3); see the module docstring.
-
-    >>> lin = np.full((1, 4, 4, 3), 0.05, np.float32)
-    >>> g = exposure_gains(lin)[0]
-    >>> bool(abs(g * 0.05 - KEY) / KEY < 0.1)
-    True
-    """
-    return gains_from_histograms(_log_histograms(np.ascontiguousarray(lin, np.float32), LOG_MIN, LOG_MAX, N_BINS))
-
-
-def gains_from_histograms(hist: np.ndarray) -> np.ndarray:
-    """Exposure gain per camera from (C, N_BINS) log-luminance histograms."""
-    centres = LOG_MIN + (np.arange(N_BINS) + 0.5) * (LOG_MAX - LOG_MIN) / N_BINS
-    gains = np.empty(len(hist))
-    for c, h in enumerate(hist):
-        cum = np.cumsum(h) / max(h.sum(), 1)
-        lo = np.r_[0.0, cum[:-1]]
-        # the fraction of each bin that lies inside [LOW_PERCENT, HIGH_PERCENT]
-        w = np.clip(np.minimum(cum, HIGH_PERCENT) - np.maximum(lo, LOW_PERCENT), 0.0, None)
-        mean_log = float((w * centres).sum() / max(w.sum(), 1e-12))
-        gains[c] = float(np.clip(KEY / 2.0**mean_log, GAIN_MIN, GAIN_MAX))
-    return gains
-
-
 class GroundLightMap(NamedTuple):
     """Ground irradiance (rows, cols, 3) float32 on a grid: cell (0, 0)'s corner at ``origin``, ``resolution`` m."""
 
@@ -647,7 +572,7 @@ def render_night(
     rot, trans, ks = (np.ascontiguousarray(a, np.float64) for a in (cam_rot, cam_trans, cam_k))
     for c in range(n_cam):
         color = np.round(tone(LAMP_COLOR * LAMP_HEAD_RADIANCE * gains[c]) * 255).astype(np.uint8)
-        _draw_heads(rot[c : c + 1], trans[c : c + 1], ks[c : c + 1], out["depth"][c : c + 1], out["rgb"][c : c + 1],
+        draw_heads(rot[c : c + 1], trans[c : c + 1], ks[c : c + 1], out["depth"][c : c + 1], out["rgb"][c : c + 1],
                     heads, float(LAMP_HEAD_RADIUS), color)  # fmt: skip
     lap("lamp heads")
     return out, gains

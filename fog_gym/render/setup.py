@@ -27,6 +27,8 @@ _CORNER_SIGNS = np.array(
 )
 MAX_VERTS = 8
 NEAR = 0.05
+#: A mesh whose bounding sphere spans fewer pixels than this is drawn as its box (far trees on a 64×64 camera).
+LOD_PIXELS = 3.0
 
 
 @njit(cache=True)
@@ -149,6 +151,11 @@ def setup_faces(
         R = cam_rot[c]
         T = cam_trans[c]
         fx, fy, cx, cy = cam_k[c, 0], cam_k[c, 1], cam_k[c, 2], cam_k[c, 3]
+        # the frustum's side planes through the camera centre (unit normals in the camera frame, pointing out)
+        nl = np.sqrt(fx * fx + cx * cx)
+        nr = np.sqrt(fx * fx + (width - cx) * (width - cx))
+        nt = np.sqrt(fy * fy + cy * cy)
+        nb = np.sqrt(fy * fy + (height - cy) * (height - cy))
         # camera centre in world: -R^T T
         ccx = -(R[0, 0] * T[0] + R[1, 0] * T[1] + R[2, 0] * T[2])
         ccy = -(R[0, 1] * T[0] + R[1, 1] * T[1] + R[2, 1] * T[2])
@@ -163,7 +170,14 @@ def setup_faces(
             pcz = R[2, 0] * centers[p, 0] + R[2, 1] * centers[p, 1] + R[2, 2] * centers[p, 2] + T[2]
             if pcz + radius < NEAR or pcz - radius > far:
                 continue
-            if meshes[p] != 0:  # a mesh: each front-facing triangle is a face
+            pcx = R[0, 0] * centers[p, 0] + R[0, 1] * centers[p, 1] + R[0, 2] * centers[p, 2] + T[0]
+            pcy = R[1, 0] * centers[p, 0] + R[1, 1] * centers[p, 1] + R[1, 2] * centers[p, 2] + T[1]
+            if ((-pcx * fx - pcz * cx) / nl > radius or (pcx * fx - pcz * (width - cx)) / nr > radius
+                    or (-pcy * fy - pcz * cy) / nt > radius or (pcy * fy - pcz * (height - cy)) / nb > radius):
+                continue  # wholly outside a side of the view
+            if meshes[p] != 0 and radius * fx < LOD_PIXELS * pcz:
+                pass  # a few pixels across: drawn as its box (level of detail)
+            elif meshes[p] != 0:  # a mesh: each front-facing triangle is a face
                 sx, sy, sz = 2.0 * hx, 2.0 * hy, 2.0 * hz
                 for t in range(tri_start[meshes[p]], tri_start[meshes[p] + 1]):
                     for q in range(3):

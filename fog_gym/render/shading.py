@@ -276,3 +276,30 @@ def tone(x: np.ndarray | float) -> np.ndarray:
     """
     x = np.asarray(x, np.float64)
     return np.where(x <= KNEE, x, KNEE + (1 - KNEE) * (1 - np.exp(-(np.maximum(x, KNEE) - KNEE) / (1 - KNEE))))
+
+
+@njit(cache=True)
+def draw_heads(cam_rot, cam_trans, cam_k, depth, rgb, heads, head_rad, color):
+    """Lamp heads as discs (RGB only) where nothing nearer hides them; ``color`` is the encoded uint8 triple."""
+    n_cam, height, width = depth.shape
+    for c in range(n_cam):
+        R = cam_rot[c]
+        T = cam_trans[c]
+        fx, fy, cx, cy = cam_k[c, 0], cam_k[c, 1], cam_k[c, 2], cam_k[c, 3]
+        for k in range(heads.shape[0]):
+            pxc = R[0, 0] * heads[k, 0] + R[0, 1] * heads[k, 1] + R[0, 2] * heads[k, 2] + T[0]
+            pyc = R[1, 0] * heads[k, 0] + R[1, 1] * heads[k, 1] + R[1, 2] * heads[k, 2] + T[1]
+            pzc = R[2, 0] * heads[k, 0] + R[2, 1] * heads[k, 1] + R[2, 2] * heads[k, 2] + T[2]
+            if pzc < 0.5:
+                continue
+            u = fx * pxc / pzc + cx
+            v = fy * pyc / pzc + cy
+            rp = max(fx * head_rad / pzc, 0.75)
+            for i in range(max(int(v - rp), 0), min(int(v + rp) + 1, height)):
+                for j in range(max(int(u - rp), 0), min(int(u + rp) + 1, width)):
+                    du = j + 0.5 - u
+                    dv = i + 0.5 - v
+                    if du * du + dv * dv <= rp * rp and pzc < depth[c, i, j]:
+                        rgb[c, i, j, 0] = color[0]
+                        rgb[c, i, j, 1] = color[1]
+                        rgb[c, i, j, 2] = color[2]

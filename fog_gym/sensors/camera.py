@@ -90,6 +90,9 @@ FOGDRIVE_CAMERA_POSES: dict[str, Pose] = {
 #: The props near the ego are re-selected from the whole static world only after it moved this far [m]; in between
 #: from the props within ``render_radius`` plus this margin of where they were last selected (the same boxes).
 NEAR_MARGIN = 40.0
+#: Props within this distance of the ego [m] are drawn as their meshes and parts (every sensor alike), farther ones
+#: as their boxes: beyond it a window pane spans under 3 pixels of FogDrive's cameras, and the LiDAR reaches 120 m.
+DETAIL_RADIUS = 215.0
 #: Lights farther than this from the ego (beyond their own radius) are left out of a night frame [m].
 LIGHT_RANGE = 250.0
 #: The largest semantic tag id (the bound of a ``C_SEM`` space).
@@ -125,7 +128,9 @@ class CameraRig:
         for c in cameras:
             groups.setdefault((c.width, c.height), []).append(c)
         self._groups = list(groups.items())
-        self._props_cache: tuple[object, Primitives, str] | None = None
+        self._props_cache: tuple | None = None
+        #: Props within this distance of the ego [m] are drawn as their meshes and parts, farther ones as their boxes.
+        self.detail_radius = DETAIL_RADIUS
         self._near_cache: tuple[np.ndarray, Primitives] | None = None
         self._lamps_cache: tuple | None = None
         #: Auto-exposure gain of each camera in the latest frame (1 by day).
@@ -139,16 +144,27 @@ class CameraRig:
         """Render primitives near the ego: static props (cached per static world) + vehicles; with ``in_view`` only the
         props some camera can see (other sensors, the LiDAR's 360° sweep, take ``in_view=False``)."""
         if self._props_cache is None or self._props_cache[0] is not scene.static or self._props_cache[2] != scene.geometry:
-            self._props_cache = (scene.static, prop_primitives(scene.static.props, scene.geometry == "meshes"),
-                                 scene.geometry)  # fmt: skip
+            boxes = prop_primitives(scene.static.props)
+            detail = prop_primitives(scene.static.props, True, owners=True) if scene.geometry == "meshes" else None
+            self._props_cache = (scene.static, boxes, scene.geometry, detail)
             self._near_cache = None
         ego = np.asarray(scene.ego_pose[:2], np.float64)
         near = self._near_cache
         if near is None or math.hypot(ego[0] - near[0][0], ego[1] - near[0][1]) > NEAR_MARGIN - 1.0:
             # a box within render_radius of the ego lies within render_radius + NEAR_MARGIN of a point less than
             # NEAR_MARGIN away (1 m spare for rounding), so selecting from this subset gives the same boxes in order
-            near = self._near_cache = (ego, self._props_cache[1].near(ego, self.render_radius + NEAR_MARGIN))
-        props = near[1].near(ego, self.render_radius)
+            keep = self._props_cache[1].near_mask(ego, self.render_radius + NEAR_MARGIN)
+            near = self._near_cache = (ego, self._props_cache[1].take(keep), np.flatnonzero(keep))
+        within = near[1].near_mask(ego, self.render_radius)
+        detail = self._props_cache[3]
+        if detail is None:
+            props = near[1].take(within)
+        else:  # the props near enough for their detail to show (or for the LiDAR to reach) as their meshes and parts
+            close = within & near[1].near_mask(ego, self.detail_radius)
+            chosen = np.zeros(len(self._props_cache[1]), bool)
+            chosen[near[2][close]] = True
+            detailed, owner = detail
+            props = Primitives.concat(near[1].take(within & ~close), detailed.take(chosen[owner]))
         if in_view:
             props = self._in_view(props, scene.ego_pose)
         return Primitives.concat(props, scene.primitives)
@@ -192,10 +208,13 @@ class CameraRig:
         shadows = shade = None
         if not night and scene.geometry == "meshes":  # sun shadows on the ground, the ego's own among them
             casters = Primitives.concat(prims, ego_primitives(scene))
-            shadows = shadow_map(casters, light.sun_dir, scene.ego_pose[:2])
+            shadows = None  # per camera size, below
             shade = shadow_lut(light)
         frames: dict[str, CameraFrame] = {}
         for (width, height), cams in self._groups:
+            if shade is not None:  # shadow-map cells about a pixel wide 15 m away: 0.2 m at 1280 px, 0.8 m at 64 px
+                res = float(np.clip(0.2 * 1280.0 / width, 0.2, 0.8))
+                shadows = shadow_map(casters, light.sun_dir, scene.ego_pose[:2], resolution=res)
             mats = np.array([self.world_to_camera(scene, c.name) for c in cams])
             ks = np.array([[k[0, 0], k[1, 1], k[0, 2], k[1, 2]] for k in (self.intrinsics[c.name] for c in cams)])
             if night:

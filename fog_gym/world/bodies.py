@@ -36,8 +36,8 @@ from fog_gym.world.mesh import (BODY, CARGO, GLASS, HEADLAMP, PLATE, TAILLAMP, T
 #: Cross-section points (12): the lower body's outline from the bottom round the right side to the beltline, the
 #: glasshouse's top edge, and back down the left side. Each entry: (y as a share of the local half-width — "w" body,
 #: "g" glasshouse — and which height it sits at).
-_RING = [(-0.80, "w", "b"), (0.80, "w", "b"), (0.97, "w", 0.15), (1.0, "w", 0.45), (0.98, "w", 0.80), (0.93, "w", "t"),
-         (1.0, "g", "r"), (-1.0, "g", "r"), (-0.93, "w", "t"), (-0.98, "w", 0.80), (-1.0, "w", 0.45), (-0.97, "w", 0.15)]  # fmt: skip
+_RING = [(-0.78, "w", "b"), (0.78, "w", "b"), (0.91, "w", 0.12), (1.0, "w", 0.42), (0.96, "w", 0.78), (0.90, "w", "t"),
+         (1.0, "g", "r"), (-1.0, "g", "r"), (-0.90, "w", "t"), (-0.96, "w", 0.78), (-1.0, "w", 0.42), (-0.91, "w", 0.12)]  # fmt: skip
 #: Ring edges: 0 bottom, 1–4 right lower side, 5 right glasshouse side, 6 roof, 7 left glasshouse side, 8–11 left
 #: lower side.
 _GLASS_SIDES, _ROOF_EDGE = (5, 7), 6
@@ -157,8 +157,32 @@ def _hull(body: BodyType) -> Mesh:
         if slope > _STEEP and (cabin[i] or cabin[i + 1]):
             mats[i, _ROOF_EDGE] = GLASS  # windscreen / rear window
         mats[i, 0] = TRIM  # the underside
-    hull = loft(x, rings, mats)
+    # rounded ends: a body end (not a cargo box's) tapers over its last TAPER of the length to a smaller face
+    x, rings, mats = list(x), list(rings), [row for row in mats]
+    for end in (-1, 0):
+        if abs(st[end, 0]) < 0.49:
+            continue
+        sign = 1.0 if end == -1 else -1.0
+        face = rings[end]
+        centre = face.mean(axis=0)
+        rings_new = centre + (face - centre) * [TAPER_SCALE, TAPER_SCALE]
+        x_inner = x[end] - sign * TAPER * L
+        if end == -1:
+            x[-1] = x_inner
+            x.append(x_inner + sign * TAPER * L)
+            rings.append(rings_new)
+            mats.append(np.where(mats[-1] == GLASS, BODY, mats[-1]))
+        else:
+            x[0] = x_inner
+            x.insert(0, x_inner + sign * TAPER * L)
+            rings.insert(0, rings_new)
+            mats.insert(0, np.where(mats[0] == GLASS, BODY, mats[0]))
+    hull = loft(np.array(x), rings, np.array(mats), cap=BODY)
     return Mesh(hull.vertices, hull.triangles, hull.materials)
+
+
+#: A body end tapers over this share of the length to a face this much smaller (rounded bumpers, no flat slab).
+TAPER, TAPER_SCALE = 0.035, 0.8
 
 
 #: Lamps and licence plates stand this far proud of the body's end faces (the body stops short by as much, so the
@@ -175,14 +199,15 @@ def _lamps(body: BodyType) -> list[Mesh]:
         if abs(end[0]) < 0.49:  # this end is a cargo box's or a bed's: _rear adds its lamps
             continue
         sign = 1.0 if end[0] > 0 else -1.0
-        x = sign * (L / 2 - PROUD / 2)
+        depth = PROUD + TAPER * L  # from ±length/2 back into the tapered end, so no gap opens behind the lamp
+        x = sign * (L / 2 - depth / 2)
         bottom, belt, w = end[1] * H, end[2] * H, end[4] * W / 2
         z_lamp = bottom + 0.72 * (belt - bottom)
         lamp_w, lamp_h = min(0.30, 0.35 * w), min(0.12, 0.22 * (belt - bottom))
         for s in (-1.0, 1.0):
-            out.append(box_mesh((PROUD, lamp_w, lamp_h), lamp, center=(x, s * (0.80 * w - lamp_w / 2), z_lamp)))
+            out.append(box_mesh((depth, lamp_w, lamp_h), lamp, center=(x, s * (0.80 * w - lamp_w / 2), z_lamp)))
         z_plate = bottom + 0.30 * (belt - bottom)
-        out.append(box_mesh((PROUD, min(0.52, 0.6 * w), min(0.12, 0.2 * (belt - bottom))), PLATE, center=(x, 0.0, z_plate)))
+        out.append(box_mesh((depth, min(0.52, 0.6 * w), min(0.12, 0.2 * (belt - bottom))), PLATE, center=(x, 0.0, z_plate)))
     return out
 
 

@@ -6,7 +6,7 @@ normal is ``(v1 − v0) × (v2 − v0)`` as numpy computes the cross product. Me
 procedural vehicles of :mod:`fog_gym.world.bodies`, the scenery of :mod:`fog_gym.world.scenery`) and placed per frame
 by pose (and a per-axis scale), never re-triangulated.
 
-Materials (:data:`MATERIALS`) give each triangle an albedo (or a share of the instance's own colour: a car's
+Materials (:data:`MATERIAL_NAMES` and the tables beside it) give each triangle an albedo (or a share of the instance's own colour: a car's
 paint), a CARLA semantic tag (or the instance's: a car's parts are all "Car"), a LiDAR reflectivity in [0, 1], and
 whether it emits light at night (head and tail lamps).
 
@@ -197,11 +197,13 @@ def _outward(mesh: Mesh) -> Mesh:
     return Mesh(v, t, mesh.materials)
 
 
-def loft(stations: np.ndarray, profiles: list[np.ndarray], materials: np.ndarray) -> Mesh:
+def loft(stations: np.ndarray, profiles: list[np.ndarray], materials: np.ndarray, cap: int | None = None) -> Mesh:
     """A closed solid through cross-sections: ``profiles[k]`` (P, 2) is the (y, z) outline at x = ``stations[k]``,
     all with P points in the same angular order; neighbouring rings are joined by quads (``materials`` (K−1, P):
-    the material of the quad from point j to j+1 between ring k and k+1) and both ends capped (first material of the
-    ring). Rings must be convex in (y, z) and stations strictly increasing."""
+    the material of the quad from point j to j+1 between ring k and k+1) and both ends capped (material ``cap``,
+    default the end quads' second material). Stations strictly increasing. Every side quad is wound alike and each
+    cap faces out along ∓x, so the surface is consistently oriented; if that makes its volume negative the sides
+    are turned, so the normals point outwards."""
     k, p = len(stations), len(profiles[0])
     v = np.concatenate([np.c_[np.full(p, x), prof] for x, prof in zip(stations, profiles)])
     tris, mats = [], []
@@ -211,32 +213,20 @@ def loft(stations: np.ndarray, profiles: list[np.ndarray], materials: np.ndarray
             c, d = (i + 1) * p + (j + 1) % p, (i + 1) * p + j
             tris += [(a, b, c), (a, c, d)]
             mats += [materials[i, j]] * 2
-    centers = []
-    for i in (0, k - 1):  # end caps: a fan from the ring's centroid
-        centers.append(len(v))
-        v = np.concatenate([v, [[stations[i], *profiles[i].mean(axis=0)]]])
+    n_sides = len(tris)
+    for i, outward in ((0, -1.0), (k - 1, 1.0)):  # end caps: a fan from the ring's centroid, facing ∓x
+        centre = len(v)
+        v = np.concatenate([v, [[stations[i], *np.asarray(profiles[i]).mean(axis=0)]]])
+        m = materials[min(i, k - 2), 1] if cap is None else cap
         for j in range(p):
-            tris.append((centers[-1], i * p + j, i * p + (j + 1) % p))
-            mats.append(materials[min(i, k - 2), 0])
-    mesh = Mesh(v, np.array(tris, np.int32), np.array(mats, np.uint8))
-    return _orient_rings(mesh)
-
-
-def _orient_rings(mesh: Mesh) -> Mesh:
-    """Turn the triangles of a lofted solid outwards: each faces away from its own station's ring centre (a point on
-    the x axis of the solid at the triangle's x), which is inside for the convex rings :func:`loft` takes."""
-    v, t = mesh.vertices, mesh.triangles.copy()
-    n = np.cross(v[t[:, 1]] - v[t[:, 0]], v[t[:, 2]] - v[t[:, 0]])
-    mid = v[t].mean(axis=1)
-    yz_center = np.array([0.0, *v[:, 1:].mean(axis=0)])
-    ref = np.c_[mid[:, 0], np.broadcast_to(yz_center[1:], (len(mid), 2))]
-    side = np.einsum("ij,ij->i", n, mid - ref)
-    caps = np.abs(n[:, 0]) > 0.999 * np.linalg.norm(n, axis=1)  # end caps: outward is along ∓x
-    x_mid = 0.5 * (v[:, 0].min() + v[:, 0].max())
-    side[caps] = n[caps, 0] * (mid[caps, 0] - x_mid)
-    flip = side < 0
-    t[flip] = t[flip][:, [0, 2, 1]]
-    return Mesh(v, t, mesh.materials)
+            tri = (centre, i * p + j, i * p + (j + 1) % p)
+            n_x = np.cross(v[tri[1]] - v[tri[0]], v[tri[2]] - v[tri[0]])[0]
+            tris.append(tri if n_x * outward > 0 else (tri[0], tri[2], tri[1]))
+            mats.append(m)
+    t = np.array(tris, np.int32)
+    if signed_volume(Mesh(v, t, np.array(mats, np.uint8))) < 0:  # the rings run the other way: turn the sides
+        t[:n_sides] = t[:n_sides][:, [0, 2, 1]]
+    return Mesh(v, t, np.array(mats, np.uint8))
 
 
 def cylinder(radius: float, length: float, segments: int, axis: str, center, material: int) -> Mesh:

@@ -91,5 +91,9 @@ class Primitives:
 
     def near(self, center_xy: np.ndarray, radius: float) -> Primitives:
         """Boxes whose centre lies within ``radius`` (plus their own size) of ``center_xy`` in the ground plane."""
+        return self.take(self.near_mask(center_xy, radius))
+
+    def near_mask(self, center_xy: np.ndarray, radius: float) -> np.ndarray:
+        """Which boxes :meth:`near` keeps."""
         d = np.hypot(self.centers[:, 0] - center_xy[0], self.centers[:, 1] - center_xy[1])
-        return self.take(d - np.linalg.norm(self.halves, axis=1) <= radius)
+        return d - np.linalg.norm(self.halves, axis=1) <= radius

@@ -1,13 +1,13 @@
 """Meshes of the roadside props the towns place (:func:`fog_gym.world.scenery.place_props`), drawn in each prop's box.
 
-- **Trees**: a six-sided trunk and a crown that is not a box — a subdivided icosahedron (80 triangles) or, for one
-  tree in three, a conifer's two stacked cones; the crown fills the prop's canopy box.
+- **Trees**: a crown that is not a box — a subdivided icosahedron (80 triangles) or, for one tree in three, a
+  conifer's two stacked cones — filling the prop's canopy box, on a slim box trunk.
 - **Buildings**: a façade, window panes on every floor of every side (3 m floors, 1.2 × 1.4 m panes every 2.6 m,
   3 cm in front of the wall) and a parapet round the roof's edge (:func:`building_mesh`). The sensors see it as its
   parts (:func:`building_parts`): the wall and the parapet as boxes, and each side's panes as a flat mesh in a thin
   box in front of the wall — a ray then meets the big wall in one box test and the panes in a small hierarchy.
   Pane meshes are made per (side length on a 2 m grid, floors), so a town needs a few dozen.
-- **Street-light poles**: an eight-sided column; **guard rails**: a beam on three posts, as four boxes
+- **Street-light poles** stay slim boxes; **guard rails** are a beam on three posts, as four boxes
   (:func:`rail_parts`: long thin boxes cost the ray caster least as boxes).
 
 Every mesh fills its prop's box exactly (the box is the mesh's tight bound), as the vehicles' do.
@@ -24,7 +24,7 @@ import functools
 
 import numpy as np
 
-from fog_gym.world.mesh import BARK, FACADE, LEAVES, METAL, ROOF, WINDOW, Mesh, box_mesh, cylinder, icosphere
+from fog_gym.world.mesh import FACADE, LEAVES, ROOF, WINDOW, Mesh, box_mesh, cylinder, icosphere
 from fog_gym.world.meshlib import LIBRARY
 
 #: Prop tags (CARLA): guard rail, pole, vegetation, building.
@@ -85,8 +85,6 @@ def _fixed_meshes() -> dict[str, int]:
     return {
         "crown": LIBRARY.add("prop:crown", crown),
         "conifer": LIBRARY.add("prop:conifer", conifer),
-        "trunk": LIBRARY.add("prop:trunk", cylinder(0.5, 1.0, 6, "z", (0, 0, 0.5), BARK)),
-        "pole": LIBRARY.add("prop:pole", cylinder(0.5, 1.0, 8, "z", (0, 0, 0.5), METAL)),
     }  # fmt: skip
 
 
@@ -97,7 +95,7 @@ BEAM_FROM, POST = 0.55, 0.12
 def rail_parts(rails):
     """Each guard rail of ``rails`` (:class:`~fog_gym.world.primitives.Primitives` rows in their boxes) as its beam
     (the top of the box, full length and width) and three posts (ends and middle) down to the road: four box rows
-    each, within the rail's box, which stays their tight bound."""
+    each, within the rail's box, which stays their tight bound; returns the parts and each part's rail (row index)."""
     from fog_gym.world.primitives import Primitives
 
     n = len(rails)
@@ -114,9 +112,10 @@ def rail_parts(rails):
         parts_c.append(pc)
         parts_h.append(np.c_[np.full(n, POST / 2), np.full(n, POST / 2), hz * BEAM_FROM])
     rep = lambda a: np.concatenate([a] * 4)  # noqa: E731
-    return Primitives(np.ascontiguousarray(np.concatenate(parts_c)), np.ascontiguousarray(np.concatenate(parts_h)),
-                      rep(rails.yaws), rep(rails.colors), rep(rails.tags), rep(rails.insts), rep(rails.emissive),
-                      np.zeros(4 * n, np.int32))  # fmt: skip
+    parts = Primitives(np.ascontiguousarray(np.concatenate(parts_c)), np.ascontiguousarray(np.concatenate(parts_h)),
+                       rep(rails.yaws), rep(rails.colors), rep(rails.tags), rep(rails.insts), rep(rails.emissive),
+                       np.zeros(4 * n, np.int32))  # fmt: skip
+    return parts, rep(np.arange(n))
 
 
 def _panes_id(span: float, floors: int) -> int:
@@ -138,7 +137,7 @@ def building_parts(buildings):
     """Each building of ``buildings`` (:class:`~fog_gym.world.primitives.Primitives` rows in their boxes, mesh 0) as
     the parts the sensors see: the wall (a box 3 cm inside the building's box), the parapet (four boxes round the
     roof's edge, up to the full height) and, for each side wide enough, its panes (a flat mesh in the outer 3 cm):
-    all within the building's box, which stays their tight bound."""
+    all within the building's box, which stays their tight bound; returns the parts and each part's building."""
     from fog_gym.world.primitives import Primitives
 
     rows: list[tuple] = []  # centre (3), halves (3), yaw, row of the building, mesh
@@ -174,11 +173,11 @@ def building_parts(buildings):
             rows.append(((pos[0], pos[1], z_mid), (width / 2, PANE_OUT / 2, ((floors - 1) * FLOOR + PANE_H) / 2),
                          side_yaw, k, mesh))  # fmt: skip
     if not rows:
-        return Primitives.empty()
+        return Primitives.empty(), np.zeros(0, np.int64)
     idx = np.array([r[3] for r in rows])
     return Primitives(np.array([r[0] for r in rows], np.float64), np.array([r[1] for r in rows], np.float64),
                       np.array([r[2] for r in rows], np.float64), buildings.colors[idx], buildings.tags[idx],
-                      buildings.insts[idx], buildings.emissive[idx], np.array([r[4] for r in rows], np.int32))  # fmt: skip
+                      buildings.insts[idx], buildings.emissive[idx], np.array([r[4] for r in rows], np.int32)), idx  # fmt: skip
 
 
 def prop_mesh_ids(sizes: np.ndarray, tags: np.ndarray, seeds: np.ndarray) -> np.ndarray:
@@ -188,8 +187,6 @@ def prop_mesh_ids(sizes: np.ndarray, tags: np.ndarray, seeds: np.ndarray) -> np.
     fixed = _fixed_meshes()
     out = np.zeros(len(tags), np.int32)
     for k, (size, tag) in enumerate(zip(sizes, tags)):
-        if tag == POLE_TAG:
-            out[k] = fixed["pole"]
-        elif tag == VEGETATION_TAG:
-            out[k] = fixed["trunk"] if size[0] <= TRUNK_MAX else fixed["conifer" if seeds[k] % 3 == 0 else "crown"]
+        if tag == VEGETATION_TAG and size[0] > TRUNK_MAX:  # a crown; trunks and poles are slim boxes
+            out[k] = fixed["conifer" if seeds[k] % 3 == 0 else "crown"]
     return out

@@ -270,10 +270,11 @@ def lamp_heights(state: VehicleState) -> np.ndarray:
     return lamp_z
 
 
-def prop_primitives(props: Props, meshes: bool = False) -> Primitives:
+def prop_primitives(props: Props, meshes: bool = False, owners: bool = False) -> Primitives | tuple[Primitives, np.ndarray]:
     """Static props as renderer primitives (instance id 0: static world); with ``meshes`` each draws its kind's mesh
     (:mod:`fog_gym.world.prop_meshes`: trees, poles) in its box, and guard rails and buildings are their parts
-    (a beam on posts; wall, parapet and window panes), all within the prop's box."""
+    (a beam on posts; wall, parapet and window panes), all within the prop's box. With ``owners`` also the prop (row
+    of ``props``) each primitive belongs to."""
     n = len(props)
     prims = Primitives(
         centers=np.ascontiguousarray(props.centers, np.float64),
@@ -286,11 +287,16 @@ def prop_primitives(props: Props, meshes: bool = False) -> Primitives:
         meshes=np.zeros(n, np.int32),
     )
     if not (meshes and n):
-        return prims
+        return (prims, np.arange(n)) if owners else prims
     from fog_gym.world.prop_meshes import BUILDING_TAG, RAIL_TAG, building_parts, prop_mesh_ids, rail_parts
 
     seeds = np.abs(np.round(props.centers[:, 0] * 7.0 + props.centers[:, 1] * 13.0)).astype(np.int64)
     prims = Primitives(**{**prims.__dict__, "meshes": prop_mesh_ids(props.sizes, props.tags, seeds)})
     rails, buildings = props.tags == RAIL_TAG, props.tags == BUILDING_TAG
-    return Primitives.concat(prims.take(~(rails | buildings)), rail_parts(prims.take(rails)),
-                             building_parts(prims.take(buildings)))
+    other = np.flatnonzero(~(rails | buildings))
+    rail_rows, building_rows = np.flatnonzero(rails), np.flatnonzero(buildings)
+    rail_prims, rail_owner = rail_parts(prims.take(rail_rows))
+    building_prims, building_owner = building_parts(prims.take(building_rows))
+    out = Primitives.concat(prims.take(other), rail_prims, building_prims)
+    owner = np.concatenate([other, rail_rows[rail_owner], building_rows[building_owner]]).astype(np.int64)
+    return (out, owner) if owners else out

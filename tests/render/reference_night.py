@@ -13,9 +13,9 @@ from typing import Any
 import numpy as np
 from fog_gym.render.lights import (EMISSIVE_GAIN, EXPOSURE_STEP, FACE_CELL, FACE_MAX_CELLS, LAMP_COLOR,
                                    LAMP_HEAD_RADIANCE, LAMP_HEAD_RADIUS, LOG_MAX, LOG_MIN, MAX_PRIM_LIGHTS, N_BINS,
-                                   NIGHT_AMBIENT, SKY_GAIN, GroundLightMap, Lights, _draw_heads, _face_grids,
+                                   NIGHT_AMBIENT, SKY_GAIN, GroundLightMap, Lights, _face_grids,
                                    _light_args, _prim_lights, _shade_pass, gains_from_histograms)  # fmt: skip
-from fog_gym.render.shading import KNEE, tone
+from fog_gym.render.shading import KNEE, draw_heads, tone
 from fog_gym.world.primitives import Primitives
 
 
@@ -70,6 +70,6 @@ def shade_night(
     heads = np.ascontiguousarray(np.reshape(heads, (-1, 3)), np.float64)
     for c in range(n_cam):
         color = np.round(tone(LAMP_COLOR * LAMP_HEAD_RADIANCE * gains[c]) * 255).astype(np.uint8)
-        _draw_heads(rot[c : c + 1], trans[c : c + 1], ks[c : c + 1], buffers["depth"][c : c + 1], rgb[c : c + 1],
+        draw_heads(rot[c : c + 1], trans[c : c + 1], ks[c : c + 1], buffers["depth"][c : c + 1], rgb[c : c + 1],
                     heads, float(LAMP_HEAD_RADIUS), color)  # fmt: skip
     return gains

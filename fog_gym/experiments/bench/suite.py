@@ -7,7 +7,9 @@ fog_gym.experiments.bench.<name>``):
 * :mod:`~fog_gym.experiments.bench.sensors`: the point sensors alone and with 500 out-of-range boxes, ground truth, night vs day
   cameras;
 * :mod:`~fog_gym.experiments.bench.fog`: camera and LiDAR fog, and the full paired fog frame;
-* :mod:`~fog_gym.experiments.bench.dataset`: the recorder against the PNG-encoder bound, ``fog-gym generate`` with 1 and 2 workers.
+* :mod:`~fog_gym.experiments.bench.dataset`: the recorder against the PNG-encoder bound, ``fog-gym generate`` with 1 and 2 workers;
+* :mod:`~fog_gym.experiments.bench.geometry`: the world of meshes against the box world in the same run (day and night
+  steps, point sensors, the pixel RL vector env, memory).
 
 Usage::
 
@@ -26,6 +28,7 @@ from pathlib import Path
 from fog_gym.experiments.bench import dataset as bench_dataset
 from fog_gym.experiments.bench import env as bench_env
 from fog_gym.experiments.bench import fog as bench_fog
+from fog_gym.experiments.bench import geometry as bench_geometry
 from fog_gym.experiments.bench import sensors as bench_sensors
 from fog_gym.experiments.bench.common import add_common_arguments, finish_meta, repeats_of, run_meta, write_json
 from fog_gym.world.towns import TOWNS
@@ -70,9 +73,10 @@ def main(argv: list[str] | None = None, prog: str = "fog-gym bench") -> int:
     recording = bench_dataset.bench_recording(repeats)
     rl = bench_env.bench_rl(repeats)
     baseline = bench_env.bench_baselines(args.town, repeats, profile_steps)
+    geometry = bench_geometry.bench_geometry(repeats, 10 if args.quick else 60)
     finish_meta(meta, t0)
     results = {"meta": meta, "rigs": rigs, "point_sensors": point_sensors, "fog": fog, "labels": labels,
-               "recording": recording, "rl": rl, "baseline": baseline, "night": night}  # fmt: skip
+               "recording": recording, "rl": rl, "baseline": baseline, "night": night, "geometry": geometry}  # fmt: skip
 
     print(bench_env.render_stages(results))
     print("\n" + "\n".join(bench_sensors.render_point_sensors(point_sensors, repeats)))
@@ -82,6 +86,7 @@ def main(argv: list[str] | None = None, prog: str = "fog-gym bench") -> int:
     print("\n" + "\n".join(bench_dataset.render_recording(recording)))
     print("\n" + "\n".join(bench_env.render_rl(rl)))
     print("\n" + "\n".join(bench_sensors.render_night(night, repeats)))
+    print("\n" + "\n".join(bench_geometry.render_geometry(geometry)))
     write_json(args.json, results)
     return 0
 
