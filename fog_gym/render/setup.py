@@ -119,34 +119,40 @@ def _emit(c, n_out, poly, k, ncx, ncy, ncz, d0, nwx, nwy, nwz, r, g, b, emis, ta
     return 1
 
 
-@njit(cache=True, fastmath=False)  # one thread: parallel over cameras lost to its launch costs at every size
-def setup_faces(
-    cam_rot, cam_trans, cam_k, width, height, far,
-    centers, halves, yaws, colors, tags, insts, emissive, meshes,
-    lib_v, lib_t, lib_m, tri_start, mat_albedo, mat_paint, mat_tag, mat_emis,
-    sun_dir, ambient, sun_intensity,
-):  # fmt: skip
+@njit(cache=True)
+def _covers_pixel(poly, k, fx, fy, cx, cy, width, height):
+    """Whether the camera-frame polygon ``poly[:k]`` may cover a pixel centre of the image: False only when it lies
+    wholly in front of the near plane and its projected bounds contain no pixel centre (exactly :func:`_emit`'s own
+    test, done first because a call of ``_emit`` with its many array arguments costs far more; most faces of a small
+    image's far scenery are sub-pixel)."""
+    umin = 1e30
+    umax = -1e30
+    vmin = 1e30
+    vmax = -1e30
+    for q in range(k):
+        z = poly[q, 2]
+        if z < NEAR:
+            return True
+        u = fx * poly[q, 0] / z + cx
+        v = fy * poly[q, 1] / z + cy
+        umin = min(umin, u)
+        umax = max(umax, u)
+        vmin = min(vmin, v)
+        vmax = max(vmax, v)
+    y0 = int(np.ceil(vmin - 0.5))
+    y1 = int(np.floor(vmax - 0.5))
+    x0 = int(np.ceil(umin - 0.5))
+    x1 = int(np.floor(umax - 0.5))
+    return not (y1 < 0 or x1 < 0 or y0 > height - 1 or x0 > width - 1 or y1 < y0 or x1 < x0)
+
+
+@njit(cache=True)
+def _cull(cam_rot, cam_trans, cam_k, width, height, far, centers, halves, meshes):
+    """Per camera and primitive: 0 when its bounding sphere lies wholly behind the near plane, beyond ``far`` or
+    outside a side of the view; 2 for a mesh at least :data:`LOD_PIXELS` across; else 1 (its box)."""
     n_cam = cam_rot.shape[0]
     n_prim = centers.shape[0]
-    max_faces = 0
-    for p in range(n_prim):  # a box shows at most three faces; a mesh at most all of its triangles
-        max_faces += 3 if meshes[p] == 0 else tri_start[meshes[p] + 1] - tri_start[meshes[p]]
-    verts = np.zeros((n_cam, max_faces, MAX_VERTS, 2))
-    nverts = np.zeros((n_cam, max_faces), dtype=np.int64)
-    planes = np.zeros((n_cam, max_faces, 3))
-    face_rgb = np.zeros((n_cam, max_faces, 3), dtype=np.uint8)
-    face_tag = np.zeros((n_cam, max_faces), dtype=np.uint8)
-    face_inst = np.zeros((n_cam, max_faces), dtype=np.uint16)
-    bounds = np.zeros((n_cam, max_faces, 4), dtype=np.int64)  # y0, y1, x0, x1 inclusive
-    face_nrm = np.zeros((n_cam, max_faces, 3), dtype=np.float32)  # world-frame outward normal
-    face_emis = np.zeros((n_cam, max_faces), dtype=np.bool_)
-    face_prim = np.zeros((n_cam, max_faces), dtype=np.int32)
-    face_side = np.zeros((n_cam, max_faces), dtype=np.int32)  # a box's face 0–5; a mesh's triangle k: −1 − k
-    counts = np.zeros(n_cam, dtype=np.int64)
-    corners_c = np.empty((8, 3))
-    poly = np.empty((MAX_VERTS, 3))
-    clipped = np.empty((MAX_VERTS, 3))
-    wv = np.empty((3, 3))
+    mode = np.zeros((n_cam, n_prim), dtype=np.int8)
     for c in range(n_cam):
         R = cam_rot[c]
         T = cam_trans[c]
@@ -156,15 +162,7 @@ def setup_faces(
         nr = np.sqrt(fx * fx + (width - cx) * (width - cx))
         nt = np.sqrt(fy * fy + cy * cy)
         nb = np.sqrt(fy * fy + (height - cy) * (height - cy))
-        # camera centre in world: -R^T T
-        ccx = -(R[0, 0] * T[0] + R[1, 0] * T[1] + R[2, 0] * T[2])
-        ccy = -(R[0, 1] * T[0] + R[1, 1] * T[1] + R[2, 1] * T[2])
-        ccz = -(R[0, 2] * T[0] + R[1, 2] * T[1] + R[2, 2] * T[2])
-        n_out = 0
         for p in range(n_prim):
-            cyaw = np.cos(yaws[p])
-            syaw = np.sin(yaws[p])
-            # quick reject: whole box beyond far or behind camera (bounding sphere)
             hx, hy, hz = halves[p, 0], halves[p, 1], halves[p, 2]
             radius = np.sqrt(hx * hx + hy * hy + hz * hz)
             pcz = R[2, 0] * centers[p, 0] + R[2, 1] * centers[p, 1] + R[2, 2] * centers[p, 2] + T[2]
@@ -175,9 +173,65 @@ def setup_faces(
             if ((-pcx * fx - pcz * cx) / nl > radius or (pcx * fx - pcz * (width - cx)) / nr > radius
                     or (-pcy * fy - pcz * cy) / nt > radius or (pcy * fy - pcz * (height - cy)) / nb > radius):
                 continue  # wholly outside a side of the view
-            if meshes[p] != 0 and radius * fx < LOD_PIXELS * pcz:
-                pass  # a few pixels across: drawn as its box (level of detail)
-            elif meshes[p] != 0:  # a mesh: each front-facing triangle is a face
+            # a mesh a few pixels across is drawn as its box (level of detail)
+            mode[c, p] = 2 if meshes[p] != 0 and radius * fx >= LOD_PIXELS * pcz else 1
+    return mode
+
+
+@njit(cache=True, fastmath=False)  # one thread: parallel over cameras lost to its launch costs at every size
+def setup_faces(
+    cam_rot, cam_trans, cam_k, width, height, far,
+    centers, halves, yaws, colors, tags, insts, emissive, meshes,
+    lib_v, lib_t, lib_m, tri_start, mat_albedo, mat_paint, mat_tag, mat_emis,
+    sun_dir, ambient, sun_intensity,
+):  # fmt: skip
+    n_cam = cam_rot.shape[0]
+    n_prim = centers.shape[0]
+    # first pass: what each camera draws of each primitive (0 nothing, 1 its box, 2 its triangles), so the face
+    # buffers are sized to what is in view rather than to the whole scene
+    mode = _cull(cam_rot, cam_trans, cam_k, width, height, far, centers, halves, meshes)
+    max_faces = 0
+    for c in range(n_cam):
+        n_c = 0
+        for p in range(n_prim):
+            if mode[c, p] == 1:
+                n_c += 3
+            elif mode[c, p] == 2:
+                n_c += tri_start[meshes[p] + 1] - tri_start[meshes[p]]
+        max_faces = max(max_faces, n_c)
+    # only the first counts[c] faces of a camera are ever read
+    verts = np.empty((n_cam, max_faces, MAX_VERTS, 2))
+    nverts = np.empty((n_cam, max_faces), dtype=np.int64)
+    planes = np.empty((n_cam, max_faces, 3))
+    face_rgb = np.empty((n_cam, max_faces, 3), dtype=np.uint8)
+    face_tag = np.empty((n_cam, max_faces), dtype=np.uint8)
+    face_inst = np.empty((n_cam, max_faces), dtype=np.uint16)
+    bounds = np.empty((n_cam, max_faces, 4), dtype=np.int64)  # y0, y1, x0, x1 inclusive
+    face_nrm = np.empty((n_cam, max_faces, 3), dtype=np.float32)  # world-frame outward normal
+    face_emis = np.empty((n_cam, max_faces), dtype=np.bool_)
+    face_prim = np.empty((n_cam, max_faces), dtype=np.int32)
+    face_side = np.empty((n_cam, max_faces), dtype=np.int32)  # a box's face 0–5; a mesh's triangle k: −1 − k
+    counts = np.zeros(n_cam, dtype=np.int64)
+    corners_c = np.empty((8, 3))
+    poly = np.empty((MAX_VERTS, 3))
+    clipped = np.empty((MAX_VERTS, 3))
+    wv = np.empty((3, 3))
+    for c in range(n_cam):
+        R = cam_rot[c]
+        T = cam_trans[c]
+        fx, fy, cx, cy = cam_k[c, 0], cam_k[c, 1], cam_k[c, 2], cam_k[c, 3]
+        # camera centre in world: -R^T T
+        ccx = -(R[0, 0] * T[0] + R[1, 0] * T[1] + R[2, 0] * T[2])
+        ccy = -(R[0, 1] * T[0] + R[1, 1] * T[1] + R[2, 1] * T[2])
+        ccz = -(R[0, 2] * T[0] + R[1, 2] * T[1] + R[2, 2] * T[2])
+        n_out = 0
+        for p in range(n_prim):
+            if mode[c, p] == 0:
+                continue
+            cyaw = np.cos(yaws[p])
+            syaw = np.sin(yaws[p])
+            hx, hy, hz = halves[p, 0], halves[p, 1], halves[p, 2]
+            if mode[c, p] == 2:  # a mesh: each front-facing triangle is a face
                 sx, sy, sz = 2.0 * hx, 2.0 * hy, 2.0 * hz
                 for t in range(tri_start[meshes[p]], tri_start[meshes[p] + 1]):
                     for q in range(3):
@@ -207,6 +261,8 @@ def setup_faces(
                     ncz = R[2, 0] * nwx + R[2, 1] * nwy + R[2, 2] * nwz
                     d0 = ncx * poly[0, 0] + ncy * poly[0, 1] + ncz * poly[0, 2]
                     if d0 > -1e-12:
+                        continue
+                    if not _covers_pixel(poly, 3, fx, fy, cx, cy, width, height):
                         continue
                     mat = lib_m[t]
                     emis = mat_emis[mat] and emissive[p]
@@ -257,6 +313,8 @@ def setup_faces(
                     poly[k, 0] = ck[0]
                     poly[k, 1] = ck[1]
                     poly[k, 2] = ck[2]
+                if not _covers_pixel(poly, 4, fx, fy, cx, cy, width, height):
+                    continue
                 if emissive[p]:
                     shade = 1.0
                 else:

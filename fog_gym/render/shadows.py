@@ -98,8 +98,10 @@ def _hull_fill(pts, n, grid, ox, oy, inv):
 
 
 @njit(cache=True)
-def _shadow_map(centers, halves, yaws, meshes, lib_v, vert_start, sun, ox, oy, inv, rows, cols, reach):
-    grid = np.zeros((rows, cols), np.uint8)
+def _shadow_map(grid, centers, halves, yaws, meshes, lib_v, vert_start, sun, ox, oy, inv, reach):
+    """Fill every caster's shadow into ``grid`` (cell (0, 0)'s corner at ``ox``, ``oy``; ``1 / inv`` m cells) and
+    return it; casters whose shadow cannot reach within ``reach`` of the grid's centre are skipped."""
+    rows, cols = grid.shape
     kx = sun[0] / sun[2]
     ky = sun[1] / sun[2]
     cx0 = ox + 0.5 * cols / inv
@@ -150,7 +152,60 @@ def shadow_map(prims: Primitives | Mapping[str, Any], sun_dir: np.ndarray, cente
     prims = Primitives.coerce(prims)
     n = int(np.ceil(2 * half / resolution))
     ox, oy = float(center[0]) - half, float(center[1]) - half
+    return ShadowMap(_fill(np.zeros((n, n), np.uint8), prims, sun, ox, oy, resolution), (ox, oy), float(resolution))
+
+
+def _fill(grid: np.ndarray, prims: Primitives, sun: np.ndarray, ox: float, oy: float, resolution: float) -> np.ndarray:
     lib = LIBRARY.arrays()
-    grid = _shadow_map(prims.centers, prims.halves, prims.yaws, prims.meshes, lib.vertices, lib.vert_start,
-                       sun / np.linalg.norm(sun), ox, oy, 1.0 / resolution, n, n, float(half))  # fmt: skip
-    return ShadowMap(grid, (ox, oy), float(resolution))
+    reach = 0.5 * max(grid.shape) * resolution
+    return _shadow_map(grid, prims.centers, prims.halves, prims.yaws, prims.meshes, lib.vertices, lib.vert_start,
+                       sun / np.linalg.norm(sun), float(ox), float(oy), 1.0 / resolution, float(reach))  # fmt: skip
+
+
+class ShadowCache:
+    """Shadow maps of a static world and moving casters, the static part filled once: the static casters' shadows go
+    into a map ``margin`` metres wider on every side than the window, on a grid of ``resolution`` cells from the
+    origin, and each frame's window is a crop of it (its corner on that grid) with the moving casters' shadows added.
+    The static map is filled again when the static world, the sun, the window's size or cell change, or when the
+    window leaves it. A window equals :func:`shadow_map` of all casters with the same corner (tested).
+
+    >>> static = {"centers": [[0.0, 0.0, 5.0]], "halves": [[0.5, 0.5, 5.0]], "yaws": [0.0]}
+    >>> cache, sun = ShadowCache(), np.array([1.0, 0.0, 1.0]) / np.sqrt(2.0)
+    >>> sm = cache.window(static, "town", Primitives.empty(), sun, (3.0, 0.0), half=20.0, resolution=0.5)
+    >>> int(sm.grid.sum()), sm.origin                          # the pole's 10 m shadow, 2 cells wide
+    (42, (-17.0, -20.0))
+    """
+
+    def __init__(self, margin: float = 40.0) -> None:
+        self.margin = float(margin)
+        self._key: tuple | None = None
+        self._map: ShadowMap | None = None
+
+    def window(self, static: Primitives | Mapping[str, Any], key: Any, moving: Primitives | Mapping[str, Any],
+               sun_dir: np.ndarray, center: tuple[float, float], half: float = HALF,
+               resolution: float = RESOLUTION) -> ShadowMap:  # fmt: skip
+        """The shadows of ``static`` (identified by ``key``: the same key, the same casters) and ``moving`` in a
+        square about ``half`` metres around ``center`` (its corner on the ``resolution`` grid)."""
+        sun = np.asarray(sun_dir, np.float64)
+        if sun.shape != (3,) or not np.isfinite(sun).all() or sun[2] <= 1e-6:
+            raise ValueError(f"sun_dir must be a finite direction above the horizon, got {sun.tolist()}")
+        if not (half > 0 and resolution > 0):
+            raise ValueError(f"half and resolution must be > 0, got {half!r}, {resolution!r}")
+        n = int(np.ceil(2 * half / resolution))
+        full = (key, tuple(sun.tolist()), float(half), float(resolution))
+        c0 = r0 = -1
+        if self._map is not None and self._key == full:
+            c0 = int(round((center[0] - half - self._map.origin[0]) / resolution))
+            r0 = int(round((center[1] - half - self._map.origin[1]) / resolution))
+        rows, cols = (0, 0) if self._map is None else self._map.grid.shape
+        if not (0 <= c0 and c0 + n <= cols and 0 <= r0 and r0 + n <= rows):
+            big = int(np.ceil(2 * (half + self.margin) / resolution))
+            ox = np.floor((center[0] - half - self.margin) / resolution) * resolution
+            oy = np.floor((center[1] - half - self.margin) / resolution) * resolution
+            grid = _fill(np.zeros((big, big), np.uint8), Primitives.coerce(static), sun, ox, oy, resolution)
+            self._map, self._key = ShadowMap(grid, (float(ox), float(oy)), float(resolution)), full
+            c0 = int(round((center[0] - half - ox) / resolution))
+            r0 = int(round((center[1] - half - oy) / resolution))
+        ox, oy = self._map.origin[0] + c0 * resolution, self._map.origin[1] + r0 * resolution
+        grid = self._map.grid[r0 : r0 + n, c0 : c0 + n].copy()
+        return ShadowMap(_fill(grid, Primitives.coerce(moving), sun, ox, oy, resolution), (ox, oy), float(resolution))

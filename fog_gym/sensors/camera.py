@@ -34,7 +34,7 @@ from fog_gym.sensors.base import check_sensor_name, register
 from fog_gym.render.lights import (beam_window, concat_lights, cull_lights, headlights, lamp_light_map, render_night,
                                    street_lamp_lights)  # fmt: skip
 from fog_gym.render.raster import render
-from fog_gym.render.shadows import shadow_map
+from fog_gym.render.shadows import HALF, ShadowCache
 from fog_gym.render.surface import albedo_lut, ground_lut, shadow_lut, tiled_surface
 from fog_gym.world.primitives import Primitives
 from fog_gym.world.scene import Scene, ego_primitives, prop_primitives
@@ -129,6 +129,8 @@ class CameraRig:
             groups.setdefault((c.width, c.height), []).append(c)
         self._groups = list(groups.items())
         self._props_cache: tuple | None = None
+        self._props_version = 0
+        self._shadows: dict[tuple[int, int], ShadowCache] = {}  # per image size
         #: Props within this distance of the ego [m] are drawn as their meshes and parts, farther ones as their boxes.
         self.detail_radius = DETAIL_RADIUS
         self._near_cache: tuple[np.ndarray, Primitives] | None = None
@@ -140,31 +142,43 @@ class CameraRig:
         ego = geometry.yaw_transform(*scene.ego_pose)
         return geometry.world_to_camera(ego, self.sensor_to_vehicle[name])
 
-    def primitives(self, scene: Scene, in_view: bool = True) -> Primitives:
-        """Render primitives near the ego: static props (cached per static world) + vehicles; with ``in_view`` only the
-        props some camera can see (other sensors, the LiDAR's 360° sweep, take ``in_view=False``)."""
+    def _static_props(self, scene: Scene) -> tuple:
+        """(static world, its props' boxes, geometry, their meshes and parts with owners or None), built once per
+        static world and geometry."""
         if self._props_cache is None or self._props_cache[0] is not scene.static or self._props_cache[2] != scene.geometry:
             boxes = prop_primitives(scene.static.props)
             detail = prop_primitives(scene.static.props, True, owners=True) if scene.geometry == "meshes" else None
             self._props_cache = (scene.static, boxes, scene.geometry, detail)
+            self._props_version += 1
             self._near_cache = None
+        return self._props_cache
+
+    def primitives(self, scene: Scene, in_view: bool = True) -> Primitives:
+        """Render primitives near the ego: static props (cached per static world) + vehicles; with ``in_view`` only the
+        props some camera can see (other sensors, the LiDAR's 360° sweep, take ``in_view=False``)."""
+        self._static_props(scene)
         ego = np.asarray(scene.ego_pose[:2], np.float64)
         near = self._near_cache
+        detail = self._props_cache[3]
         if near is None or math.hypot(ego[0] - near[0][0], ego[1] - near[0][1]) > NEAR_MARGIN - 1.0:
             # a box within render_radius of the ego lies within render_radius + NEAR_MARGIN of a point less than
-            # NEAR_MARGIN away (1 m spare for rounding), so selecting from this subset gives the same boxes in order
+            # NEAR_MARGIN away (1 m spare for rounding), so selecting from this subset gives the same boxes in order;
+            # with the detailed props of those boxes (and, per detailed row, its box's index in the subset)
             keep = self._props_cache[1].near_mask(ego, self.render_radius + NEAR_MARGIN)
-            near = self._near_cache = (ego, self._props_cache[1].take(keep), np.flatnonzero(keep))
+            near_detail = None
+            if detail is not None:
+                local = np.full(len(keep), -1, np.int64)
+                local[keep] = np.arange(int(keep.sum()))
+                rows = local[detail[1]] >= 0
+                near_detail = (detail[0].take(rows), local[detail[1]][rows])
+            near = self._near_cache = (ego, self._props_cache[1].take(keep), near_detail)
         within = near[1].near_mask(ego, self.render_radius)
-        detail = self._props_cache[3]
         if detail is None:
             props = near[1].take(within)
         else:  # the props near enough for their detail to show (or for the LiDAR to reach) as their meshes and parts
             close = within & near[1].near_mask(ego, self.detail_radius)
-            chosen = np.zeros(len(self._props_cache[1]), bool)
-            chosen[near[2][close]] = True
-            detailed, owner = detail
-            props = Primitives.concat(near[1].take(within & ~close), detailed.take(chosen[owner]))
+            detailed, owner = near[2]
+            props = Primitives.concat(near[1].take(within & ~close), detailed.take(close[owner]))
         if in_view:
             props = self._in_view(props, scene.ego_pose)
         return Primitives.concat(props, scene.primitives)
@@ -206,15 +220,21 @@ class CameraRig:
         else:
             lut, ambient, sun = ground_lut(light), light.ambient, light.sun_intensity
         shadows = shade = None
-        if not night and scene.geometry == "meshes":  # sun shadows on the ground, the ego's own among them
-            casters = Primitives.concat(prims, ego_primitives(scene))
-            shadows = None  # per camera size, below
+        if not night and scene.geometry == "meshes":  # sun shadows on the ground: the props' (every one in reach,
+            # seen or not; filled once per stretch of road) and the vehicles', the ego's own among them
+            static = self._static_props(scene)[3][0]
+            moving = Primitives.concat(scene.primitives, ego_primitives(scene))
             shade = shadow_lut(light)
         frames: dict[str, CameraFrame] = {}
         for (width, height), cams in self._groups:
-            if shade is not None:  # shadow-map cells about a pixel wide 15 m away: 0.2 m at 1280 px, 0.8 m at 64 px
+            if shade is not None:  # shadow-map cells about a pixel wide 15 m away: 0.2 m at 1280 px, 0.8 m at 64 px;
+                # the window 80 m around the ego, 40 m for the smallest images (where a car's shadow 40 m away
+                # spans about three pixels)
                 res = float(np.clip(0.2 * 1280.0 / width, 0.2, 0.8))
-                shadows = shadow_map(casters, light.sun_dir, scene.ego_pose[:2], resolution=res)
+                half = float(np.clip(HALF * width / 256.0, HALF / 2, HALF))
+                cache = self._shadows.setdefault((width, height), ShadowCache())
+                shadows = cache.window(static, self._props_version, moving, light.sun_dir, scene.ego_pose[:2],
+                                       half=half, resolution=res)  # fmt: skip
             mats = np.array([self.world_to_camera(scene, c.name) for c in cams])
             ks = np.array([[k[0, 0], k[1, 1], k[0, 2], k[1, 2]] for k in (self.intrinsics[c.name] for c in cams)])
             if night:

@@ -229,12 +229,12 @@ def _box_entry(ox, oy, oz, ix, iy, iz, lo, hi, k, t_lo, t_hi):
 
 
 @njit(cache=True)
-def _mesh_hit(ox, oy, oz, dx, dy, dz, sx, sy, sz, m, lib_v, lib_t, node_start, node_lo, node_hi, node_skip,
+def _mesh_hit(ox, oy, oz, dx, dy, dz, sx, sy, sz, m, tri_geom, node_start, node_lo, node_hi, node_skip,
               node_first, node_count, t_lo, best):  # fmt: skip
     """Nearest front-facing triangle of library mesh ``m`` (scaled by ``s`` = the box's size, in its box frame) that
     the ray o + t·d (box frame, d unit) meets with ``t_lo < t < best``: (t, triangle, |cos incidence|), triangle −1
     for none. Walks the mesh's hierarchy depth first without a stack, past every subtree whose bounds the ray meets
-    only beyond ``best``."""
+    only beyond ``best``; each triangle's vertex, edges and normal come precomputed (``tri_geom``)."""
     # the ray in the mesh's normalised frame (v / size): same t
     nox, noy, noz = ox / sx, oy / sy, oz / sz
     ndx, ndy, ndz = dx / sx, dy / sy, dz / sz
@@ -253,18 +253,11 @@ def _mesh_hit(ox, oy, oz, dx, dy, dz, sx, sy, sz, m, lib_v, lib_t, node_start, n
             k += 1  # into the first child
             continue
         for t in range(node_first[k], node_first[k] + node_count[k]):
-            i0, i1, i2 = lib_t[t, 0], lib_t[t, 1], lib_t[t, 2]
-            e1x = lib_v[i1, 0] - lib_v[i0, 0]
-            e1y = lib_v[i1, 1] - lib_v[i0, 1]
-            e1z = lib_v[i1, 2] - lib_v[i0, 2]
-            e2x = lib_v[i2, 0] - lib_v[i0, 0]
-            e2y = lib_v[i2, 1] - lib_v[i0, 1]
-            e2z = lib_v[i2, 2] - lib_v[i0, 2]
-            nx = e1y * e2z - e1z * e2y
-            ny = e1z * e2x - e1x * e2z
-            nz = e1x * e2y - e1y * e2x
+            nx, ny, nz = tri_geom[t, 9], tri_geom[t, 10], tri_geom[t, 11]
             if ndx * nx + ndy * ny + ndz * nz >= 0.0:
                 continue  # a back face: seen from inside the solid, or edge-on
+            e1x, e1y, e1z = tri_geom[t, 3], tri_geom[t, 4], tri_geom[t, 5]
+            e2x, e2y, e2z = tri_geom[t, 6], tri_geom[t, 7], tri_geom[t, 8]
             # Möller–Trumbore
             px = ndy * e2z - ndz * e2y
             py = ndz * e2x - ndx * e2z
@@ -273,9 +266,9 @@ def _mesh_hit(ox, oy, oz, dx, dy, dz, sx, sy, sz, m, lib_v, lib_t, node_start, n
             if abs(det) < 1e-18:
                 continue
             inv = 1.0 / det
-            qx0 = nox - lib_v[i0, 0]
-            qy0 = noy - lib_v[i0, 1]
-            qz0 = noz - lib_v[i0, 2]
+            qx0 = nox - tri_geom[t, 0]
+            qy0 = noy - tri_geom[t, 1]
+            qz0 = noz - tri_geom[t, 2]
             u = (qx0 * px + qy0 * py + qz0 * pz) * inv
             if u < 0.0 or u > 1.0:
                 continue
@@ -299,7 +292,7 @@ def _mesh_hit(ox, oy, oz, dx, dy, dz, sx, sy, sz, m, lib_v, lib_t, node_start, n
 
 @njit(cache=True, parallel=True)
 def _cast(origin, rotation, directions, max_range, centers, halves, yaws, meshes, n_az, n_el,
-          lib_v, lib_t, lib_m, node_start, node_lo, node_hi, node_skip, node_first, node_count):  # fmt: skip
+          tri_geom, lib_t, lib_m, node_start, node_lo, node_hi, node_skip, node_first, node_count):  # fmt: skip
     n_rays = directions.shape[0]
     ox, oy, oz = origin[0], origin[1], origin[2]
     R = rotation
@@ -359,7 +352,7 @@ def _cast(origin, rotation, directions, max_range, centers, halves, yaws, meshes
                 if t0 > t1 or t1 < _T_MIN or t0 >= best:
                     continue
                 tm, tri, cm = _mesh_hit(table[k, 0], table[k, 1], table[k, 2], lx, ly, dz, 2.0 * table[k, 3],
-                                        2.0 * table[k, 4], 2.0 * table[k, 5], m, lib_v, lib_t, node_start, node_lo,
+                                        2.0 * table[k, 4], 2.0 * table[k, 5], m, tri_geom, node_start, node_lo,
                                         node_hi, node_skip, node_first, node_count, max(t0 - 1e-9, _T_MIN),
                                         min(t1 + 1e-9, best))  # fmt: skip
                 if tri >= 0:
@@ -443,7 +436,7 @@ def cast_rays(
         prims.meshes,
         int(n_azimuth_bins),
         int(n_elevation_bins),
-        lib.vertices, lib.triangles, lib.materials, lib.node_start, lib.node_lo, lib.node_hi, lib.node_skip,
+        lib.tri_geom, lib.triangles, lib.materials, lib.node_start, lib.node_lo, lib.node_hi, lib.node_skip,
         lib.node_first, lib.node_count,
     )
     return RayHits(dist, index, cosine, material)

@@ -37,7 +37,8 @@ class LibraryArrays(NamedTuple):
     ``node_start`` (M + 1,) each mesh's first node (its
     root; its nodes run depth first to the next mesh's); per node ``node_lo`` / ``node_hi`` (N, 3) its bounds,
     ``node_skip`` (N,) the node after its subtree and ``node_first`` / ``node_count`` (N,) a leaf's triangles
-    (count 0: an inner node, whose first child is the next node; the triangles are stored leaf by leaf)."""
+    (count 0: an inner node, whose first child is the next node; the triangles are stored leaf by leaf);
+    ``tri_geom`` (T, 12) per triangle its first vertex, two edges and (unnormalised) normal, for the ray caster."""
 
     vertices: np.ndarray
     triangles: np.ndarray
@@ -50,6 +51,7 @@ class LibraryArrays(NamedTuple):
     node_skip: np.ndarray
     node_first: np.ndarray
     node_count: np.ndarray
+    tri_geom: np.ndarray
 
 
 def normalised(mesh: Mesh) -> Mesh:
@@ -144,13 +146,16 @@ class MeshLibrary:
                 nodes.append((lo, hi, skip + base, first + tri_start[-1], count))
             node_start.append(len(nodes))
             tri_start.append(tri_start[-1] + len(m.triangles))
+        v, t = np.concatenate(verts), np.concatenate(tris)
+        e1, e2 = v[t[:, 1]] - v[t[:, 0]], v[t[:, 2]] - v[t[:, 0]]
+        tri_geom = np.ascontiguousarray(np.concatenate([v[t[:, 0]], e1, e2, np.cross(e1, e2)], axis=1))
         return LibraryArrays(
-            np.ascontiguousarray(np.concatenate(verts)), np.ascontiguousarray(np.concatenate(tris)),
+            np.ascontiguousarray(v), np.ascontiguousarray(t),
             np.ascontiguousarray(np.concatenate(mats)), np.array(tri_start, np.int64), np.array(vert_start, np.int64),
             np.array(node_start, np.int64),
             np.ascontiguousarray(np.array([n[0] for n in nodes])), np.ascontiguousarray(np.array([n[1] for n in nodes])),
             np.array([n[2] for n in nodes], np.int64), np.array([n[3] for n in nodes], np.int64),
-            np.array([n[4] for n in nodes], np.int64),
+            np.array([n[4] for n in nodes], np.int64), tri_geom,
         )  # fmt: skip
 
 

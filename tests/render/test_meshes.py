@@ -195,3 +195,23 @@ def test_shadows_darken_the_ground_only_and_leave_depth_and_tags_alone():
     assert differ.any() and (lit.instance[differ] == 0).all()  # only the ground changes
     assert (lit.rgb[differ].astype(int).sum(-1) < flat.rgb[differ].astype(int).sum(-1)).all()  # and only darker
     env.close()
+
+
+def test_a_cached_shadow_window_equals_the_shadows_of_every_caster_filled_afresh():
+    from fog_gym.render.shadows import ShadowCache, _fill
+
+    rng = np.random.default_rng(3)
+    n = 60
+    static = Primitives.coerce({"centers": np.c_[rng.uniform(-150, 150, (n, 2)), rng.uniform(1, 6, n)],
+                                "halves": rng.uniform(0.3, 4.0, (n, 3)), "yaws": rng.uniform(0, np.pi, n),
+                                "meshes": rng.choice([0, body_mesh_id("sedan")], n)})  # fmt: skip
+    moving = Primitives.coerce({"centers": [[5.0, 2.0, 0.8]], "halves": [[2.3, 0.9, 0.8]], "yaws": [0.4],
+                                "meshes": [body_mesh_id("suv")]})  # fmt: skip
+    sun = np.array([0.5, -0.3, 0.6])
+    cache = ShadowCache(margin=20.0)
+    for center in [(0.0, 0.0), (3.3, -7.9), (19.0, 4.0), (45.0, -30.0), (44.1, -29.05)]:  # within, then past the margin
+        sm = cache.window(static, "town", moving, sun, center, half=40.0, resolution=0.25)
+        assert abs(sm.origin[0] - (center[0] - 40.0)) <= 0.125 + 1e-9 and abs(sm.origin[1] - (center[1] - 40.0)) <= 0.125 + 1e-9
+        fresh = _fill(np.zeros_like(sm.grid), Primitives.concat(static, moving), sun, *sm.origin, 0.25)
+        assert sm.grid.any()
+        np.testing.assert_array_equal(sm.grid, fresh)
