@@ -172,8 +172,10 @@ class ShadowCache:
     >>> static = {"centers": [[0.0, 0.0, 5.0]], "halves": [[0.5, 0.5, 5.0]], "yaws": [0.0]}
     >>> cache, sun = ShadowCache(), np.array([1.0, 0.0, 1.0]) / np.sqrt(2.0)
     >>> sm = cache.window(static, "town", Primitives.empty(), sun, (3.0, 0.0), half=20.0, resolution=0.5)
-    >>> int(sm.grid.sum()), sm.origin                          # the pole's 10 m shadow, 2 cells wide
-    (42, (-17.0, -20.0))
+    >>> int(sm.grid.sum()), sm.origin                          # the pole's 10 m shadow and footprint, 2 cells wide
+    (44, (-17.0, -20.0))
+    >>> cache.window(static, "town", Primitives.empty(), sun, (3.2, 0.1), half=20.0, resolution=0.5).origin
+    (-17.0, -20.0)
     """
 
     def __init__(self, margin: float = 40.0) -> None:
