@@ -144,15 +144,21 @@ def shadow_map(prims: Primitives | Mapping[str, Any], sun_dir: np.ndarray, cente
                half: float = HALF, resolution: float = RESOLUTION) -> ShadowMap:  # fmt: skip
     """The ground cells that ``prims`` shade from a sun in direction ``sun_dir`` (pointing at the sun, above the
     horizon), in a square ``half`` metres around ``center``, cells ``resolution`` metres wide."""
+    sun = _checked(sun_dir, half, resolution)
+    prims = Primitives.coerce(prims)
+    n = int(np.ceil(2 * half / resolution))
+    ox, oy = float(center[0]) - half, float(center[1]) - half
+    return ShadowMap(_fill(np.zeros((n, n), np.uint8), prims, sun, ox, oy, resolution), (ox, oy), float(resolution))
+
+
+def _checked(sun_dir: np.ndarray, half: float, resolution: float) -> np.ndarray:
+    """The sun direction as float64, after refusing a sun at or below the horizon and a non-positive size."""
     sun = np.asarray(sun_dir, np.float64)
     if sun.shape != (3,) or not np.isfinite(sun).all() or sun[2] <= 1e-6:
         raise ValueError(f"sun_dir must be a finite direction above the horizon, got {sun.tolist()}")
     if not (half > 0 and resolution > 0):
         raise ValueError(f"half and resolution must be > 0, got {half!r}, {resolution!r}")
-    prims = Primitives.coerce(prims)
-    n = int(np.ceil(2 * half / resolution))
-    ox, oy = float(center[0]) - half, float(center[1]) - half
-    return ShadowMap(_fill(np.zeros((n, n), np.uint8), prims, sun, ox, oy, resolution), (ox, oy), float(resolution))
+    return sun
 
 
 def _fill(grid: np.ndarray, prims: Primitives, sun: np.ndarray, ox: float, oy: float, resolution: float) -> np.ndarray:
@@ -188,11 +194,7 @@ class ShadowCache:
                resolution: float = RESOLUTION) -> ShadowMap:  # fmt: skip
         """The shadows of ``static`` (identified by ``key``: the same key, the same casters) and ``moving`` in a
         square about ``half`` metres around ``center`` (its corner on the ``resolution`` grid)."""
-        sun = np.asarray(sun_dir, np.float64)
-        if sun.shape != (3,) or not np.isfinite(sun).all() or sun[2] <= 1e-6:
-            raise ValueError(f"sun_dir must be a finite direction above the horizon, got {sun.tolist()}")
-        if not (half > 0 and resolution > 0):
-            raise ValueError(f"half and resolution must be > 0, got {half!r}, {resolution!r}")
+        sun = _checked(sun_dir, half, resolution)
         n = int(np.ceil(2 * half / resolution))
         full = (key, tuple(sun.tolist()), float(half), float(resolution))
         c0 = r0 = -1
