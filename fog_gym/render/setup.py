@@ -13,6 +13,7 @@ import numpy as np
 from numba import njit
 
 import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
+from fog_gym.geometry import BOX_CORNER_SIGNS as _CORNER_SIGNS
 
 # Box faces: corner indices (geometry.BOX_CORNER_SIGNS order) and local outward normals.
 _FACE_CORNERS = np.array(
@@ -21,14 +22,21 @@ _FACE_CORNERS = np.array(
 _FACE_NORMALS = np.array(
     [[1, 0, 0], [-1, 0, 0], [0, 1, 0], [0, -1, 0], [0, 0, 1], [0, 0, -1]], dtype=np.float64
 )
-_CORNER_SIGNS = np.array(
-    [[1, 1, -1], [1, -1, -1], [-1, -1, -1], [-1, 1, -1], [1, 1, 1], [1, -1, 1], [-1, -1, 1], [-1, 1, 1]],
-    dtype=np.float64,
-)
 MAX_VERTS = 8
 NEAR = 0.05
 #: A mesh whose bounding sphere spans fewer pixels than this is drawn as its box (far trees on a 64×64 camera).
 LOD_PIXELS = 3.0
+
+
+@njit(cache=True)
+def _pixel_span(umin, umax, vmin, vmax, width, height):
+    """The rows and columns (y0, y1, x0, x1, inclusive) whose pixel centres lie within the screen bounds, and whether
+    any of them is in the image."""
+    y0 = int(np.ceil(vmin - 0.5))
+    y1 = int(np.floor(vmax - 0.5))
+    x0 = int(np.ceil(umin - 0.5))
+    x1 = int(np.floor(umax - 0.5))
+    return y0, y1, x0, x1, not (y1 < 0 or x1 < 0 or y0 > height - 1 or x0 > width - 1 or y1 < y0 or x1 < x0)
 
 
 @njit(cache=True)
@@ -90,11 +98,8 @@ def _emit(c, n_out, poly, k, ncx, ncy, ncz, d0, nwx, nwy, nwz, r, g, b, emis, ta
             verts[c, n_out, q, 1] = verts[c, n_out, q2, 1]
             verts[c, n_out, q2, 0] = tu
             verts[c, n_out, q2, 1] = tv
-    y0 = int(np.ceil(vmin - 0.5))
-    y1 = int(np.floor(vmax - 0.5))
-    x0 = int(np.ceil(umin - 0.5))
-    x1 = int(np.floor(umax - 0.5))
-    if y1 < 0 or x1 < 0 or y0 > height - 1 or x0 > width - 1 or y1 < y0 or x1 < x0:
+    y0, y1, x0, x1, inside = _pixel_span(umin, umax, vmin, vmax, width, height)
+    if not inside:
         return 0
     bounds[c, n_out, 0] = max(y0, 0)
     bounds[c, n_out, 1] = min(y1, height - 1)
@@ -139,11 +144,7 @@ def _covers_pixel(poly, k, fx, fy, cx, cy, width, height):
         umax = max(umax, u)
         vmin = min(vmin, v)
         vmax = max(vmax, v)
-    y0 = int(np.ceil(vmin - 0.5))
-    y1 = int(np.floor(vmax - 0.5))
-    x0 = int(np.ceil(umin - 0.5))
-    x1 = int(np.floor(umax - 0.5))
-    return not (y1 < 0 or x1 < 0 or y0 > height - 1 or x0 > width - 1 or y1 < y0 or x1 < x0)
+    return _pixel_span(umin, umax, vmin, vmax, width, height)[4]
 
 
 @njit(cache=True)

@@ -25,13 +25,12 @@ import numpy as np
 from numba import njit
 
 import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
+from fog_gym.geometry import BOX_CORNER_SIGNS as _SIGNS
 from fog_gym.world.meshlib import LIBRARY
 from fog_gym.world.primitives import Primitives
 
 #: Shadow-map cell [m] and half-width of the window around the ego [m].
 RESOLUTION, HALF = 0.2, 80.0
-_SIGNS = np.array([[1, 1, -1], [1, -1, -1], [-1, -1, -1], [-1, 1, -1], [1, 1, 1], [1, -1, 1], [-1, -1, 1], [-1, 1, 1]],
-                  np.float64)  # fmt: skip
 
 
 class ShadowMap(NamedTuple):
