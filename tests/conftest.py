@@ -38,7 +38,10 @@ def _restore_sensor_and_fog_registries():
 
 
 def pytest_sessionstart(session):
-    """Compile every env path's kernels ahead, in parallel processes, before the first test (a no-op when cached)."""
+    """Compile every env path's kernels ahead, in parallel processes, before the first test (a no-op when cached).
+    Under pytest-xdist the controller does it before its workers start; the workers then load the cache."""
+    if hasattr(session.config, "workerinput"):
+        return
     from fog_gym.envs.warmup import PATHS, ensure_compiled
 
     ensure_compiled(*PATHS)

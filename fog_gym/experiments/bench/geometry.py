@@ -1,13 +1,15 @@
 """What the world of meshes costs against the box world, measured in one run (``python -m
 fog_gym.experiments.bench.geometry``; part of ``fog-gym bench``).
 
-The same seeds run with ``geometry="boxes"`` (vehicles as a body and a cabin box, props as boxes: the renderer of the
-previous release, which still draws box scenes bit for bit) and ``geometry="meshes"`` (procedural bodies, shaped
-scenery, sun shadows):
+Boxes and meshes are timed in turn on envs built once each (a step, a sensor sweep or a chunk of RL steps of one,
+then of the other), so drift on a shared machine falls on both alike. The same seeds run with ``geometry="boxes"``
+(vehicles as a body and a cabin box, props as boxes: the renderer of the previous release, which still draws box
+scenes bit for bit) and ``geometry="meshes"`` (procedural bodies, shaped scenery, sun shadows):
 
 * the full FogDrive rig's ``env.step`` by day and by night (paired fog: clean + light, moderate, dense);
 * the point sensors alone (LiDAR, semantic LiDAR, radar) on the day scene;
-* the pixel RL vector env (``FogDriveRL-v0``, 8 worlds, random actions) in steps per second;
+* the pixel RL vector env (``FogDriveRL-v0``, 8 worlds, random actions) in steps per second (the median of four
+  chunks of 15 vector steps);
 * the memory an env allocates building and stepping its first frame (traced, peak).
 
 Targets (issue "a world of shapes"): day ≤ 1.3×, night ≤ 1.5×, point sensors ≤ 2×, RL steps/s ≥ 0.75×, memory ≤ 1.5×.
@@ -39,56 +41,86 @@ def _env(geometry: str, night: bool) -> Any:
                     fog=["light", "moderate", "dense"])  # fmt: skip
 
 
-def bench_steps(geometry: str, night: bool, repeats: int, seed: int = 5) -> dict[str, Any]:
-    env = _env(geometry, night)
-    env.reset(seed=seed)
-    for _ in range(2):
-        env.step(1)
-    samples = []
-    for _ in range(repeats):
+def _interleaved(make: Any, timed: Any, rounds: int) -> dict[str, list[float]]:
+    """Build one subject per geometry with ``make(g)``, then ``rounds`` times time ``timed(subject)`` for boxes and
+    meshes in turn, so drift on a shared machine falls on both alike; the samples per geometry."""
+    subjects = {g: make(g) for g in GEOMETRIES}
+    samples: dict[str, list[float]] = {g: [] for g in GEOMETRIES}
+    for _ in range(rounds):
+        for g in GEOMETRIES:
+            samples[g].append(timed(subjects[g]))
+    for env in subjects.values():
+        env.close()
+    return samples
+
+
+def bench_steps(night: bool, repeats: int, seed: int = 5) -> dict[str, dict[str, Any]]:
+    """The full rig's ``env.step`` (paired fog) for both geometries, a step of each in turn."""
+
+    def make(g: str) -> Any:
+        env = _env(g, night)
+        env.reset(seed=seed)
+        for _ in range(2):
+            env.step(1)
+        return env
+
+    def timed(env: Any) -> float:
         t0 = time.perf_counter()
         _, _, term, trunc, _ = env.step(1)
-        samples.append((time.perf_counter() - t0) * 1e3)
+        ms = (time.perf_counter() - t0) * 1e3
         if term or trunc:
             env.reset(seed=seed)
-    env.close()
-    return summarize(samples)
+        return ms
+
+    return {g: summarize(v) for g, v in _interleaved(make, timed, repeats).items()}
 
 
-def bench_point_sensors(geometry: str, repeats: int, seed: int = 5) -> dict[str, Any]:
-    env = _env(geometry, False)
-    env.reset(seed=seed)
-    base = env.unwrapped
-    prims = base.cameras.primitives(base.scene, in_view=False)
+def bench_point_sensors(repeats: int, seed: int = 5) -> dict[str, dict[str, Any]]:
+    """LiDAR, semantic LiDAR and radar on the day scene, for both geometries in turn."""
     rng = np.random.default_rng(0)
-    base.point_sensors.measure(base.scene, prims, rng, 0)
-    samples = []
-    for k in range(repeats):
+
+    def make(g: str) -> Any:
+        env = _env(g, False)
+        env.reset(seed=seed)
+        base = env.unwrapped
+        env.prims = base.cameras.primitives(base.scene, in_view=False)  # type: ignore[attr-defined]
+        base.point_sensors.measure(base.scene, env.prims, rng, 0)  # type: ignore[attr-defined]
+        return env
+
+    def timed(env: Any) -> float:
+        base = env.unwrapped
         t0 = time.perf_counter()
-        base.point_sensors.measure(base.scene, prims, rng, k)
-        samples.append((time.perf_counter() - t0) * 1e3)
-    env.close()
-    return summarize(samples)
+        base.point_sensors.measure(base.scene, env.prims, rng, 1)
+        return (time.perf_counter() - t0) * 1e3
+
+    return {g: summarize(v) for g, v in _interleaved(make, timed, repeats).items()}
 
 
-def bench_rl_vector(geometry: str, steps: int, num_envs: int = 8) -> dict[str, Any]:
-    import gymnasium as gym
-
-    import fog_gym  # noqa: F401
+def bench_rl_vector(steps: int, num_envs: int = 8, rounds: int = 4) -> dict[str, dict[str, Any]]:
+    """The pixel RL vector env (random actions, dense fog) in steps per second: ``rounds`` chunks of ``steps``
+    vector steps per geometry in turn; the median chunk."""
     from fog_gym.envs.vector import FogDriveVectorEnv
 
-    envs = FogDriveVectorEnv("FogDriveRL-v0", num_envs, fog="dense", geometry=geometry)
-    envs.reset(seed=0)
     rng = np.random.default_rng(0)
-    for _ in range(3):
-        envs.step(rng.integers(0, 5, num_envs))
-    t0 = time.perf_counter()
-    for _ in range(steps):
-        envs.step(rng.integers(0, 5, num_envs))
-    seconds = time.perf_counter() - t0
-    envs.close()
-    assert gym is not None
-    return {"steps_per_s": steps * num_envs / seconds, "num_envs": num_envs, "steps": steps}
+
+    def make(g: str) -> Any:
+        envs = FogDriveVectorEnv("FogDriveRL-v0", num_envs, fog="dense", geometry=g)
+        envs.reset(seed=0)
+        for _ in range(3):
+            envs.step(rng.integers(0, 5, num_envs))
+        return envs
+
+    def timed(envs: Any) -> float:
+        t0 = time.perf_counter()
+        for _ in range(steps):
+            envs.step(rng.integers(0, 5, num_envs))
+        return steps * num_envs / (time.perf_counter() - t0)
+
+    out = {}
+    for g, rates in _interleaved(make, timed, rounds).items():
+        out[g] = {"steps_per_s": float(np.median(rates)), "chunks": [round(r, 1) for r in rates],
+                  "num_envs": num_envs, "steps": steps}  # fmt: skip
+    return out
 
 
 def bench_memory(geometry: str, seed: int = 5) -> dict[str, Any]:
@@ -102,21 +134,18 @@ def bench_memory(geometry: str, seed: int = 5) -> dict[str, Any]:
     return {"peak_mb": peak / 2**20}
 
 
-def bench_geometry(repeats: int, rl_steps: int = 60) -> dict[str, Any]:
+def bench_geometry(repeats: int, rl_steps: int = 15) -> dict[str, Any]:
     out: dict[str, dict[str, Any]] = {g: {} for g in GEOMETRIES}
-    jobs = [(g, name) for name in ("day step", "night step", "point sensors", "RL vector steps/s", "memory")
-            for g in GEOMETRIES]  # fmt: skip
-    for g, name in tqdm(jobs, desc="geometry bench", unit="measure"):
-        if name == "day step":
-            out[g][name] = bench_steps(g, False, repeats)
-        elif name == "night step":
-            out[g][name] = bench_steps(g, True, max(3, repeats // 4))
-        elif name == "point sensors":
-            out[g][name] = bench_point_sensors(g, repeats)
-        elif name == "RL vector steps/s":
-            out[g][name] = bench_rl_vector(g, rl_steps)
-        else:
-            out[g][name] = bench_memory(g)
+    jobs = {
+        "day step": lambda: bench_steps(False, repeats),
+        "night step": lambda: bench_steps(True, max(3, repeats // 4)),
+        "point sensors": lambda: bench_point_sensors(repeats),
+        "RL vector steps/s": lambda: bench_rl_vector(rl_steps),
+        "memory": lambda: {g: bench_memory(g) for g in GEOMETRIES},
+    }
+    for name, job in tqdm(jobs.items(), desc="geometry bench (boxes and meshes in turn)", unit="measure"):
+        for g, stat in job().items():
+            out[g][name] = stat
     return out
 
 
@@ -146,7 +175,7 @@ def main(argv: list[str] | None = None) -> int:
     repeats = repeats_of(a)
     meta = run_meta(repeats=repeats, quick=a.quick)
     t0 = time.perf_counter()
-    res = bench_geometry(repeats, 10 if a.quick else 60)
+    res = bench_geometry(repeats, 5 if a.quick else 15)
     finish_meta(meta, t0)
     print(meta_line(meta))
     print("\n".join(render_geometry(res)))

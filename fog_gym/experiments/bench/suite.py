@@ -73,7 +73,7 @@ def main(argv: list[str] | None = None, prog: str = "fog-gym bench") -> int:
     recording = bench_dataset.bench_recording(repeats)
     rl = bench_env.bench_rl(repeats)
     baseline = bench_env.bench_baselines(args.town, repeats, profile_steps)
-    geometry = bench_geometry.bench_geometry(repeats, 10 if args.quick else 60)
+    geometry = bench_geometry.bench_geometry(repeats, 5 if args.quick else 15)
     finish_meta(meta, t0)
     results = {"meta": meta, "rigs": rigs, "point_sensors": point_sensors, "fog": fog, "labels": labels,
                "recording": recording, "rl": rl, "baseline": baseline, "night": night, "geometry": geometry}  # fmt: skip
