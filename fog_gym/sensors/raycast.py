@@ -28,7 +28,7 @@ from numba import njit, prange
 import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
 from fog_gym._numba import pick, readonly, serial_twin
 from fog_gym.world.mesh import MATERIAL_IDS
-from fog_gym.world.meshlib import LIBRARY
+from fog_gym.world.meshlib import LIBRARY, OCTANTS
 from fog_gym.world.primitives import Primitives
 
 
@@ -243,8 +243,9 @@ def _mesh_hit(ox, oy, oz, dx, dy, dz, sx, sy, sz, m, tri_geom, node_start, node_
     iz = 1.0 / ndz if abs(ndz) > 1e-300 else 1e300
     hit = -1
     cos_hit = 0.0
-    k = node_start[m]
-    end = node_start[m + 1]
+    octant = (1 if ndx < 0.0 else 0) + (2 if ndy < 0.0 else 0) + (4 if ndz < 0.0 else 0)  # the near-first order
+    k = node_start[OCTANTS * m + octant]
+    end = node_start[OCTANTS * m + octant + 1]
     while k < end:
         if _box_entry(nox, noy, noz, ix, iy, iz, node_lo, node_hi, k, t_lo, best) == np.inf:
             k = node_skip[k]

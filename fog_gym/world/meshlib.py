@@ -9,7 +9,9 @@ change; the arrays grow when one is added.
 For the ray caster, each mesh carries a bounding-volume hierarchy: its triangles split at the median centroid along
 the longest axis, recursively, down to leaves of at most :data:`LEAF` triangles, each node with its bounds. The
 nodes are stored depth first with a *skip* index (the node after the subtree), so a ray walks it without a stack:
-into a node whose bounds it meets before its nearest hit so far, past the subtree otherwise.
+into a node whose bounds it meets before its nearest hit so far, past the subtree otherwise. The nodes are stored in
+:data:`OCTANTS` orders, one per octant of ray directions with each node's nearer child first, so a ray finds near
+triangles first and skips the far subtrees.
 
 Example:
     >>> LIBRARY.id("box"), LIBRARY.arrays().triangles[:12].shape
@@ -29,13 +31,15 @@ from fog_gym.world.mesh import Mesh, box_mesh
 
 #: Triangles per leaf of a mesh's bounding-volume hierarchy at most.
 LEAF = 4
+#: Node orders per mesh: one per octant of ray directions (near child first).
+OCTANTS = 8
 
 
 class LibraryArrays(NamedTuple):
     """The library as flat arrays: normalised ``vertices`` (V, 3), ``triangles`` (T, 3) into them, ``materials``
     (T,), ``tri_start`` (M + 1,) each mesh's first triangle, ``vert_start`` (M + 1,) its first vertex,
-    ``node_start`` (M + 1,) each mesh's first node (its
-    root; its nodes run depth first to the next mesh's); per node ``node_lo`` / ``node_hi`` (N, 3) its bounds,
+    ``node_start`` (8 M + 1,) the first node of mesh ``m``'s order for ray octant ``o`` at ``8 m + o`` (its
+    root; its nodes run depth first to the next entry's); per node ``node_lo`` / ``node_hi`` (N, 3) its bounds,
     ``node_skip`` (N,) the node after its subtree and ``node_first`` / ``node_count`` (N,) a leaf's triangles
     (count 0: an inner node, whose first child is the next node; the triangles are stored leaf by leaf);
     ``tri_geom`` (T, 12) per triangle its first vertex, two edges and (unnormalised) normal, for the ray caster."""
@@ -61,40 +65,62 @@ def normalised(mesh: Mesh) -> Mesh:
     return Mesh((mesh.vertices - (lo + hi) / 2) / extent, mesh.triangles, mesh.materials)
 
 
-def _bvh(mesh: Mesh) -> tuple[Mesh, list[tuple]]:
+def _bvh(mesh: Mesh) -> tuple[Mesh, list[list[tuple]]]:
     """The mesh with its triangles reordered leaf by leaf, and its hierarchy's nodes depth first (root first) as
-    (lo, hi, skip, first, count) with the skip index relative to the root."""
+    (lo, hi, skip, first, count) with the skip index relative to the root, in eight orders: for the ray direction
+    octant ``o`` (bit 0: x < 0, bit 1: y < 0, bit 2: z < 0), each inner node's child nearer along its split axis
+    comes first, so a ray meets near triangles first and prunes the far subtrees with its nearest hit."""
     v, t = mesh.vertices, mesh.triangles
     tri_v = v[t]
     centroid = tri_v.mean(axis=1)
     order: list[int] = []
-    nodes: list[list] = []
+    tree: list[list] = []  # lo, hi, split axis, lower child, upper child, first, count
 
-    def build(idx: np.ndarray) -> None:
-        k = len(nodes)
-        nodes.append([tri_v[idx].reshape(-1, 3).min(axis=0), tri_v[idx].reshape(-1, 3).max(axis=0), 0, 0, 0])
+    def build(idx: np.ndarray) -> int:
+        k = len(tree)
+        tree.append([tri_v[idx].reshape(-1, 3).min(axis=0), tri_v[idx].reshape(-1, 3).max(axis=0), -1, -1, -1, 0, 0])
         if len(idx) <= LEAF:
-            nodes[k][3], nodes[k][4] = len(order), len(idx)
+            tree[k][5], tree[k][6] = len(order), len(idx)
             order.extend(idx.tolist())
         else:
             c = centroid[idx]
             axis = int(np.argmax(c.max(axis=0) - c.min(axis=0)))
             idx = idx[np.argsort(c[:, axis], kind="stable")]
             half = len(idx) // 2
-            build(idx[:half])
-            build(idx[half:])
-        nodes[k][2] = len(nodes)  # skip: the node after this subtree
+            tree[k][2] = axis
+            tree[k][3] = build(idx[:half])
+            tree[k][4] = build(idx[half:])
+        return k
 
     build(np.arange(len(t)))
+
+    def layout(octant: int) -> list[tuple]:
+        nodes: list[list] = []
+
+        def emit(k: int) -> None:
+            lo, hi, axis, lower, upper, first, count = tree[k]
+            j = len(nodes)
+            nodes.append([lo, hi, 0, first, count])
+            if axis >= 0:
+                near, far = (upper, lower) if octant >> axis & 1 else (lower, upper)
+                emit(near)
+                emit(far)
+            nodes[j][2] = len(nodes)  # skip: the node after this subtree
+
+        emit(0)
+        return [tuple(n) for n in nodes]
+
     order_a = np.array(order)
-    return Mesh(v, t[order_a], mesh.materials[order_a]), [tuple(n) for n in nodes]
+    return Mesh(v, t[order_a], mesh.materials[order_a]), [layout(o) for o in range(OCTANTS)]
+
+
 class MeshLibrary:
     """Meshes by name and id (see the module docstring); thread-safe additions."""
 
     def __init__(self) -> None:
         self._names: dict[str, int] = {}
         self._meshes: list[Mesh] = []
-        self._nodes: list[list[tuple]] = []
+        self._nodes: list[list[list[tuple]]] = []  # per mesh, per octant
         self._arrays: LibraryArrays | None = None
         self._lock = threading.Lock()
 
@@ -141,10 +167,11 @@ class MeshLibrary:
             mats.append(m.materials)
             v0 += len(m.vertices)
             vert_start.append(v0)
-            base = len(nodes)
-            for lo, hi, skip, first, count in mesh_nodes:
-                nodes.append((lo, hi, skip + base, first + tri_start[-1], count))
-            node_start.append(len(nodes))
+            for octant_nodes in mesh_nodes:
+                base = len(nodes)
+                for lo, hi, skip, first, count in octant_nodes:
+                    nodes.append((lo, hi, skip + base, first + tri_start[-1], count))
+                node_start.append(len(nodes))
             tri_start.append(tri_start[-1] + len(m.triangles))
         v, t = np.concatenate(verts), np.concatenate(tris)
         e1, e2 = v[t[:, 1]] - v[t[:, 0]], v[t[:, 2]] - v[t[:, 0]]
