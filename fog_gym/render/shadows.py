@@ -1,6 +1,6 @@
 """Sun shadows on the ground: every primitive's silhouette cast along the sun onto the road, as a grid around the ego.
 
-Each primitive's points (a box's eight corners; a mesh's placed vertices) move along the sun's rays down to z = 0,
+Each primitive's points (a box's eight corners; a mesh's placed outline: its vertices on its convex hull) move along the sun's rays down to z = 0,
 ``p − (p_z / s_z) · s`` for the sun direction ``s``; the convex hull of those footprints is the primitive's shadow
 (exact for a box; for a vehicle body, a tree's trunk or crown, a building's part, their convex outline), filled into a
 :class:`ShadowMap` of :data:`RESOLUTION` metres around the ego. The rasteriser shades a ground pixel in shadow with the
@@ -47,11 +47,17 @@ class ShadowMap(NamedTuple):
 
 
 @njit(cache=True)
-def _hull_fill(pts, n, grid, ox, oy, inv):
-    """Fill the convex hull of the first ``n`` points (x, y) into ``grid`` (cells whose centre lies inside)."""
-    # monotone chain
-    order = np.argsort(pts[:n, 0] + 1e-9 * pts[:n, 1])
-    hull = np.empty((2 * n + 1, 2))
+def _hull_fill(pts, n, grid, ox, oy, inv, order, hull):
+    """Fill the convex hull of the first ``n`` points (x, y) into ``grid`` (cells whose centre lies inside);
+    ``order`` (≥ n) and ``hull`` (≥ 2 n + 1, 2) are scratch space."""
+    # monotone chain, over the points sorted by x + 1e-9 y (insertion sort: a few dozen points, no allocation)
+    for q in range(n):
+        key = pts[q, 0] + 1e-9 * pts[q, 1]
+        j = q
+        while j > 0 and pts[order[j - 1], 0] + 1e-9 * pts[order[j - 1], 1] > key:
+            order[j] = order[j - 1]
+            j -= 1
+        order[j] = q
     m = 0
     for rep in range(2):
         start = m
@@ -97,9 +103,10 @@ def _hull_fill(pts, n, grid, ox, oy, inv):
 
 
 @njit(cache=True)
-def _shadow_map(grid, centers, halves, yaws, meshes, lib_v, vert_start, sun, ox, oy, inv, reach):
+def _shadow_map(grid, centers, halves, yaws, meshes, outline, outline_start, sun, ox, oy, inv, reach):
     """Fill every caster's shadow into ``grid`` (cell (0, 0)'s corner at ``ox``, ``oy``; ``1 / inv`` m cells) and
-    return it; casters whose shadow cannot reach within ``reach`` of the grid's centre are skipped."""
+    return it; casters whose shadow cannot reach within ``reach`` of the grid's centre are skipped. A mesh casts
+    from its outline vertices (:class:`~fog_gym.world.meshlib.LibraryArrays`' ``outline``)."""
     rows, cols = grid.shape
     kx = sun[0] / sun[2]
     ky = sun[1] / sun[2]
@@ -108,8 +115,10 @@ def _shadow_map(grid, centers, halves, yaws, meshes, lib_v, vert_start, sun, ox,
     max_v = 8
     for p in range(centers.shape[0]):
         if meshes[p] != 0:
-            max_v = max(max_v, vert_start[meshes[p] + 1] - vert_start[meshes[p]])
+            max_v = max(max_v, outline_start[meshes[p] + 1] - outline_start[meshes[p]])
     pts = np.empty((max_v, 2))
+    order = np.empty(max_v, np.int64)
+    hull = np.empty((2 * max_v + 1, 2))
     for p in range(centers.shape[0]):
         # skip casters whose shadow cannot reach the window (its half-diagonal plus the top's displacement)
         top = centers[p, 2] + halves[p, 2]
@@ -128,14 +137,14 @@ def _shadow_map(grid, centers, halves, yaws, meshes, lib_v, vert_start, sun, ox,
                 pts[n, 1] = centers[p, 1] + lx * s + ly * c - z * ky
                 n += 1
         else:
-            for v in range(vert_start[meshes[p]], vert_start[meshes[p] + 1]):
-                lx = lib_v[v, 0] * 2.0 * halves[p, 0]
-                ly = lib_v[v, 1] * 2.0 * halves[p, 1]
-                z = centers[p, 2] + lib_v[v, 2] * 2.0 * halves[p, 2]
+            for v in range(outline_start[meshes[p]], outline_start[meshes[p] + 1]):
+                lx = outline[v, 0] * 2.0 * halves[p, 0]
+                ly = outline[v, 1] * 2.0 * halves[p, 1]
+                z = centers[p, 2] + outline[v, 2] * 2.0 * halves[p, 2]
                 pts[n, 0] = centers[p, 0] + lx * c - ly * s - z * kx
                 pts[n, 1] = centers[p, 1] + lx * s + ly * c - z * ky
                 n += 1
-        _hull_fill(pts, n, grid, ox, oy, inv)
+        _hull_fill(pts, n, grid, ox, oy, inv, order, hull)
     return grid
 
 
@@ -163,7 +172,7 @@ def _checked(sun_dir: np.ndarray, half: float, resolution: float) -> np.ndarray:
 def _fill(grid: np.ndarray, prims: Primitives, sun: np.ndarray, ox: float, oy: float, resolution: float) -> np.ndarray:
     lib = LIBRARY.arrays()
     reach = 0.5 * max(grid.shape) * resolution
-    return _shadow_map(grid, prims.centers, prims.halves, prims.yaws, prims.meshes, lib.vertices, lib.vert_start,
+    return _shadow_map(grid, prims.centers, prims.halves, prims.yaws, prims.meshes, lib.outline, lib.outline_start,
                        sun / np.linalg.norm(sun), float(ox), float(oy), 1.0 / resolution, float(reach))  # fmt: skip
 
 

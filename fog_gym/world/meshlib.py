@@ -27,7 +27,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from fog_gym.world.mesh import Mesh, box_mesh
+from fog_gym.world.mesh import Mesh, box_mesh, icosphere
 
 #: Triangles per leaf of a mesh's bounding-volume hierarchy at most.
 LEAF = 4
@@ -42,7 +42,9 @@ class LibraryArrays(NamedTuple):
     root; its nodes run depth first to the next entry's); per node ``node_lo`` / ``node_hi`` (N, 3) its bounds,
     ``node_skip`` (N,) the node after its subtree and ``node_first`` / ``node_count`` (N,) a leaf's triangles
     (count 0: an inner node, whose first child is the next node; the triangles are stored leaf by leaf);
-    ``tri_geom`` (T, 12) per triangle its first vertex, two edges and (unnormalised) normal, for the ray caster."""
+    ``tri_geom`` (T, 12) per triangle its first vertex, two edges and (unnormalised) normal, for the ray caster;
+    ``outline`` (O, 3) each mesh's vertices on its convex hull (those farthest along one of 642 directions spread over
+    the sphere), from ``outline_start`` (M + 1,), whose hull is the mesh's up to slivers far below a shadow cell."""
 
     vertices: np.ndarray
     triangles: np.ndarray
@@ -56,6 +58,8 @@ class LibraryArrays(NamedTuple):
     node_first: np.ndarray
     node_count: np.ndarray
     tri_geom: np.ndarray
+    outline: np.ndarray
+    outline_start: np.ndarray
 
 
 def normalised(mesh: Mesh) -> Mesh:
@@ -173,6 +177,8 @@ class MeshLibrary:
                     nodes.append((lo, hi, skip + base, first + tri_start[-1], count))
                 node_start.append(len(nodes))
             tri_start.append(tri_start[-1] + len(m.triangles))
+        directions = icosphere(3).vertices.T
+        outlines = [m.vertices[np.unique(np.argmax(m.vertices @ directions, axis=0))] for m in self._meshes]
         v, t = np.concatenate(verts), np.concatenate(tris)
         e1, e2 = v[t[:, 1]] - v[t[:, 0]], v[t[:, 2]] - v[t[:, 0]]
         tri_geom = np.ascontiguousarray(np.concatenate([v[t[:, 0]], e1, e2, np.cross(e1, e2)], axis=1))
@@ -182,7 +188,8 @@ class MeshLibrary:
             np.array(node_start, np.int64),
             np.ascontiguousarray(np.array([n[0] for n in nodes])), np.ascontiguousarray(np.array([n[1] for n in nodes])),
             np.array([n[2] for n in nodes], np.int64), np.array([n[3] for n in nodes], np.int64),
-            np.array([n[4] for n in nodes], np.int64), tri_geom,
+            np.array([n[4] for n in nodes], np.int64), tri_geom, np.ascontiguousarray(np.concatenate(outlines)),
+            np.cumsum([0] + [len(o) for o in outlines]).astype(np.int64),
         )  # fmt: skip
 
 
