@@ -15,3 +15,15 @@ def test_the_table_gives_each_ratio_and_judges_it_against_its_target():
     assert "1.60×" in rows["night step"] and "✗" in rows["night step"]  # above 1.5×
     assert "0.70×" in rows["RL vector steps/s"] and "✗" in rows["RL vector steps/s"]  # a rate below 0.75×
     assert "1.20×" in rows["memory"] and "✓" in rows["memory"]
+
+
+def test_the_previous_release_option_refuses_a_folder_that_is_no_checkout_before_any_work(tmp_path, capsys):
+    import pytest
+
+    from fog_gym.experiments.bench.geometry import bench_previous, main
+
+    with pytest.raises(SystemExit) as e:
+        main(["--quick", "--previous", str(tmp_path)])
+    assert e.value.code == 2 and "--previous must be a checkout of fog-gym" in capsys.readouterr().err
+    with pytest.raises(ValueError, match="checkout of fog-gym"):
+        bench_previous(str(tmp_path), repeats=1, steps=1)

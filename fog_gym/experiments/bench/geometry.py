@@ -20,6 +20,7 @@ from __future__ import annotations
 import argparse
 import time
 import tracemalloc
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -149,6 +150,78 @@ def bench_geometry(repeats: int, rl_steps: int = 15) -> dict[str, Any]:
     return out
 
 
+#: What one subprocess of the previous-release comparison times (the API both releases share): the full rig's
+#: day step (paired fog) and the pixel RL vector env's steps per second.
+_TIMER = """
+import json, sys, time
+import numpy as np, gymnasium as gym, fog_gym
+from fog_gym.envs.vector import FogDriveVectorEnv
+kw, repeats, steps = json.loads(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3])
+env = gym.make("FogDrive-v0", fog=["light", "moderate", "dense"], **kw)
+env.reset(seed=5)
+for _ in range(2):
+    env.step(1)
+day = []
+for _ in range(repeats):
+    t0 = time.perf_counter()
+    env.step(1)
+    day.append((time.perf_counter() - t0) * 1e3)
+env.close()
+envs = FogDriveVectorEnv("FogDriveRL-v0", 8, fog="dense", **kw)
+envs.reset(seed=0)
+rng = np.random.default_rng(0)
+for _ in range(3):
+    envs.step(rng.integers(0, 5, 8))
+t0 = time.perf_counter()
+for _ in range(steps):
+    envs.step(rng.integers(0, 5, 8))
+rate = steps * 8 / (time.perf_counter() - t0)
+print("RESULT " + json.dumps({"day_ms": float(np.median(day)), "rl_steps_per_s": rate}))
+"""
+
+
+def _checkout(previous: str) -> str:
+    """``previous`` resolved, after refusing a folder that holds no fog-gym checkout."""
+    if not (Path(previous) / "fog_gym" / "__init__.py").is_file():
+        raise ValueError(f"--previous must be a checkout of fog-gym (a folder with fog_gym/), got {previous!r}")
+    return str(Path(previous).resolve())
+
+
+def bench_previous(previous: str, repeats: int, steps: int, rounds: int = 3) -> dict[str, Any]:
+    """The previous release's box world (a checkout at ``previous``) against this tree's meshes, each in its own
+    processes, ``rounds`` times in turn: the medians of the day step [ms] and the RL vector env's steps/s."""
+    import json
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    here = str(Path(__file__).resolve().parents[3])
+    prev = _checkout(previous)
+    sides = {"previous boxes": (prev, {}), "meshes": (here, {"geometry": "meshes"})}
+    runs: dict[str, list[dict]] = {k: [] for k in sides}
+    for _ in tqdm(range(rounds), desc="previous release against meshes", unit="round"):
+        for name, (tree, kw) in sides.items():
+            env = {**os.environ, "PYTHONPATH": tree}
+            out = subprocess.run([sys.executable, "-c", _TIMER, json.dumps(kw), str(repeats), str(steps)], cwd=tree,
+                                 env=env, capture_output=True, text=True, check=True).stdout  # fmt: skip
+            runs[name].append(json.loads(out.split("RESULT ", 1)[1]))
+    return {name: {"day_ms": float(np.median([r["day_ms"] for r in rs])),
+                   "rl_steps_per_s": float(np.median([r["rl_steps_per_s"] for r in rs])), "runs": rs}
+            for name, rs in runs.items()}  # fmt: skip
+
+
+def render_previous(res: dict[str, Any]) -> list[str]:
+    b, m = res["previous boxes"], res["meshes"]
+    day, rl = m["day_ms"] / b["day_ms"], m["rl_steps_per_s"] / b["rl_steps_per_s"]
+    rows = [["day step", f"{b['day_ms']:.1f} ms", f"{m['day_ms']:.1f} ms", f"{day:.2f}×",
+             f"≤ {TARGETS['day step']}× {'✓' if day <= TARGETS['day step'] else '✗'}"],
+            ["RL vector steps/s", f"{b['rl_steps_per_s']:.1f} steps/s", f"{m['rl_steps_per_s']:.1f} steps/s",
+             f"{rl:.2f}×", f"≥ {TARGETS['RL vector steps/s']}× {'✓' if rl >= TARGETS['RL vector steps/s'] else '✗'}"]]
+    return ["### Meshes against the previous release's box renderer (own processes, in turn)", "",
+            markdown_table(["measure", "previous release (boxes)", "meshes", "meshes / previous", "target"], rows)]
+
+
 def _value(stat: dict[str, Any]) -> float:
     return stat.get("median", stat.get("steps_per_s", stat.get("peak_mb", float("nan"))))
 
@@ -171,15 +244,25 @@ def main(argv: list[str] | None = None) -> int:
     p = argparse.ArgumentParser(prog="python -m fog_gym.experiments.bench.geometry", description=__doc__,
                                 formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
     add_common_arguments(p)
+    p.add_argument("--previous", metavar="DIR", help="also compare against the previous release's box renderer: a "
+                   "checkout of it (e.g. `git worktree add ../fog-gym-prev <tag>`), timed in its own processes")
     a = p.parse_args(argv)
+    if a.previous is not None:
+        try:
+            _checkout(a.previous)
+        except ValueError as e:
+            p.error(str(e))
     repeats = repeats_of(a)
     meta = run_meta(repeats=repeats, quick=a.quick)
     t0 = time.perf_counter()
     res = bench_geometry(repeats, 5 if a.quick else 15)
+    prev = None if a.previous is None else bench_previous(a.previous, repeats, 5 if a.quick else 15)
     finish_meta(meta, t0)
     print(meta_line(meta))
     print("\n".join(render_geometry(res)))
-    write_json(a.json, {"meta": meta, "geometry": res})
+    if prev is not None:
+        print("\n" + "\n".join(render_previous(prev)))
+    write_json(a.json, {"meta": meta, "geometry": res, "previous": prev})
     return 0
 
 
