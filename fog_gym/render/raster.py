@@ -30,7 +30,7 @@ from fog_gym._numba import pick, serial_twin
 from fog_gym.render.shading import (FACE_AXES, FACE_STEP, TONE_STEPS, encode_tone, face_sample, fix_irradiance, grid_axis,
                                     grid_bilinear, light_ground, night_ground_row, night_tone_table, tone_at)  # fmt: skip
 from fog_gym.render.surface import TiledSurface, surface_cell
-from fog_gym.render.setup import NEAR, setup_faces
+from fog_gym.render.setup import setup_faces
 from fog_gym.render.shadows import ShadowMap
 from fog_gym.world.mesh import MATERIAL_ALBEDO, MATERIAL_EMISSIVE, MATERIAL_PAINT, MATERIAL_TAG
 from fog_gym.world.meshlib import LIBRARY

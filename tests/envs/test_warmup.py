@@ -14,7 +14,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numba import typeof
 
-from fog_gym._numba import KernelEntry, compile_kernels, parse_signature
+from fog_gym._numba import KernelEntry, parse_signature
 from fog_gym.envs.kernel_table import TABLE
 from fog_gym.envs.warmup import PATHS, entries, path_of
 
