@@ -118,19 +118,29 @@ def rail_parts(rails):
     return parts, rep(np.arange(n))
 
 
+@functools.lru_cache(maxsize=None)
 def _panes_id(span: float, floors: int) -> int:
-    """The library id of one side's panes: a flat row of panes per floor across ``span`` metres (facing +y)."""
+    """The library id of one side's panes: a flat row of panes per floor across ``span`` metres (facing +y); made
+    once per (span on the 2 m grid, floors) and process."""
     span = max(2.0, 2.0 * round(span / 2.0))
+    name = f"prop:panes:{span:g}x{floors}"
+    try:
+        return LIBRARY.id(name)
+    except KeyError:
+        pass
     n = int((span - 1.0) // PANE_STEP)
-    quads = []
-    for f in range(floors):
-        z0 = f * FLOOR
-        for a in (np.arange(n) - (n - 1) / 2) * PANE_STEP:
-            c = np.array([[a - PANE_W / 2, 0, z0], [a - PANE_W / 2, 0, z0 + PANE_H], [a + PANE_W / 2, 0, z0 + PANE_H],
-                          [a + PANE_W / 2, 0, z0]])  # fmt: skip
-            q = _quad(c, WINDOW)
-            quads.append(q if q.normals()[0, 1] > 0 else _quad(c[::-1].copy(), WINDOW))
-    return LIBRARY.add(f"prop:panes:{span:g}x{floors}", Mesh.join(*quads))
+    a = np.tile((np.arange(n) - (n - 1) / 2) * PANE_STEP, floors)
+    z0 = np.repeat(np.arange(floors) * FLOOR, n)
+    # each pane: corners (a − w/2, z0), (a − w/2, z0 + h), (a + w/2, z0 + h), (a + w/2, z0) at y = 0, whose two
+    # triangles (0, 1, 2), (0, 2, 3) face +y
+    x = np.stack([a - PANE_W / 2, a - PANE_W / 2, a + PANE_W / 2, a + PANE_W / 2], axis=1)
+    z = np.stack([z0, z0 + PANE_H, z0 + PANE_H, z0], axis=1)
+    vertices = np.stack([x, np.zeros_like(x), z], axis=2).reshape(-1, 3)
+    base = 4 * np.arange(n * floors, dtype=np.int32)[:, None, None]
+    triangles = (base + np.array([[0, 1, 2], [0, 2, 3]], np.int32)).reshape(-1, 3)
+    mesh = Mesh(vertices, triangles, np.full(len(triangles), WINDOW, np.uint8))
+    assert (mesh.normals()[:, 1] > 0).all()
+    return LIBRARY.add(name, mesh)
 
 
 def building_parts(buildings):
