@@ -325,6 +325,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _generate(args: argparse.Namespace) -> int:
+    from fog_gym.dataset.lock import DatasetLocked, DatasetLockError
     from fog_gym.generate import generate, plan_scenes
 
     if args.workers < 1:
@@ -335,7 +336,7 @@ def _generate(args: argparse.Namespace) -> int:
         plan = plan_scenes(args.scenes, tuple(args.towns), args.seed, args.resolution, args.seconds,
                            "lidar" if args.lidar_only else "full")  # fmt: skip
         tables = generate(args.root, plan, args.workers, args.resume, args.ray)
-    except ValueError as e:
+    except (ValueError, DatasetLocked, DatasetLockError) as e:  # a second writer: one line naming root and holder
         raise _fail("generate", str(e)) from None
     except OSError as e:  # disk full, permission lost: one line, the set resumes with --resume
         raise _fail("generate", _write_failure(e)) from None
@@ -380,10 +381,11 @@ def _add_export_parser(sub) -> None:
 
 def _export(args: argparse.Namespace) -> int:
     from fog_gym.dataset.export import export
+    from fog_gym.dataset.lock import DatasetLocked, DatasetLockError
 
     try:
         r = export(args.root, args.out, args.format, args.fog, args.split, args.cameras, args.overwrite, args.resume)
-    except ValueError as e:
+    except (ValueError, DatasetLocked, DatasetLockError) as e:
         raise _fail("export", str(e)) from None
     except OSError as e:
         raise _fail("export", _write_failure(e)) from None

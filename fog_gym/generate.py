@@ -28,6 +28,7 @@ import numpy as np
 from fog_gym.world.towns import TOWNS
 from fog_gym.fog import FOG_PRESETS
 from fog_gym.dataset.layout import DATA_ROOT, MODALITIES, SAMPLE_PERIOD_US, scene_folder_name, scene_id
+from fog_gym.dataset.lock import LOCK_FILE, DatasetLock
 from fog_gym.dataset.manifest import MANIFEST_FILE, differences, make_manifest, read_manifest, write_manifest
 from fog_gym.dataset.writer import SceneWriter, WriteError, _atomic_write, build_index
 from fog_gym.checks import option
@@ -168,7 +169,7 @@ def check_root(root: Path, resume: bool) -> None:
     """Clear errors before any rendering: unwritable root, or a non-empty one without ``resume``."""
     if root.exists() and not root.is_dir():
         raise ValueError(f"dataset root {root} exists and is not a folder")
-    if root.exists() and any(root.iterdir()) and not resume:
+    if root.exists() and any(p.name != LOCK_FILE for p in root.iterdir()) and not resume:
         raise ValueError(f"dataset root {root} is not empty; pass {option('resume')} to continue an interrupted run")
     probe = root / ".write_probe"
     try:
@@ -189,11 +190,22 @@ def generate(root: str | Path, plan: list[SceneSpec], workers: int = 1, resume: 
     from the manifest is a ``ValueError`` naming them. A file that cannot be written (disk full, permission lost)
     raises :class:`~fog_gym.dataset.writer.WriteError` once every worker has stopped and removed its unfinished
     scene and temporary files; with the cause removed, ``resume=True`` completes the set byte for byte as an
-    uninterrupted run. Each sample's ego pose goes beside it (:mod:`fog_gym.dataset.poses`).
+    uninterrupted run. Each sample's ego pose goes beside it (:mod:`fog_gym.dataset.poses`). The run holds the root's
+    lock (:class:`~fog_gym.dataset.lock.DatasetLock`): a second writer meanwhile gets
+    :class:`~fog_gym.dataset.lock.DatasetLocked`, and a lock left by a killed run is taken over.
     """
-    from tqdm import tqdm
 
     root = Path(root)
+    if root.exists() and not root.is_dir():
+        raise ValueError(f"dataset root {root} exists and is not a folder")
+    with DatasetLock(root, "generate"):  # one writer per root; with Ray the driver holds it
+        return _generate_locked(root, plan, workers, resume, ray_address, progress)
+
+
+def _generate_locked(root: Path, plan: list[SceneSpec], workers: int, resume: bool, ray_address: str | None,
+                     progress: bool) -> dict[str, Any]:  # fmt: skip
+    from tqdm import tqdm
+
     check_root(root, resume)
     check_manifest(root, plan_manifest(plan), resume)
     todo = pending_scenes(root, plan)

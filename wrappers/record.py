@@ -10,6 +10,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
+from fog_gym.dataset.lock import DatasetLock
 from fog_gym.dataset.layout import CAMERAS, DATA_ROOT, parse_scene_folder, scene_folder_name, scene_id
 from fog_gym.dataset.writer import SceneWriter, WriteError, build_index
 from fog_gym.wrappers.fog import FogWrapper
@@ -36,6 +37,10 @@ class RecordFogDrive(gym.Wrapper):
     left behind: the samples written before it stay complete and indexed. Each sample's ego pose goes beside it
     (``ego_pose/``, :mod:`fog_gym.dataset.poses`).
 
+    The wrapper holds the root's lock (:class:`~fog_gym.dataset.lock.DatasetLock`) from construction to ``close``:
+    a second writer of the root meanwhile (another recorder, ``generate``, ``export``) gets
+    :class:`~fog_gym.dataset.lock.DatasetLocked` naming this process.
+
     >>> import tempfile, fog_gym
     >>> env = RecordFogDrive(fog_gym.FogDriveEnv(resolution=(32, 24), episode_seconds=0.2), tempfile.mkdtemp())
     >>> _ = env.reset(seed=0); _ = env.step(1); _ = env.step(1)
@@ -58,12 +63,15 @@ class RecordFogDrive(gym.Wrapper):
         elif not fog.paired or [lv.name for lv in fog.levels] != PAIRED_LEVELS:
             raise ValueError("RecordFogDrive needs clean data plus the paired levels light, moderate, dense")
         self.root = Path(root)
+        if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+            raise ValueError(f"workers must be a positive integer or None, got {workers!r}")
+        # one writer per dataset root: held until close (DatasetLocked names the holder of a root in use)
+        self._lock = DatasetLock(self.root, "RecordFogDrive").acquire()
         try:
             (self.root / DATA_ROOT).mkdir(parents=True, exist_ok=True)
         except OSError as e:
+            self._lock.release()
             raise ValueError(f"cannot write the dataset root {self.root}: {e}") from None
-        if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
-            raise ValueError(f"workers must be a positive integer or None, got {workers!r}")
         super().__init__(env)
         self.workers = workers
         from fog_gym.sensors import rig_layout
@@ -145,6 +153,7 @@ class RecordFogDrive(gym.Wrapper):
                 build_index(self.root)
             except WriteError as e:
                 error = error or e
+        self._lock.release()
         super().close()
         if error is not None:
             raise error

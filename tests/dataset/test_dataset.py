@@ -227,13 +227,19 @@ def test_torch_dataset_and_collate(recorded):
 
 
 def test_killed_generation_resumes_to_a_valid_set(tmp_path):
-    """A real ``kill -9`` in the middle of a run, then ``--resume``: the set validates and nothing is duplicated."""
+    """A real ``kill -9`` in the middle of a run, then ``--resume``: the set validates, nothing is duplicated, and it
+    is byte for byte the uninterrupted run's. While the first run writes, a second writer on the root (``--resume``)
+    exits 1 with one line naming the root and the holder; after the kill the lock it left is stale and taken over."""
+    import hashlib
+    import re
+    import socket
     import subprocess
     import sys
     import time
 
+    from fog_gym.dataset.lock import LOCK_FILE, read_holder
     from fog_gym.dataset.validate import validate
-    from fog_gym.generate import PROGRESS_DIR
+    from fog_gym.generate import PROGRESS_DIR, generate, plan_scenes
 
     root = tmp_path / "killed"
     cmd = [sys.executable, "-m", "fog_gym.cli", "generate", "--root", str(root), "--scenes", "4", "--resolution",
@@ -242,16 +248,28 @@ def test_killed_generation_resumes_to_a_valid_set(tmp_path):
     deadline = time.time() + 120
     while time.time() < deadline and not list((root / PROGRESS_DIR).glob("*.json")):
         time.sleep(0.05)
+    second = subprocess.run(cmd + ["--resume"], capture_output=True, text=True)
     proc.kill()
     proc.wait()
+    assert second.returncode == 1 and len(second.stderr.strip().splitlines()) == 1, second.stderr
+    assert re.fullmatch(rf"fog-gym generate: dataset root {re.escape(str(root))} is being written by pid {proc.pid} on "
+                        rf"host {re.escape(socket.gethostname())} since \S+ \(generate\); .+\n", second.stderr), second.stderr
+    assert read_holder(root)["pid"] == proc.pid  # the killed run's record stays; its lock went with it
     done_before = len(list((root / PROGRESS_DIR).glob("*.json")))
     assert 1 <= done_before < 4
     out = subprocess.run(cmd + ["--resume"], capture_output=True, text=True)
     assert out.returncode == 0, out.stderr
+    assert f"took over the stale lock of {root} left by pid {proc.pid}" in out.stderr
+    assert not (root / LOCK_FILE).exists()
     assert validate(root) == []
     ds = FogDrive(root)
     assert ds.list_scene_names() == sorted(f"T2_{d}_scene{r:03d}" for r in (1, 2) for d in ("day", "night"))
     assert len(list((root / "data_root").iterdir())) == 4  # no duplicated scene folders
+    clean = tmp_path / "clean"
+    generate(clean, plan_scenes(4, towns=("merge",), seed=5, resolution=(24, 16), seconds=0.5), progress=False)
+    digest = lambda r: {str(p.relative_to(r)): hashlib.sha256(p.read_bytes()).hexdigest()  # noqa: E731
+                        for p in sorted(r.rglob("*")) if p.is_file()}  # fmt: skip
+    assert digest(root) == digest(clean)
     assert subprocess.run(cmd, capture_output=True, text=True).returncode != 0  # non-empty root without --resume
 
 

@@ -28,6 +28,7 @@ from fog_gym.dataset.export.common import (
     FOG_CHOICES, FORMATS, SPLIT_CHOICES, ExportError, Sink, Source, default_cameras,
 )  # fmt: skip
 from fog_gym.dataset.layout import CAMERA_NAMES
+from fog_gym.dataset.lock import LOCK_FILE, DatasetLock
 from fog_gym.checks import option
 
 MANIFEST = "fog_gym_export.json"  # in OUT: the export's settings, whether it is complete, and its notes
@@ -57,7 +58,7 @@ def _check_output_folder(root: Path, out: Path, overwrite: bool, resume: bool) -
         raise ExportError(f"the output folder {out} must lie outside the dataset root {root} (and not contain it)")
     if out.exists() and not out.is_dir():
         raise ExportError(f"the output folder {out} exists and is not a folder")
-    if not out.is_dir() or not any(out.iterdir()):
+    if not out.is_dir() or not _entries(out):
         return
     if not overwrite and not resume:
         raise ExportError(f"the output folder {out} is not empty; pass {option('overwrite')} to replace an earlier export "
@@ -67,6 +68,11 @@ def _check_output_folder(root: Path, out: Path, overwrite: bool, resume: bool) -
             raise ExportError(f"{out} holds no fog-gym export ({MANIFEST}) to resume")
         raise ExportError(f"the output folder {out} is not empty and holds no fog-gym export ({MANIFEST}): refusing to "
                           "delete it; choose an empty or new folder")  # fmt: skip
+
+
+def _entries(out: Path) -> list[Path]:
+    """What the output folder holds, but the lock of the export writing it."""
+    return [p for p in out.iterdir() if p.name != LOCK_FILE]
 
 
 def _stored_manifest(out: Path) -> Any:
@@ -83,7 +89,7 @@ def _check_output(root: Path, out: Path, settings: dict[str, Any], overwrite: bo
     """:func:`_check_output_folder`, then refuse resuming an export made with other settings; with ``overwrite``,
     empty the folder of the earlier export."""
     _check_output_folder(root, out, overwrite, resume)
-    if not out.is_dir() or not any(out.iterdir()):
+    if not out.is_dir() or not _entries(out):
         return
     stored = _stored_manifest(out)  # a dict: _check_output_folder refused anything else
     if resume:
@@ -92,7 +98,7 @@ def _check_output(root: Path, out: Path, settings: dict[str, Any], overwrite: bo
             raise ExportError(f"{out} holds an export with other settings ({'; '.join(diff)}); pass "
                               f"{option('overwrite')} to replace it")  # fmt: skip
         return
-    for child in out.iterdir():
+    for child in _entries(out):
         shutil.rmtree(child) if child.is_dir() and not child.is_symlink() else child.unlink()
 
 
@@ -107,12 +113,11 @@ seconds include the ``validate`` pass, ``validate_seconds`` long).
 
     Raises :class:`ExportError` (a ``ValueError``) before writing anything for bad arguments, an invalid set or an
     output folder it must not use, and :class:`~fog_gym.dataset.writer.WriteError` (an ``OSError``) when a file
-    cannot be written (no temporary file is left; ``resume=True`` completes the export later).
+    cannot be written (no temporary file is left; ``resume=True`` completes the export later). The export holds the
+    output folder's lock (:class:`~fog_gym.dataset.lock.DatasetLock`): a second writer there meanwhile gets
+    :class:`~fog_gym.dataset.lock.DatasetLocked`.
     """
-    from tqdm import tqdm
-
-    from fog_gym._version import __version__
-    from fog_gym.dataset.validate import dataset_root_problem, validate
+    from fog_gym.dataset.validate import dataset_root_problem
 
     t0 = time.perf_counter()
     _check_arguments(format, fog, split, cameras)
@@ -121,6 +126,17 @@ seconds include the ``validate`` pass, ``validate_seconds`` long).
     if problem is not None:
         raise ExportError(problem)
     _check_output_folder(root, out, overwrite, resume)  # before the validate pass: a refusal costs nothing
+    with DatasetLock(out, "export"):  # one writer per output folder
+        return _export_locked(root, out, format, fog, split, cameras, overwrite, resume, progress, t0)
+
+
+def _export_locked(root: Path, out: Path, format: str, fog: str, split: str, cameras: Sequence[str] | None,
+                   overwrite: bool, resume: bool, progress: bool, t0: float) -> dict[str, Any]:  # fmt: skip
+    from tqdm import tqdm
+
+    from fog_gym._version import __version__
+    from fog_gym.dataset.validate import validate
+
     problems = validate(root, progress=progress)
     validate_seconds = time.perf_counter() - t0
     if problems:
