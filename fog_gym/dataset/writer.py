@@ -24,7 +24,6 @@ from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 from typing import Any
 
-import cv2
 import numpy as np
 
 from fog_gym.dataset.layout import (
@@ -32,14 +31,9 @@ from fog_gym.dataset.layout import (
     channel_path, check_layout, ego_pose_path, is_fogdrive_layout, layout_from_json, layout_to_json, parse_scene_folder,
     scene_name,
 )  # fmt: skip
+from fog_gym.dataset.png import encode_png
 from fog_gym.dataset.poses import encode_ego_pose
 from fog_gym.encoding import encode_depth, semantic_to_carla_rgb
-
-# PNG is lossless at every setting. Measured on one full frame (24 PNGs at 1280×960, 2-core CPU): zlib level 1
-# with no row filter 450 ms / 3.6 MB; level 1 with cv2's default filters 1 220 ms / 3.4 MB; level 3 1 390 ms /
-# 3.0 MB; level 6 1 880 ms / 2.3 MB; level 0 (stored) 310 ms / 89 MB; Pillow level 1 800 ms / 3.5 MB.
-PNG_PARAMS = [cv2.IMWRITE_PNG_COMPRESSION, 1, cv2.IMWRITE_PNG_FILTER, cv2.IMWRITE_PNG_FILTER_NONE]
-
 
 EGO_POSE = "EGO_POSE"  # the key of a sample's ego-pose file among its encoded files (not a channel)
 
@@ -155,14 +149,6 @@ def atomic_write_all(files: Mapping[Path, bytes]) -> None:
             raise
 
 
-def encode_png(rgb: np.ndarray) -> bytes:
-    """Lossless PNG of an (H, W, 3) RGB uint8 image (no alpha)."""
-    ok, buf = cv2.imencode(".png", np.ascontiguousarray(rgb[..., ::-1]), PNG_PARAMS)
-    if not ok:
-        raise RuntimeError("PNG encoding failed")
-    return buf.tobytes()
-
-
 def encode_npy(array: np.ndarray) -> bytes:
     import io
 
@@ -193,7 +179,7 @@ class SceneWriter:
     are not FogDrive's is recorded in the scene folder (``channels.json``), from which :func:`build_index` builds
     the dataset's ``index/channels.json``; a FogDrive layout writes no such file (the set stays FogDrive's format).
 
-    A sample's files are encoded and written by ``workers`` threads (default: one per core; cv2's PNG encoder
+    A sample's files are encoded and written by ``workers`` threads (default: one per core; the PNG compressor
     and file I/O release the GIL). ``BBOX_3D`` is still written alone after every other file of the sample has
     been renamed into place. ``workers=1`` encodes and writes one file after another.
     """
