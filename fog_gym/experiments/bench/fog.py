@@ -67,14 +67,58 @@ def bench_fog(repeats: int) -> dict[str, Any]:
         stats[name] = summarize([timed(fn)[1] for _ in range(repeats)])
     env.close()
     assert unpack_points(obs, "LIDAR_TOP_FOG_DENSE").shape == clean_lidar.shape
-    return {"stages": stats, "lidar_points": int(len(clean_lidar)), "targets": {"LiDAR 100k": 5.0, "paired frame": 20.0}}
+    return {"stages": stats, "lidar_points": int(len(clean_lidar)), "night": bench_night_fog(repeats),
+            "targets": {"LiDAR 100k": 5.0, "paired frame": 20.0, "night / day": 2.0}}  # fmt: skip
+
+
+def bench_night_fog(repeats: int, town: str = "highway") -> dict[str, Any]:
+    """Night against day, timed in alternation on the same seed: the full paired fog frame (``fog_channels``, where
+    the night adds the glow of lit fog), and a whole ``env.step`` with dense fog in place (render, fog, labels)."""
+    from fog_gym.envs.fogdrive import FogDriveEnv
+    from fog_gym.wrappers import FogWrapper
+
+    paired, dense = {}, {}
+    for tod in ("day", "night"):
+        env = FogWrapper(FogDriveEnv(town=town, time_of_day=tod), list(LEVELS))
+        obs, _ = env.reset(seed=0)
+        paired[tod] = (env, obs)
+        dense[tod] = FogWrapper(FogDriveEnv(town=town, time_of_day=tod), "dense")
+        dense[tod].reset(seed=0)
+    times: dict[str, list[float]] = {k: [] for k in ("paired day", "paired night", "dense step day", "dense step night")}
+    for k in tqdm(range(repeats + 1), desc="night vs day fog", unit="frame", file=sys.stderr):
+        for tod in ("day", "night"):
+            env, obs = paired[tod]
+            ms = timed(env.fog_channels, obs)[1]
+            step = dense[tod]
+            ms_step = timed(step.step, step.unwrapped.idle_action)[1]
+            if k:  # the first round warms up
+                times[f"paired {tod}"].append(ms)
+                times[f"dense step {tod}"].append(ms_step)
+    for env, _ in paired.values():
+        env.close()
+    for env in dense.values():
+        env.close()
+    stats = {k: summarize(v) for k, v in times.items()}
+    return {"stats": stats, "paired ratio": stats["paired night"]["median"] / stats["paired day"]["median"],
+            "dense ratio": stats["dense step night"]["median"] / stats["dense step day"]["median"]}  # fmt: skip
 
 
 def render_fog(fog: dict[str, Any], repeats: int) -> list[str]:
     rows = [[name, fmt_ms(stat)] for name, stat in fog["stages"].items()]
-    return [f"## Fog (full rig, highway, seed 0): ms, median (p25–p75), {repeats} repeats", "",
-            markdown_table(["stage", "ms"], rows), "",
-            "Targets: LiDAR fog on 100 k points ≤ 5 ms; full paired frame ≤ 20 ms (2-core CPU)."]  # fmt: skip
+    lines = [f"## Fog (full rig, highway, seed 0): ms, median (p25–p75), {repeats} repeats", "",
+             markdown_table(["stage", "ms"], rows), "",
+             "Targets: LiDAR fog on 100 k points ≤ 5 ms; full paired frame ≤ 20 ms (2-core CPU)."]  # fmt: skip
+    night = fog.get("night")
+    if night:
+        st = night["stats"]
+        lines += ["", "### Night against day (same seed, timed in alternation)", "",
+                  markdown_table(["", "day ms", "night ms", "night / day"], [
+                      ["full paired fog frame (4 cameras × 3 levels + 3 LiDAR levels)", fmt_ms(st["paired day"]),
+                       fmt_ms(st["paired night"]), f"**{night['paired ratio']:.2f}×**"],
+                      ["env.step, dense fog in place (render, fog, labels)", fmt_ms(st["dense step day"]),
+                       fmt_ms(st["dense step night"]), f"**{night['dense ratio']:.2f}×**"]]), "",
+                  "Target: night ≤ 2× day for both (the glow of lit fog is the night's addition)."]  # fmt: skip
+    return lines
 
 
 def build_parser(prog: str = "python -m fog_gym.experiments.bench.fog") -> argparse.ArgumentParser:
