@@ -10,8 +10,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from fog_gym.fog import add_glow, fog_images, glow_sigma_px, night_airlight, parse_fog
-from fog_gym.fog.camera import (GLOW_FORWARD, GLOW_SOURCE_GAIN, GLOW_THRESHOLD, add_glows, glow_factor, glow_grid,
-                                glow_sources, ray_length_factor)  # fmt: skip
+from fog_gym.fog.camera import (GLOW_FORWARD, GLOW_SOURCE_GAIN, GLOW_THRESHOLD, add_glows, glow_factor, glow_grids,
+                                ray_length_factor)  # fmt: skip
 
 LEVELS = ("light", "moderate", "dense")
 
@@ -79,7 +79,7 @@ def test_the_coarse_grid_keeps_the_glows_energy():
     depth = np.full((200, 240), 60.0, np.float32)
     K = np.array([[600.0, 0, 120.0], [0, 600.0, 100.0], [0, 0, 1]])
     alpha = parse_fog("dense").alpha
-    grid, f = glow_grid(glow_sources(clean, depth, K), depth.shape, K, alpha)
+    (grid, f), = glow_grids(clean, depth, K, [alpha])
     assert f > 1
     energy = 36 * 255 * GLOW_FORWARD * GLOW_SOURCE_GAIN * (1 - math.exp(-alpha * 60.0 * math.sqrt(1 + (0.5 / 600) ** 2)))
     assert grid[..., 0].sum() * f * f == pytest.approx(energy, rel=1e-3)  # a cell holds the glow per pixel
@@ -90,7 +90,8 @@ def test_no_sources_or_clear_air_leave_the_image_unchanged():
     img = rng.integers(0, 230, (60, 80, 3), dtype=np.uint8)
     depth = np.full((60, 80), 50.0, np.float32)
     K = np.array([[300.0, 0, 40.0], [0, 300.0, 30.0], [0, 0, 1]])
-    assert np.array_equal(add_glows(img[None].copy(), img, depth, K, [0.06])[0], img)  # no pixel reaches 240
+    assert glow_grids(img, depth, K, [0.06]) == []  # no pixel reaches 240
+    assert np.array_equal(add_glows(img[None].copy(), img, depth, K, [0.06])[0], img)
     lamp = img.copy()
     lamp[30, 40] = 255
     assert np.array_equal(add_glow(img, lamp, depth, K, 0.0), img)
