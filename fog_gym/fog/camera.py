@@ -14,6 +14,7 @@ Example:
 
 from __future__ import annotations
 
+import functools
 import math
 import threading
 from collections.abc import Sequence
@@ -125,9 +126,10 @@ def _splat_sources(clean, depth, u2, v2, alphas, fs, widths, offsets, grids):
     count = 0
     for i in range(h):
         row = clean[i]
-        top = 0
-        for k in range(3 * w):  # most rows hold no source: one vectorised maximum rules them out
-            top = max(top, row[k])
+        top = np.uint8(0)
+        for k in range(3 * w):  # most rows hold no source: one vectorised maximum (kept uint8) rules them out
+            v = row[k]
+            top = v if v > top else top
         if top < GLOW_THRESHOLD:
             continue
         for j in range(w):
@@ -210,16 +212,26 @@ GLOW_QUIET = 0.35
 
 
 @njit(cache=True, parallel=True, fastmath=True)
-def _add_glow(out, grid, f, need, span_lo, span_hi, first, x0, wx, wide):
+def _add_glow(out, grid, f, need, active, first, x0, wx, wide):
     # out (H, 3W) uint8 in place; grid (Hc, 3Wc) float32 with a margin of two cells. need (Hc, Wc): the cells of grid
     # row cy whose columns an active pixel (one some cell of whose 4 × 4 neighbourhood is not quiet) of grid rows
-    # cy − 2 … cy + 1 reads; span_lo/span_hi (Hc): the first and the end of the active cells of each grid row.
+    # cy − 2 … cy + 1 reads; active (Hc, Wc): the cells of those pixels.
     # first (Wc + 1): each cell interval's first column; x0 (W): each column's cell; wx (W, 4): its horizontal cubic
     # weights; wide (≥ Hc, 3W) float32 scratch. Pass 1 interpolates the needed cells of each grid row to the image's
     # columns (zeros between them, over the row's span); pass 2 blends four such rows per image row over the span of
     # its active cells, a contiguous loop that vectorises: out = clip(out + glow + 0.5, 0, 255).
     h = out.shape[0]
     hc, wc = need.shape
+    span_lo = np.zeros(hc, np.int64)  # the first and the end of each grid row's active cells
+    span_hi = np.zeros(hc, np.int64)
+    for cy in range(hc):
+        lo = 0
+        while lo < wc and not active[cy, lo]:
+            lo += 1
+        hi = wc
+        while hi > lo and not active[cy, hi - 1]:
+            hi -= 1
+        span_lo[cy], span_hi[cy] = lo, hi
     for cy in prange(hc):
         g = grid[cy]
         u = wide[cy]
@@ -264,9 +276,7 @@ def add_glow_grid(image: np.ndarray, grid: np.ndarray, f: int) -> None:
     keeps its width), rounded and clipped to [0, 255]. Only pixels within reach of a cell of at least
     :data:`GLOW_QUIET` are visited; the others would round to themselves."""
     h, w = image.shape[:2]
-    x = (np.arange(w) + 0.5) / f + 1.5  # cell coordinates (a margin of two cells)
-    x0 = np.floor(x).astype(np.int64)
-    wx = _cubic_weights(x - x0).astype(np.float32)
+    x0, wx, first = _columns(w, f, grid.shape[1])
     loud = (np.maximum(np.maximum(grid[..., 0], grid[..., 1]), grid[..., 2]) >= GLOW_QUIET).astype(np.uint8)
     # a pixel of cell interval (y0, x0) reads cells y0 − 1 … y0 + 2 and x0 − 1 … x0 + 2
     active = cv2.dilate(loud, np.ones((4, 4), np.uint8), anchor=(2, 2), borderType=cv2.BORDER_CONSTANT, borderValue=0)
@@ -275,12 +285,17 @@ def add_glow_grid(image: np.ndarray, grid: np.ndarray, f: int) -> None:
     need[:-1] |= active[1:]
     need[1:] |= active[:-1]
     need[2:] |= active[:-2]
-    first = np.searchsorted(x0, np.arange(grid.shape[1] + 1))  # columns of cell interval c: first[c] … first[c + 1]
-    any_active = active.any(axis=1)
-    span_lo = np.where(any_active, active.argmax(axis=1), 0)
-    span_hi = np.where(any_active, active.shape[1] - active[:, ::-1].argmax(axis=1), 0)
-    _add_glow(image.reshape(h, 3 * w), np.ascontiguousarray(grid).reshape(grid.shape[0], -1), f, need, span_lo,
-              span_hi, first, x0, wx, _scratch(grid.shape[0], 3 * w))  # fmt: skip
+    _add_glow(image.reshape(h, 3 * w), np.ascontiguousarray(grid).reshape(grid.shape[0], -1), f, need, active, first,
+              x0, wx, _scratch(grid.shape[0], 3 * w))  # fmt: skip
+
+
+@functools.lru_cache(maxsize=64)
+def _columns(w: int, f: int, wc: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per image column its cell (cell coordinates, a margin of two cells) and Keys' weights of cells x0 − 1 … x0 + 2;
+    per cell the first column of its interval (``first[c] … first[c + 1]``)."""
+    x = (np.arange(w) + 0.5) / f + 1.5
+    x0 = np.floor(x).astype(np.int64)
+    return x0, _cubic_weights(x - x0).astype(np.float32), np.searchsorted(x0, np.arange(wc + 1))
 
 
 _SCRATCH = threading.local()
