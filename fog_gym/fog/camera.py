@@ -116,11 +116,12 @@ def glow_factor(sigma: float) -> int:
 
 
 @njit(cache=True)
-def _splat_sources(clean, depth, u2, v2, alphas, fs, widths, offsets, grids):
+def _splat_sources(clean, depth, u2, v2, alphas, fs, widths, offsets, grids, box):
     # clean (H, 3W) uint8, depth (H, W) float32, u2 (W) / v2 (H) the squared ray slopes of the pixel centres; per level
     # its extinction, grid factor f, grid width Wc (cells) and offset into grids (float32, zeroed: level lv's grid is
     # grids[offsets[lv]:…] as (Hc, Wc, 3)). Every source pixel (a channel ≥ GLOW_THRESHOLD) is shared by the four
-    # nearest cell centres of each level's grid with its energy η·g·S·(1 − e^{−αℓ}) / f². Returns the source count.
+    # nearest cell centres of each level's grid with its energy η·g·S·(1 − e^{−αℓ}) / f². Returns the source count;
+    # box (4,) gets the sources' first and last row and column.
     h, w = depth.shape
     gain = GLOW_FORWARD * GLOW_SOURCE_GAIN
     count = 0
@@ -137,6 +138,8 @@ def _splat_sources(clean, depth, u2, v2, alphas, fs, widths, offsets, grids):
             if r < GLOW_THRESHOLD and g < GLOW_THRESHOLD and b < GLOW_THRESHOLD:
                 continue
             count += 1
+            box[0], box[1] = min(box[0], i), max(box[1], i)
+            box[2], box[3] = min(box[2], j), max(box[3], j)
             ell = depth[i, j] * np.sqrt(1.0 + u2[j] + v2[i])
             for lv in range(alphas.shape[0]):
                 f = fs[lv]
@@ -183,15 +186,27 @@ def glow_grids(clean: np.ndarray, depth: np.ndarray, K: np.ndarray, alphas: Sequ
     grids = np.zeros(int(sizes.sum()), np.float32)
     u2 = ((np.arange(w) + 0.5 - K[0, 2]) / K[0, 0]) ** 2
     v2 = ((np.arange(h) + 0.5 - K[1, 2]) / K[1, 1]) ** 2
+    box = np.array([h, -1, w, -1], np.int64)
     n = _splat_sources(np.ascontiguousarray(clean).reshape(h, 3 * w), np.ascontiguousarray(depth, np.float32), u2, v2,
-                       np.asarray(alphas, np.float64), fs, wcs.astype(np.int64), offsets, grids)  # fmt: skip
+                       np.asarray(alphas, np.float64), fs, wcs.astype(np.int64), offsets, grids, box)  # fmt: skip
     if not n:
         return []
     out = []
     for k, (sigma, f) in enumerate(zip(sigmas, fs.tolist())):
         grid = grids[offsets[k]:offsets[k] + sizes[k]].reshape(hcs[k], wcs[k], 3)
         sigma_c = sigma if f == 1 else math.sqrt(max(sigma * sigma - f * f / 6.0, 0.25 * f * f)) / f
-        out.append((cv2.GaussianBlur(grid, (0, 0), sigmaX=sigma_c, sigmaY=sigma_c, borderType=cv2.BORDER_CONSTANT), f))
+        # blur only the cells the kernel reaches from the sources' cells (OpenCV's float kernel has ⌊(⌊8σ + 1.5⌋ | 1)/2⌋
+        # cells each side): outside that box the blurred grid is zero, and inside it the zero border stands for cells
+        # that hold no energy, so the result is the whole grid's blur
+        reach = (int(8.0 * sigma_c + 1.5) | 1) // 2 + 1
+        cy = [int((box[0] + 0.5) / f + 1.5), int((box[1] + 0.5) / f + 1.5) + 1]  # (the bilinear share's second cell)
+        cx = [int((box[2] + 0.5) / f + 1.5), int((box[3] + 0.5) / f + 1.5) + 1]
+        r0, r1 = max(cy[0] - reach, 0), min(cy[1] + reach + 1, hcs[k])
+        c0, c1 = max(cx[0] - reach, 0), min(cx[1] + reach + 1, wcs[k])
+        blurred = np.zeros_like(grid)
+        blurred[r0:r1, c0:c1] = cv2.GaussianBlur(grid[r0:r1, c0:c1], (0, 0), sigmaX=sigma_c, sigmaY=sigma_c,
+                                                 borderType=cv2.BORDER_CONSTANT)  # fmt: skip
+        out.append((blurred, f))
     return out
 
 
