@@ -226,13 +226,26 @@ def _cubic_weights(t: np.ndarray) -> np.ndarray:
 GLOW_QUIET = 0.35
 
 
+@njit(cache=True, inline="always")
+def _span(mask):
+    # the first true cell of a mask row and the end of its last (lo = hi when there is none)
+    n = mask.shape[0]
+    lo = 0
+    while lo < n and not mask[lo]:
+        lo += 1
+    hi = n
+    while hi > lo and not mask[hi - 1]:
+        hi -= 1
+    return lo, hi
+
+
 @njit(cache=True, parallel=True, fastmath=True)
-def _add_glow(out, grid, f, need, active, first, x0, wx, wide):
+def _add_glow(out, grid, need, active, first, x0, wx, y0s, wy, wide):
     # out (H, 3W) uint8 in place; grid (Hc, 3Wc) float32 with a margin of two cells. need (Hc, Wc): the cells of grid
     # row cy whose columns an active pixel (one some cell of whose 4 × 4 neighbourhood is not quiet) of grid rows
     # cy − 2 … cy + 1 reads; active (Hc, Wc): the cells of those pixels.
     # first (Wc + 1): each cell interval's first column; x0 (W): each column's cell; wx (W, 4): its horizontal cubic
-    # weights; wide (≥ Hc, 3W) float32 scratch. Pass 1 interpolates the needed cells of each grid row to the image's
+    # weights; y0s (H) and wy (H, 4): the same for each row; wide (≥ Hc, 3W) float32 scratch. Pass 1 interpolates the needed cells of each grid row to the image's
     # columns (zeros between them, over the row's span); pass 2 blends four such rows per image row over the span of
     # its active cells, a contiguous loop that vectorises: out = clip(out + glow + 0.5, 0, 255).
     h = out.shape[0]
@@ -240,23 +253,12 @@ def _add_glow(out, grid, f, need, active, first, x0, wx, wide):
     span_lo = np.zeros(hc, np.int64)  # the first and the end of each grid row's active cells
     span_hi = np.zeros(hc, np.int64)
     for cy in range(hc):
-        lo = 0
-        while lo < wc and not active[cy, lo]:
-            lo += 1
-        hi = wc
-        while hi > lo and not active[cy, hi - 1]:
-            hi -= 1
-        span_lo[cy], span_hi[cy] = lo, hi
+        span_lo[cy], span_hi[cy] = _span(active[cy])
     for cy in prange(hc):
         g = grid[cy]
         u = wide[cy]
         row = need[cy]
-        lo = 0
-        while lo < wc and not row[lo]:
-            lo += 1
-        hi = wc
-        while hi > lo and not row[hi - 1]:
-            hi -= 1
+        lo, hi = _span(row)
         for j in range(first[lo], first[hi]):
             cx = x0[j]
             if row[cx]:
@@ -268,14 +270,10 @@ def _add_glow(out, grid, f, need, active, first, x0, wx, wide):
                 for ch in range(3):
                     u[3 * j + ch] = np.float32(0.0)
     for i in prange(h):
-        y = (i + 0.5) / f + 1.5  # cell coordinates
-        y0 = int(np.floor(y))
+        y0 = y0s[i]
         if span_lo[y0] >= span_hi[y0]:
             continue
-        t = y - y0
-        t2, t3 = t * t, t * t * t
-        w0, w1 = np.float32((-t3 + 2 * t2 - t) / 2), np.float32((3 * t3 - 5 * t2 + 2) / 2)
-        w2, w3 = np.float32((-3 * t3 + 4 * t2 + t) / 2), np.float32((t3 - t2) / 2)
+        w0, w1, w2, w3 = wy[i, 0], wy[i, 1], wy[i, 2], wy[i, 3]
         k0, k1 = 3 * first[span_lo[y0]], 3 * first[span_hi[y0]]
         # views from the span's start: a unit-stride loop from 0 that vectorises (8× the indexed form)
         ua, ub, uc, ud = wide[y0 - 1, k0:k1], wide[y0, k0:k1], wide[y0 + 1, k0:k1], wide[y0 + 2, k0:k1]
@@ -286,12 +284,13 @@ def _add_glow(out, grid, f, need, active, first, x0, wx, wide):
 
 
 def add_glow_grid(image: np.ndarray, grid: np.ndarray, f: int) -> None:
-    """Add a coarse glow grid (:func:`glow_grid`) to a uint8 ``(H, W, 3)`` image in place: interpolated from the
+    """Add a coarse glow grid (:func:`glow_grids`) to a uint8 ``(H, W, 3)`` image in place: interpolated from the
     cells' centres by Keys' cubic convolution (:func:`_cubic_weights`, which reproduces quadratics, so a smooth glow
     keeps its width), rounded and clipped to [0, 255]. Only pixels within reach of a cell of at least
     :data:`GLOW_QUIET` are visited; the others would round to themselves."""
     h, w = image.shape[:2]
     x0, wx, first = _columns(w, f, grid.shape[1])
+    y0, wy, _ = _columns(h, f, grid.shape[0])  # rows sit on the grid as columns do
     loud = (np.maximum(np.maximum(grid[..., 0], grid[..., 1]), grid[..., 2]) >= GLOW_QUIET).astype(np.uint8)
     # a pixel of cell interval (y0, x0) reads cells y0 − 1 … y0 + 2 and x0 − 1 … x0 + 2
     active = cv2.dilate(loud, np.ones((4, 4), np.uint8), anchor=(2, 2), borderType=cv2.BORDER_CONSTANT, borderValue=0)
@@ -300,14 +299,14 @@ def add_glow_grid(image: np.ndarray, grid: np.ndarray, f: int) -> None:
     need[:-1] |= active[1:]
     need[1:] |= active[:-1]
     need[2:] |= active[:-2]
-    _add_glow(image.reshape(h, 3 * w), np.ascontiguousarray(grid).reshape(grid.shape[0], -1), f, need, active, first,
-              x0, wx, _scratch(grid.shape[0], 3 * w))  # fmt: skip
+    _add_glow(image.reshape(h, 3 * w), np.ascontiguousarray(grid).reshape(grid.shape[0], -1), need, active, first, x0,
+              wx, y0, wy, _scratch(grid.shape[0], 3 * w))  # fmt: skip
 
 
 @functools.lru_cache(maxsize=64)
 def _columns(w: int, f: int, wc: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per image column its cell (cell coordinates, a margin of two cells) and Keys' weights of cells x0 − 1 … x0 + 2;
-    per cell the first column of its interval (``first[c] … first[c + 1]``)."""
+    """Per image column (or row) its cell (cell coordinates, a margin of two cells) and Keys' weights of cells
+    x0 − 1 … x0 + 2; per cell the first column of its interval (``first[c] … first[c + 1]``)."""
     x = (np.arange(w) + 0.5) / f + 1.5
     x0 = np.floor(x).astype(np.int64)
     return x0, _cubic_weights(x - x0).astype(np.float32), np.searchsorted(x0, np.arange(wc + 1))
