@@ -2,7 +2,8 @@
 
 ``I = J·t + A·(1 − t)``, ``t = exp(−α·ℓ)`` with ℓ the Euclidean distance of each pixel (from planar depth and the
 intrinsics) and ``A`` the atmospheric light (dark channel 15×15, top 0.1 %, median grey); at night ``A`` comes
-from the lit surroundings (:func:`night_airlight`) and lit fog glows around bright sources (:func:`add_glow`).
+from the lit surroundings (:func:`night_airlight`) and lit fog glows around bright sources
+(:func:`fog_gym.fog.glow.add_glow`).
 
 Example:
     >>> from fog_gym.fog.physics import parse_fog
@@ -14,9 +15,7 @@ Example:
 
 from __future__ import annotations
 
-import functools
 import math
-import threading
 from collections.abc import Sequence
 
 import cv2
@@ -25,6 +24,7 @@ from numba import njit, prange
 
 import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
 from fog_gym._numba import pick, serial_twin
+from fog_gym.fog.glow import _NO_GLOW, _blend_glow, _glow_rows_of
 
 def ray_length_factor(width: int, height: int, K: np.ndarray) -> np.ndarray:
     """Per-pixel ``ℓ / z`` = ``sqrt(1 + ((u − cx)/fx)² + ((v − cy)/fy)²)`` at pixel centres, float32 ``(H, W)``."""
@@ -59,11 +59,6 @@ def atmospheric_light(rgb: np.ndarray, window: int = 15, top_fraction: float = 0
 
 #: Night airlight: pixels nearer than this [m] light the fog; their ``NIGHT_AIRLIGHT_PERCENTILE`` colour is ``A``.
 NIGHT_AIRLIGHT_RANGE, NIGHT_AIRLIGHT_PERCENTILE = 30.0, 75.0
-#: Glow: sources are pixels at or above ``GLOW_THRESHOLD`` (any channel, 0–255), taken at ``GLOW_SOURCE_GAIN`` ×
-#: their 8-bit value (a clipped lamp is far brighter than white); ``GLOW_FORWARD`` of the light they lose to fog
-#: is scattered forwards into a Gaussian of angular width ``GLOW_WIDTH_RAD · (1 + α · GLOW_DISTANCE)``.
-GLOW_THRESHOLD, GLOW_SOURCE_GAIN, GLOW_FORWARD = 240, 12.0, 0.5
-GLOW_WIDTH_RAD, GLOW_DISTANCE = math.radians(0.6), 50.0
 
 
 def night_airlight(rgb: np.ndarray, depth: np.ndarray, max_range: float = NIGHT_AIRLIGHT_RANGE) -> np.ndarray:
@@ -96,263 +91,6 @@ def night_airlight(rgb: np.ndarray, depth: np.ndarray, max_range: float = NIGHT_
     return out
 
 
-def glow_sigma_px(K: np.ndarray, alpha: float) -> float:
-    """Width (pixels) of the glow around a bright source: ``fx · tan(GLOW_WIDTH_RAD · (1 + α · GLOW_DISTANCE))``."""
-    return float(K[0, 0] * math.tan(GLOW_WIDTH_RAD * (1.0 + alpha * GLOW_DISTANCE)))
-
-
-#: The glow is blurred on a grid ``f`` times coarser than the image, ``f`` the largest integer that keeps at least
-#: ``GLOW_CELLS_PER_SIGMA`` cells per σ (``f = 1``, the image itself, for a narrow glow).
-GLOW_CELLS_PER_SIGMA = 2.5
-
-
-def glow_factor(sigma: float) -> int:
-    """The coarse grid's factor for a glow of width ``sigma`` px: ``max(1, ⌊σ / GLOW_CELLS_PER_SIGMA⌋)``.
-
-    >>> [glow_factor(s) for s in (3.0, 10.9, 14.1, 22.5)]
-    [1, 4, 5, 9]
-    """
-    return max(1, int(sigma // GLOW_CELLS_PER_SIGMA))
-
-
-@njit(cache=True)
-def _splat_sources(clean, depth, u2, v2, alphas, fs, widths, offsets, grids, box):
-    # clean (H, 3W) uint8, depth (H, W) float32, u2 (W) / v2 (H) the squared ray slopes of the pixel centres; per level
-    # its extinction, grid factor f, grid width Wc (cells) and offset into grids (float32, zeroed: level lv's grid is
-    # grids[offsets[lv]:…] as (Hc, Wc, 3)). Every source pixel (a channel ≥ GLOW_THRESHOLD) is shared by the four
-    # nearest cell centres of each level's grid with its energy η·g·S·(1 − e^{−αℓ}) / f². Returns the source count;
-    # box (4,) gets the sources' first and last row and column.
-    h, w = depth.shape
-    gain = GLOW_FORWARD * GLOW_SOURCE_GAIN
-    count = 0
-    for i in range(h):
-        row = clean[i]
-        top = np.uint8(0)
-        for k in range(3 * w):  # most rows hold no source: one vectorised maximum (kept uint8) rules them out
-            v = row[k]
-            top = v if v > top else top
-        if top < GLOW_THRESHOLD:
-            continue
-        for j in range(w):
-            r, g, b = row[3 * j], row[3 * j + 1], row[3 * j + 2]
-            if r < GLOW_THRESHOLD and g < GLOW_THRESHOLD and b < GLOW_THRESHOLD:
-                continue
-            count += 1
-            box[0], box[1] = min(box[0], i), max(box[1], i)
-            box[2], box[3] = min(box[2], j), max(box[3], j)
-            ell = depth[i, j] * np.sqrt(1.0 + u2[j] + v2[i])
-            for lv in range(alphas.shape[0]):
-                f = fs[lv]
-                energy = gain / (f * f) * (1.0 - np.exp(-alphas[lv] * ell))
-                y = (i + 0.5) / f + 1.5  # cell coordinates (a margin of two cells)
-                x = (j + 0.5) / f + 1.5
-                y0, x0 = int(y), int(x)
-                py, px = y - y0, x - x0
-                wc3 = 3 * widths[lv]
-                base = offsets[lv] + y0 * wc3 + 3 * x0
-                for cell, share in ((base, (1 - py) * (1 - px)), (base + 3, (1 - py) * px),
-                                    (base + wc3, py * (1 - px)), (base + wc3 + 3, py * px)):  # fmt: skip
-                    grids[cell] += share * energy * r
-                    grids[cell + 1] += share * energy * g
-                    grids[cell + 2] += share * energy * b
-    return count
-
-
-def glow_grids(clean: np.ndarray, depth: np.ndarray, K: np.ndarray, alphas: Sequence[float]) -> list[tuple[np.ndarray, int]]:
-    """The glow of each fog level on its coarse grid, from one scan of the clean frame: ``[(grid, f), …]`` with
-    ``grid`` float32 ``(⌈H/f⌉ + 4, ⌈W/f⌉ + 4, 3)``, the value at cell ``(i, j)`` being the glow per pixel at image point
-    ``(f·(i − 2) + (f − 1)/2, f·(j − 2) + (f − 1)/2)``: a margin of two cells round the image, so the pixels at its
-    edges interpolate between cells as the others do. An empty list when the frame has no source (no pixel with a
-    channel ≥ ``GLOW_THRESHOLD``).
-
-    Each source's energy ``η · g · S · (1 − e^{−αℓ})`` is shared by its four nearest cell centres (bilinear weights,
-    which keep its centroid), the cells are blurred with a Gaussian of ``σ_c`` cells and :func:`add_glow_grid`
-    interpolates them back onto the image with Keys' cubic, which keeps a smooth glow's width. The sharing widens a
-    point's spread by ``f²/6`` px² on average over its position, so ``σ_c² f² = σ² − f²/6``: the composite has the
-    glow's width σ. With ``f = 1`` this is the Gaussian of σ on the image itself. On FogDrive's night frames (six towns,
-    four cameras, three levels) the result is within 1/255 of the full-resolution Gaussian at every pixel.
-
-    >>> clean = np.zeros((40, 40, 3), np.uint8); clean[20, 20] = (250, 0, 0)
-    >>> K = np.array([[200.0, 0, 20.0], [0, 200.0, 20.0], [0, 0, 1]])
-    >>> [(g.shape, f) for g, f in glow_grids(clean, np.full((40, 40), 30.0, np.float32), K, [0.02, 0.06])]
-    [((44, 44, 3), 1), ((18, 18, 3), 3)]
-    """
-    h, w = depth.shape
-    sigmas = [max(glow_sigma_px(K, a), 0.5) for a in alphas]
-    fs = np.array([glow_factor(s) for s in sigmas], np.int64)
-    hcs, wcs = -(-h // fs) + 4, -(-w // fs) + 4
-    sizes = hcs * wcs * 3
-    offsets = np.concatenate([[0], np.cumsum(sizes)[:-1]]).astype(np.int64)
-    grids = np.zeros(int(sizes.sum()), np.float32)
-    u2 = ((np.arange(w) + 0.5 - K[0, 2]) / K[0, 0]) ** 2
-    v2 = ((np.arange(h) + 0.5 - K[1, 2]) / K[1, 1]) ** 2
-    box = np.array([h, -1, w, -1], np.int64)
-    n = _splat_sources(np.ascontiguousarray(clean).reshape(h, 3 * w), np.ascontiguousarray(depth, np.float32), u2, v2,
-                       np.asarray(alphas, np.float64), fs, wcs.astype(np.int64), offsets, grids, box)  # fmt: skip
-    if not n:
-        return []
-    out = []
-    for k, (sigma, f) in enumerate(zip(sigmas, fs.tolist())):
-        grid = grids[offsets[k]:offsets[k] + sizes[k]].reshape(hcs[k], wcs[k], 3)
-        sigma_c = sigma if f == 1 else math.sqrt(max(sigma * sigma - f * f / 6.0, 0.25 * f * f)) / f
-        # blur only the cells the kernel reaches from the sources' cells (OpenCV's float kernel has ⌊(⌊8σ + 1.5⌋ | 1)/2⌋
-        # cells each side): outside that box the blurred grid is zero, and inside it the zero border stands for cells
-        # that hold no energy, so the result is the whole grid's blur
-        reach = (int(8.0 * sigma_c + 1.5) | 1) // 2 + 1
-        cy = [int((box[0] + 0.5) / f + 1.5), int((box[1] + 0.5) / f + 1.5) + 1]  # (the bilinear share's second cell)
-        cx = [int((box[2] + 0.5) / f + 1.5), int((box[3] + 0.5) / f + 1.5) + 1]
-        r0, r1 = max(cy[0] - reach, 0), min(cy[1] + reach + 1, hcs[k])
-        c0, c1 = max(cx[0] - reach, 0), min(cx[1] + reach + 1, wcs[k])
-        blurred = np.zeros_like(grid)
-        blurred[r0:r1, c0:c1] = cv2.GaussianBlur(grid[r0:r1, c0:c1], (0, 0), sigmaX=sigma_c, sigmaY=sigma_c,
-                                                 borderType=cv2.BORDER_CONSTANT)  # fmt: skip
-        out.append((blurred, f))
-    return out
-
-
-def _cubic_weights(t: np.ndarray) -> np.ndarray:
-    """Keys' cubic convolution weights (a = −1/2) of the samples at offsets −1, 0, 1, 2 for fractions ``t``: it
-    reproduces quadratics, so a smooth glow keeps its width.
-
-    >>> _cubic_weights(np.array([0.0, 0.5])).tolist()
-    [[0.0, 1.0, 0.0, 0.0], [-0.0625, 0.5625, 0.5625, -0.0625]]
-    """
-    t2, t3 = t * t, t * t * t
-    return np.stack([(-t3 + 2 * t2 - t) / 2, (3 * t3 - 5 * t2 + 2) / 2, (-3 * t3 + 4 * t2 + t) / 2, (t3 - t2) / 2], -1)
-
-
-#: A cell whose glow is below this (every channel) adds nothing to the pixels it reaches: Keys' weights sum to at most
-#: 1.27 in absolute value over a 4 × 4 neighbourhood, so those pixels receive less than 0.5 and round to unchanged.
-GLOW_QUIET = 0.35
-
-
-@njit(cache=True, inline="always")
-def _span(mask):
-    # the first true cell of a mask row and the end of its last (lo = hi when there is none)
-    n = mask.shape[0]
-    lo = 0
-    while lo < n and not mask[lo]:
-        lo += 1
-    hi = n
-    while hi > lo and not mask[hi - 1]:
-        hi -= 1
-    return lo, hi
-
-
-@njit(cache=True, parallel=True, fastmath=True)
-def _add_glow(out, grid, need, active, first, x0, wx, y0s, wy, wide):
-    # out (H, 3W) uint8 in place; grid (Hc, 3Wc) float32 with a margin of two cells. need (Hc, Wc): the cells of grid
-    # row cy whose columns an active pixel (one some cell of whose 4 × 4 neighbourhood is not quiet) of grid rows
-    # cy − 2 … cy + 1 reads; active (Hc, Wc): the cells of those pixels.
-    # first (Wc + 1): each cell interval's first column; x0 (W): each column's cell; wx (W, 4): its horizontal cubic
-    # weights; y0s (H) and wy (H, 4): the same for each row; wide (≥ Hc, 3W) float32 scratch. Pass 1 interpolates the needed cells of each grid row to the image's
-    # columns (zeros between them, over the row's span); pass 2 blends four such rows per image row over the span of
-    # its active cells, a contiguous loop that vectorises: out = clip(out + glow + 0.5, 0, 255).
-    h = out.shape[0]
-    hc, wc = need.shape
-    span_lo = np.zeros(hc, np.int64)  # the first and the end of each grid row's active cells
-    span_hi = np.zeros(hc, np.int64)
-    for cy in range(hc):
-        span_lo[cy], span_hi[cy] = _span(active[cy])
-    for cy in prange(hc):
-        g = grid[cy]
-        u = wide[cy]
-        row = need[cy]
-        lo, hi = _span(row)
-        for j in range(first[lo], first[hi]):
-            cx = x0[j]
-            if row[cx]:
-                b = 3 * cx - 3
-                a0, a1, a2, a3 = wx[j, 0], wx[j, 1], wx[j, 2], wx[j, 3]
-                for ch in range(3):
-                    u[3 * j + ch] = a0 * g[b + ch] + a1 * g[b + 3 + ch] + a2 * g[b + 6 + ch] + a3 * g[b + 9 + ch]
-            else:
-                for ch in range(3):
-                    u[3 * j + ch] = np.float32(0.0)
-    for i in prange(h):
-        y0 = y0s[i]
-        if span_lo[y0] >= span_hi[y0]:
-            continue
-        w0, w1, w2, w3 = wy[i, 0], wy[i, 1], wy[i, 2], wy[i, 3]
-        k0, k1 = 3 * first[span_lo[y0]], 3 * first[span_hi[y0]]
-        # views from the span's start: a unit-stride loop from 0 that vectorises (8× the indexed form)
-        ua, ub, uc, ud = wide[y0 - 1, k0:k1], wide[y0, k0:k1], wide[y0 + 1, k0:k1], wide[y0 + 2, k0:k1]
-        o = out[i, k0:k1]
-        for k in range(k1 - k0):
-            v = np.int32(np.float32(o[k]) + w0 * ua[k] + w1 * ub[k] + w2 * uc[k] + w3 * ud[k] + np.float32(0.5))
-            o[k] = np.uint8(min(max(v, 0), 255))  # (the cubic's small lobes may be < 0)
-
-
-def add_glow_grid(image: np.ndarray, grid: np.ndarray, f: int) -> None:
-    """Add a coarse glow grid (:func:`glow_grids`) to a uint8 ``(H, W, 3)`` image in place: interpolated from the
-    cells' centres by Keys' cubic convolution (:func:`_cubic_weights`, which reproduces quadratics, so a smooth glow
-    keeps its width), rounded and clipped to [0, 255]. Only pixels within reach of a cell of at least
-    :data:`GLOW_QUIET` are visited; the others would round to themselves."""
-    h, w = image.shape[:2]
-    x0, wx, first = _columns(w, f, grid.shape[1])
-    y0, wy, _ = _columns(h, f, grid.shape[0])  # rows sit on the grid as columns do
-    loud = (np.maximum(np.maximum(grid[..., 0], grid[..., 1]), grid[..., 2]) >= GLOW_QUIET).astype(np.uint8)
-    # a pixel of cell interval (y0, x0) reads cells y0 − 1 … y0 + 2 and x0 − 1 … x0 + 2
-    active = cv2.dilate(loud, np.ones((4, 4), np.uint8), anchor=(2, 2), borderType=cv2.BORDER_CONSTANT, borderValue=0)
-    # grid row cy is read, at the active pixels' columns, by the pixels of grid rows cy − 2 … cy + 1
-    need = active.copy()
-    need[:-1] |= active[1:]
-    need[1:] |= active[:-1]
-    need[2:] |= active[:-2]
-    _add_glow(image.reshape(h, 3 * w), np.ascontiguousarray(grid).reshape(grid.shape[0], -1), need, active, first, x0,
-              wx, y0, wy, _scratch(grid.shape[0], 3 * w))  # fmt: skip
-
-
-@functools.lru_cache(maxsize=64)
-def _columns(w: int, f: int, wc: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per image column (or row) its cell (cell coordinates, a margin of two cells) and Keys' weights of cells
-    x0 − 1 … x0 + 2; per cell the first column of its interval (``first[c] … first[c + 1]``)."""
-    x = (np.arange(w) + 0.5) / f + 1.5
-    x0 = np.floor(x).astype(np.int64)
-    return x0, _cubic_weights(x - x0).astype(np.float32), np.searchsorted(x0, np.arange(wc + 1))
-
-
-_SCRATCH = threading.local()
-
-
-def _scratch(rows: int, cols: int) -> np.ndarray:
-    """A float32 ``(≥ rows, cols)`` buffer kept per thread: a fresh one each frame would cost its page faults (≈ 1 ms
-    for the 4 MB of a 1280-wide image's light glow)."""
-    buf = getattr(_SCRATCH, "wide", None)
-    if buf is None or buf.shape[0] < rows or buf.shape[1] != cols:
-        buf = _SCRATCH.wide = np.empty((max(rows, 0 if buf is None else buf.shape[0]), cols), np.float32)
-    return buf
-
-
-def add_glows(images: np.ndarray, clean: np.ndarray, depth: np.ndarray, K: np.ndarray, alphas: Sequence[float]) -> np.ndarray:
-    """The glow of :func:`add_glow` added in place to fogged images ``(L, H, W, 3)`` at extinctions ``alphas`` (all
-    > 0): one scan of the clean frame puts every level's sources on its coarse grid (:func:`glow_grids`), and each
-    grid is added to its image (:func:`add_glow_grid`)."""
-    for img, (grid, f) in zip(images, glow_grids(clean, depth, K, alphas)):
-        add_glow_grid(img, grid, f)
-    return images
-
-
-def add_glow(fogged: np.ndarray, clean: np.ndarray, depth: np.ndarray, K: np.ndarray, alpha: float) -> np.ndarray:
-    """Forward-scattered light of bright sources (lamps, headlights) added to a fogged night image (a new array).
-
-    A source pixel of radiance ``S`` (clean image, ≥ ``GLOW_THRESHOLD``, taken at ``GLOW_SOURCE_GAIN · S``) at
-    ray distance ℓ loses ``1 − e^{−αℓ}`` of its light to the fog; ``GLOW_FORWARD`` of that is scattered forwards
-    into a Gaussian of width :func:`glow_sigma_px`: ``G = N_σ * [η · g · S · (1 − e^{−αℓ})]`` and the result is
-    ``min(255, fogged + G)``. Both the strength (through ``1 − e^{−αℓ}``) and the width grow with α; with
-    ``α = 0`` nothing is added. The Gaussian is applied on a grid coarse enough for its width (:func:`glow_grid`).
-
-    >>> clean = np.zeros((41, 41, 3), np.uint8); clean[20, 20] = 255
-    >>> K = np.array([[100.0, 0, 20.5], [0, 100.0, 20.5], [0, 0, 1]])
-    >>> d = np.full((41, 41), 40.0, np.float32)
-    >>> g = add_glow(np.zeros_like(clean), clean, d, K, 0.06)
-    >>> bool(g[20, 24, 0] > g[20, 28, 0] > 0), int(add_glow(clean, clean, d, K, 0.0)[20, 19, 0])
-    (True, 0)
-    """
-    out = np.array(fogged, np.uint8, copy=True)
-    return out if alpha <= 0.0 else add_glows(out[None], clean, depth, K, [alpha])[0]
-
-
 _F32 = np.float32
 
 
@@ -371,9 +109,12 @@ def _exp_neg(x):
 
 
 @njit(cache=True, parallel=True, fastmath=True)
-def _koschmieder(rgb, depth, col_sq, row_sq, alphas, airlight_row, out):
+def _koschmieder(rgb, depth, col_sq, row_sq, alphas, airlight_row, out, y0s, wys, firsts, fofs, wide, rofs, span_lo,
+                 span_hi):  # fmt: skip
     # rgb (H, 3W) and out (L, H, 3W) are viewed flat per row so every inner loop is contiguous (SIMD);
-    # rows go in 16 chunks so each task allocates its scratch rows once
+    # rows go in 16 chunks so each task allocates its scratch rows once. At night each fogged row gets its glow while
+    # it is in cache (_blend_glow; the arguments after out, _NO_GLOW when y0s has no levels).
+    glow = y0s.shape[0] > 0
     h, w = depth.shape
     n_levels = alphas.shape[0]
     n_chunks = 16
@@ -398,6 +139,8 @@ def _koschmieder(rgb, depth, col_sq, row_sq, alphas, airlight_row, out):
                     t3[3 * j + 2] = t[j]
                 for k in range(3 * w):
                     out[lv, i, k] = np.uint8(airlight_row[k] + diff[k] * t3[k] + np.float32(0.5))
+                if glow:
+                    _blend_glow(out[lv, i], i, lv, y0s, wys, firsts, fofs, wide, rofs, span_lo, span_hi)
 
 
 _koschmieder_serial = serial_twin(_koschmieder)
@@ -432,15 +175,18 @@ def check_fog_inputs(rgb: np.ndarray, depth: np.ndarray, K: np.ndarray, alphas: 
 
 
 def fog_images(rgb: np.ndarray, depth: np.ndarray, K: np.ndarray, alphas: Sequence[float], airlight: np.ndarray,
-               validate: bool = True) -> np.ndarray:  # fmt: skip
+               validate: bool = True, glow: bool = False) -> np.ndarray:  # fmt: skip
     """Koschmieder fog at several extinctions in one pass: ``(L, H, W, 3)`` uint8 for ``alphas`` (all > 0).
 
     ``ℓ = z · sqrt(1 + ((u − cx)/fx)² + ((v − cy)/fy)²)`` at pixel centres; ``t = exp(−α·ℓ)``;
     ``I = A + (J − A)·t`` rounded. One read of image and depth serves every level. Inputs are checked
-    (:func:`check_fog_inputs`) unless ``validate=False`` (the env's own frames, on the hot path).
+    (:func:`check_fog_inputs`) unless ``validate=False`` (the env's own frames, on the hot path). With ``glow=True``
+    (night) each level also gets the glow of the frame's bright sources (:func:`fog_gym.fog.glow.add_glows`, the same
+    bits) while its rows are in cache.
     """
     if validate:
         check_fog_inputs(rgb, depth, K, alphas, airlight)
+    rows = _glow_rows_of(rgb, depth, K, alphas) if glow else None
     h, w = depth.shape
     col = (((np.arange(w) + 0.5 - K[0, 2]) / K[0, 0]) ** 2).astype(np.float32)
     row = (((np.arange(h) + 0.5 - K[1, 2]) / K[1, 1]) ** 2).astype(np.float32)
@@ -448,7 +194,7 @@ def fog_images(rgb: np.ndarray, depth: np.ndarray, K: np.ndarray, alphas: Sequen
     airlight_row = np.tile(np.asarray(airlight, np.float32), w)
     pick(_koschmieder, _koschmieder_serial, len(alphas) * h * w)(
         np.ascontiguousarray(rgb).reshape(h, 3 * w), np.ascontiguousarray(depth, np.float32), col, row,
-        np.asarray(alphas, np.float32), airlight_row, out.reshape(len(alphas), h, 3 * w),
+        np.asarray(alphas, np.float32), airlight_row, out.reshape(len(alphas), h, 3 * w), *(rows or _NO_GLOW),
     )  # fmt: skip
     return out
 

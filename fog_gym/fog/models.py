@@ -27,7 +27,7 @@ from typing import ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 
-from fog_gym.fog.camera import add_glows, fog_images
+from fog_gym.fog.camera import fog_images
 from fog_gym.fog.lidar import fog_lidar
 from fog_gym.fog.physics import FogLevel, parse_fog  # noqa: F401  (parse_fog: the example)
 from fog_gym.dataset.packing import pack_points, unpack_points
@@ -82,8 +82,8 @@ def model_for(kind: str) -> FogModel | None:
 
 @register_model("camera")
 class Koschmieder:
-    """Koschmieder fog for cameras (:func:`fog_gym.fog.camera.fog_images`; at night plus the glow of
-    :func:`fog_gym.fog.camera.add_glows`); needs the camera's ``C_DEPTH`` beside its RGB, its intrinsics and its
+    """Koschmieder fog for cameras (:func:`fog_gym.fog.camera.fog_images`; at night with the glow of
+    :func:`fog_gym.fog.glow.add_glows`); needs the camera's ``C_DEPTH`` beside its RGB, its intrinsics and its
     atmospheric light from the context."""
 
     name = "koschmieder"
@@ -91,9 +91,7 @@ class Koschmieder:
     def apply(self, obs, channel, levels, context):
         rgb, depth, K = obs[channel], obs[f"{channel}_DEPTH"], context.intrinsics[channel]
         alphas = [lv.alpha for lv in levels]
-        images = fog_images(rgb, depth, K, alphas, context.airlight[channel], validate=False)
-        if context.night:
-            add_glows(images, rgb, depth, K, alphas)
+        images = fog_images(rgb, depth, K, alphas, context.airlight[channel], validate=False, glow=context.night)
         return {lv.name: img for lv, img in zip(levels, images)}
 
 

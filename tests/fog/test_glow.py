@@ -1,4 +1,4 @@
-"""The night glow on its coarse grid (fog_gym.fog.camera.add_glows) against the previous implementation, a Gaussian of
+"""The night glow on its coarse grid (fog_gym.fog.glow.add_glows) against the previous implementation, a Gaussian of
 the full image (kept here as the reference): within 1/255 on real night frames and within 2/255 on random lamps."""
 
 import math
@@ -10,8 +10,8 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from fog_gym.fog import add_glow, fog_images, glow_sigma_px, night_airlight, parse_fog
-from fog_gym.fog.camera import (GLOW_FORWARD, GLOW_SOURCE_GAIN, GLOW_THRESHOLD, add_glows, glow_factor, glow_grids,
-                                ray_length_factor)  # fmt: skip
+from fog_gym.fog.camera import ray_length_factor
+from fog_gym.fog.glow import GLOW_FORWARD, GLOW_SOURCE_GAIN, GLOW_THRESHOLD, add_glows, glow_factor, glow_grids
 
 LEVELS = ("light", "moderate", "dense")
 
@@ -95,3 +95,15 @@ def test_no_sources_or_clear_air_leave_the_image_unchanged():
     lamp = img.copy()
     lamp[30, 40] = 255
     assert np.array_equal(add_glow(img, lamp, depth, K, 0.0), img)
+
+
+def test_fog_with_glow_in_one_pass_equals_fog_then_glow_bit_for_bit(night_frame):
+    alphas = [parse_fog(lv).alpha for lv in LEVELS]
+    for cam, (rgb, depth, K) in night_frame.items():
+        A = night_airlight(rgb, depth)
+        two_pass = add_glows(fog_images(rgb, depth, K, alphas, A), rgb, depth, K, alphas)
+        assert np.array_equal(fog_images(rgb, depth, K, alphas, A, glow=True), two_pass), cam
+    dark = np.zeros((64, 96, 3), np.uint8)  # no source: glow=True is plain fog
+    d, K = np.full((64, 96), 20.0, np.float32), np.array([[80.0, 0, 48], [0, 80.0, 32], [0, 0, 1]])
+    assert np.array_equal(fog_images(dark, d, K, alphas, np.full(3, 90.0), glow=True),
+                          fog_images(dark, d, K, alphas, np.full(3, 90.0)))
