@@ -36,6 +36,10 @@ if "NUMBA_THREADING_LAYER" not in os.environ:
     numba.config.THREADING_LAYER = "workqueue"
 
 
+#: The fast-math flags of the pixel kernels: all of LLVM's but reassociation, so a vectorised loop and its scalar
+#: remainder add in the same order and a pixel's value does not depend on where its row starts in memory.
+FASTMATH = {"nnan", "ninf", "nsz", "arcp", "contract", "afn"}
+
 #: Work size (pixels, rays, points) below which the kernels run their serial twin.
 SERIAL_BELOW = 16_384
 

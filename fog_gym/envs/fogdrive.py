@@ -301,6 +301,19 @@ class FogDriveEnv(gym.Env):
             "extrinsics": {extrinsic_key(c.name): self._extrinsics[c.name].copy() for c in rig.cameras},
         }
 
+    def sensor_to_world(self, channel: str) -> np.ndarray:
+        """4×4 transform of the sensor that fills ``channel`` at the current frame: a camera's optical frame (x right,
+        y down, z forward: what its intrinsics project) → world, or a point sensor's own frame → world."""
+        if self.scene is None:
+            raise RuntimeError("call reset() before sensor_to_world()")
+        ego = geo.yaw_transform(*self.scene.ego_pose)
+        if channel in self.cameras.sensor_to_vehicle:
+            return ego @ self.cameras.sensor_to_vehicle[channel] @ np.linalg.inv(geo.SENSOR_TO_CAMERA)
+        for sensor in self.sensors:
+            if channel in sensor.channels:
+                return ego @ sensor_to_world(sensor.config.pose)
+        raise ValueError(f"no sensor of this rig fills channel {channel!r}; channels: {list(self.observation_space)}")
+
     @property
     def idle_action(self) -> Any:
         """The action that keeps lane and speed: highway-env's ``IDLE`` meta-action (1), zeros if continuous."""

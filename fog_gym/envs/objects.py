@@ -27,7 +27,7 @@ from gymnasium import spaces
 from gymnasium.utils import seeding
 
 from fog_gym.fog.lidar import BETA_PER_MOR, GAMMA, soft_response_table
-from fog_gym.fog.physics import FogLevel, parse_fog
+from fog_gym.fog.physics import FogLevel, parse_level
 from fog_gym.perception import objects as PO
 from fog_gym.seeds import stream
 from fog_gym.dataset.packing import pad_rows
@@ -60,7 +60,7 @@ class ObjectWorlds:
         self.objects = objects
         self.keyframe_frequency = keyframe_frequency
         self.episode_steps = int(round(episode_seconds * keyframe_frequency))
-        self.levels: list[FogLevel] = [parse_fog(fog)] * num_worlds
+        self.levels: list[FogLevel] = [parse_level(fog, "the native vector env")] * num_worlds
         self.pending: list[FogLevel | None] = [None] * num_worlds
         self.np_random = [seeding.np_random(None)[0] for _ in range(num_worlds)]
         self.episode_seed = np.zeros(num_worlds, np.int64)
@@ -122,7 +122,7 @@ class ObjectWorlds:
 
     def set_fog(self, w: int, fog: Any) -> None:
         """World ``w``'s fog from its next reset on."""
-        self.pending[w] = parse_fog(fog)
+        self.pending[w] = parse_level(fog, "the native vector env")
 
     # -- episodes -------------------------------------------------------------------------------------
     def reset(self, w: int, seed: int | None = None) -> None:

@@ -39,7 +39,7 @@ from gymnasium.vector.utils import batch_space
 
 from fog_gym.envs.presets import (HAZARD_BEV_AHEAD, HAZARD_TRAFFIC, OBJECT_ARGS, OBJECTS_PRESET, RL_TRAFFIC,
                                   check_observation, make_fogdrive_rl, objects_config)  # fmt: skip
-from fog_gym.fog.physics import parse_fog
+from fog_gym.fog.physics import parse_level
 from fog_gym.world.hazards import HazardConfig
 
 #: Env ids with a native vector path → (traffic, hazards by default, bird's-eye look-ahead).
@@ -126,7 +126,7 @@ class FogDriveVectorEnv(gym.vector.VectorEnv):
         fog = kwargs.pop("fog", "clear")
         if isinstance(fog, (list, tuple)):
             raise ValueError("fog: the RL presets take one level (in place), not a paired list")
-        parse_fog(fog)
+        parse_level(fog, "the native vector env")
         if observation == "objects":
             from fog_gym.envs.objects import FogDriveObjectsEnv, ObjectWorlds
 

@@ -23,7 +23,8 @@ import numpy as np
 from numba import njit, prange
 
 import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
-from fog_gym._numba import pick, serial_twin
+from fog_gym._numba import FASTMATH, pick, serial_twin
+from fog_gym.fog.depth import optical_depths
 from fog_gym.fog.glow import _NO_GLOW, _blend_glow, _glow_rows_of
 
 def ray_length_factor(width: int, height: int, K: np.ndarray) -> np.ndarray:
@@ -94,7 +95,7 @@ def night_airlight(rgb: np.ndarray, depth: np.ndarray, max_range: float = NIGHT_
 _F32 = np.float32
 
 
-@njit(cache=True, inline="always", fastmath=True)
+@njit(cache=True, inline="always", fastmath=FASTMATH)
 def _exp_neg(x):
     """exp(x) for float32 x ≤ 0 without a libm call, so pixel loops vectorise: exp(x) = (exp(x/64))^64 with a
     degree-5 Taylor polynomial on [−0.25, 0] (relative error < 2e-5); x is clamped at −16 (exp(−16) = 1.1e-7)."""
@@ -108,7 +109,7 @@ def _exp_neg(x):
     return p * p
 
 
-@njit(cache=True, parallel=True, fastmath=True)
+@njit(cache=True, parallel=True, fastmath=FASTMATH)
 def _koschmieder(rgb, depth, col_sq, row_sq, alphas, airlight_row, out, y0s, wys, firsts, fofs, wide, rofs, span_lo,
                  span_hi):  # fmt: skip
     # rgb (H, 3W) and out (L, H, 3W) are viewed flat per row so every inner loop is contiguous (SIMD);
@@ -212,3 +213,154 @@ def fog_image(rgb: np.ndarray, depth: np.ndarray, K: np.ndarray, alpha: float, a
         check_fog_inputs(rgb, depth, K, [1.0], airlight)
         return rgb.copy()
     return fog_images(rgb, depth, K, [alpha], airlight)[0]
+
+
+# -- fog fields (fog_gym.fog.fields): per-pixel optical depth instead of α·ℓ ------------------------------------------
+
+
+def field_pose(camera_to_world: np.ndarray, frame: tuple[float, float, float]) -> np.ndarray:
+    """A camera in the field frame, for :func:`fog_field_images`: ``(u_c, z_c, a_u, a_z)`` as 8 floats, the camera
+    centre's distance along the frame's heading and its height, and the rows that turn a pixel's ray ``(x, y, 1)``
+    (optical frame: x right, y down, z forward) into its run along ``u`` and up per metre of planar depth.
+    ``camera_to_world`` is the 4×4 optical-frame → world transform; ``frame`` the field frame ``(x0, y0, heading)``:
+    its origin on the road and its heading [rad].
+
+    >>> pose = field_pose(np.array([[0, 0, 1, 5.0], [-1, 0, 0, 0], [0, -1, 0, 1.5], [0, 0, 0, 1]]), (0.0, 0.0, 0.0))
+    >>> pose.tolist()  # a camera 5 m ahead, 1.5 m up, looking along the heading: ray (0, 0, 1) runs 1 m along u
+    [5.0, 1.5, 0.0, 0.0, 1.0, 0.0, -1.0, 0.0]
+    """
+    M = np.asarray(camera_to_world, np.float64)
+    x0, y0, heading = (float(v) for v in frame)
+    h = np.array([math.cos(heading), math.sin(heading), 0.0])
+    centre = M[:3, 3]
+    return np.concatenate([[(centre[0] - x0) * h[0] + (centre[1] - y0) * h[1], centre[2]], h @ M[:3, :3], M[2, :3]])
+
+
+@njit(cache=True, parallel=True, fastmath=FASTMATH)
+def _koschmieder_field(rgb, depth, xs, ys, pose, terms, starts, airlight_row, out, y0s, wys, firsts, fofs, wide, rofs,
+                       span_lo, span_hi):  # fmt: skip
+    # rgb (H, 3W), out (L, H, 3W) flat per row; xs (W) / ys (H) the pixel centres' ray slopes; pose (field_pose);
+    # level lv's field is terms[starts[lv]:starts[lv + 1]] (fog_gym.fog.fields packed rows). τ per pixel along its ray
+    # from the camera centre (u_c, z_c) to the surface, term by term in contiguous loops (SIMD):
+    #   homogeneous  β·ℓ
+    #   height       β0·ℓ·[f_below + (1 − f_below)·e^{−z_lo/H}·g((z_hi − z_lo)/H)], g(x) = (1 − e^{−x})/x, heights
+    #                clamped at the road (β(z < 0) = β(0)); f_below the part of the ray below it
+    #   bank         ℓ·[β_bg + Δβ·(W(u1) − W(u0))/(u1 − u0)], W the integral of the bank's trapezoid (its mean over a
+    #                sideways ray: the trapezoid at the ray's middle)
+    # and t = e^{−τ}, I = A + (J − A)·t rounded, then the glow, as _koschmieder.
+    glow = y0s.shape[0] > 0
+    h, w = depth.shape
+    n_levels = starts.shape[0] - 1
+    u_c, z_c = pose[0], pose[1]
+    n_chunks = 16
+    for chunk in prange(n_chunks):
+        ell = np.empty(w, np.float64)
+        run_u = np.empty(w, np.float64)
+        run_z = np.empty(w, np.float64)
+        tau = np.empty(w, np.float64)
+        t = np.empty(w, np.float32)
+        diff = np.empty(3 * w, np.float32)
+        t3 = np.empty(3 * w, np.float32)
+        for i in range(chunk * h // n_chunks, (chunk + 1) * h // n_chunks):
+            y = ys[i]
+            cu, cz = pose[3] * y + pose[4], pose[6] * y + pose[7]
+            b2 = 1.0 + y * y
+            for j in range(w):
+                d = np.float64(depth[i, j])
+                x = xs[j]
+                ell[j] = d * np.sqrt(b2 + x * x)
+                run_u[j] = d * (pose[2] * x + cu)
+                run_z[j] = d * (pose[5] * x + cz)
+            for k in range(3 * w):
+                diff[k] = np.float32(rgb[i, k]) - airlight_row[k]
+            for lv in range(n_levels):
+                for j in range(w):
+                    tau[j] = 0.0
+                for r in range(starts[lv], starts[lv + 1]):
+                    kind = terms[r, 0]
+                    if kind == 0.0:
+                        beta = terms[r, 1]
+                        for j in range(w):
+                            tau[j] += beta * ell[j]
+                    elif kind == 1.0:
+                        b0, inv_h = terms[r, 1], 1.0 / terms[r, 2]
+                        for j in range(w):
+                            z1 = z_c + run_z[j]
+                            lo, hi = min(z_c, z1), max(z_c, z1)
+                            below = min(max(-lo / max(hi - lo, 1e-9), 0.0), 1.0)
+                            lo_c = max(lo, 0.0)
+                            x = (max(hi, 0.0) - lo_c) * inv_h
+                            g = 1.0 - x * (0.5 - x * (1.0 / 6.0 - x * (1.0 / 24.0))) if x < 0.25 else \
+                                (1.0 - _exp_neg(-x)) / max(x, 0.25)  # fmt: skip
+                            tau[j] += b0 * ell[j] * (below + (1.0 - below) * _exp_neg(-lo_c * inv_h) * g)
+                    else:
+                        db, a, b, c, d, p, bg = (terms[r, 1], terms[r, 2], terms[r, 3], terms[r, 4], terms[r, 5],
+                                                 terms[r, 6], terms[r, 7])  # fmt: skip
+                        half_rise = 0.5 / (b - a) if b > a else 0.0
+                        half_fall = 0.5 / (d - c) if d > c else 0.0
+                        rise = 1.0 / (b - a) if b > a else 1e30
+                        fall = 1.0 / (d - c) if d > c else 1e30
+                        x = min(max(u_c, a), b) - a
+                        y0 = min(max(u_c, c), d) - c
+                        w0 = p * (x * x * half_rise + min(max(u_c, b), c) - b + y0 - y0 * y0 * half_fall)
+                        for j in range(w):
+                            span = run_u[j]
+                            u1 = u_c + span
+                            x = min(max(u1, a), b) - a
+                            y1 = min(max(u1, c), d) - c
+                            w1 = p * (x * x * half_rise + min(max(u1, b), c) - b + y1 - y1 * y1 * half_fall)
+                            mid = u_c + 0.5 * span
+                            at_mid = p * min(max(min((mid - a) * rise, (d - mid) * fall), 0.0), 1.0)
+                            long = abs(span) > 1e-3
+                            mean = (w1 - w0) / (span if long else 1.0) if long else at_mid
+                            tau[j] += (bg + db * mean) * ell[j]
+                for j in range(w):
+                    t[j] = _exp_neg(np.float32(-tau[j]))
+                for j in range(w):
+                    t3[3 * j] = t[j]
+                    t3[3 * j + 1] = t[j]
+                    t3[3 * j + 2] = t[j]
+                for k in range(3 * w):
+                    out[lv, i, k] = np.uint8(airlight_row[k] + diff[k] * t3[k] + np.float32(0.5))
+                if glow:
+                    _blend_glow(out[lv, i], i, lv, y0s, wys, firsts, fofs, wide, rofs, span_lo, span_hi)
+
+
+def fog_field_images(rgb: np.ndarray, depth: np.ndarray, K: np.ndarray, fields: Sequence, airlight: np.ndarray,
+                     pose: np.ndarray, time: float = 0.0, validate: bool = True, glow: bool = False) -> np.ndarray:  # fmt: skip
+    """Koschmieder fog with fog fields (:mod:`fog_gym.fog.fields`): ``(L, H, W, 3)`` uint8, one image per field.
+
+    Each pixel's transmittance is ``t = exp(−τ)``, τ the field's optical depth along the pixel's ray from the camera
+    centre to the surface (planar depth → ray length; sky pixels to the far plane), in closed form; ``I = A + (J − A)·t``
+    with the airlight of a clear frame as for homogeneous fog. ``pose`` places the camera in the field frame
+    (:func:`field_pose`), ``time`` [s] moves drifting banks. A homogeneous field gives :func:`fog_images`'s result
+    within 1/255 (use that for them: it is the reference). With ``glow=True`` (night) the sources lose ``1 − e^{−τ}``
+    of their light along their own rays to the glow, whose width follows each field's peak extinction.
+    """
+    if validate:
+        check_fog_inputs(rgb, depth, K, [1.0], airlight)
+        pose = np.asarray(pose, np.float64)
+        if pose.shape != (8,) or not np.isfinite(pose).all():
+            raise ValueError(f"pose must be field_pose(camera_to_world, frame): 8 finite numbers, got {pose!r}")
+    packed = [f.pack(time) for f in fields]
+    if not packed:
+        raise ValueError("fields must hold at least one fog field")
+    starts = np.concatenate([[0], np.cumsum([len(p) for p in packed])]).astype(np.int64)
+    h, w = depth.shape
+    xs = (np.arange(w) + 0.5 - K[0, 2]) / K[0, 0]
+    ys = (np.arange(h) + 0.5 - K[1, 2]) / K[1, 1]
+    pose = np.asarray(pose, np.float64)
+    rows = None
+    if glow:
+        def depths(si: np.ndarray, sj: np.ndarray) -> np.ndarray:  # each field's τ along the sources' rays
+            d, x, y = depth[si, sj].astype(np.float64), xs[sj], ys[si]
+            ell = d * np.sqrt(1.0 + x * x + y * y)
+            du, dz = d * (pose[2] * x + pose[3] * y + pose[4]) / ell, d * (pose[5] * x + pose[6] * y + pose[7]) / ell
+            return np.stack([optical_depths(p, pose[0], pose[1], du, dz, ell) for p in packed], axis=1)
+
+        rows = _glow_rows_of(rgb, depth, K, [f.alpha for f in fields], depths)
+    out = np.empty((len(packed), h, w, 3), np.uint8)
+    _koschmieder_field(np.ascontiguousarray(rgb).reshape(h, 3 * w), np.ascontiguousarray(depth, np.float32), xs, ys,
+                       pose, np.concatenate(packed), starts, np.tile(np.asarray(airlight, np.float32), w),
+                       out.reshape(len(packed), h, 3 * w), *(rows or _NO_GLOW))  # fmt: skip
+    return out

@@ -25,7 +25,7 @@ import numpy as np
 from numba import njit, prange
 
 import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
-from fog_gym._numba import pick, serial_twin
+from fog_gym._numba import FASTMATH, pick, serial_twin
 
 #: Glow: sources are pixels at or above ``GLOW_THRESHOLD`` (any channel, 0–255), taken at ``GLOW_SOURCE_GAIN`` ×
 #: their 8-bit value (a clipped lamp is far brighter than white); ``GLOW_FORWARD`` of the light they lose to fog
@@ -87,11 +87,12 @@ def _find_sources(clean):
 
 
 @njit(cache=True)
-def _splat_sources(clean, depth, u2, v2, alphas, fs, widths, offsets, grids, src_i, src_j):
+def _splat_sources(clean, depth, u2, v2, alphas, fs, widths, offsets, grids, src_i, src_j, taus):
     # clean (H, 3W) uint8, depth (H, W) float32, u2 (W) / v2 (H) the squared ray slopes of the pixel centres; per level
     # its extinction, grid factor f, grid width Wc (cells) and offset into grids (float32, zeroed: level lv's grid is
     # grids[offsets[lv]:…] as (Hc, Wc, 3)); the source pixels (_find_sources). Every source is shared by the four
-    # nearest cell centres of each level's grid with its energy η·g·S·(1 − e^{−αℓ}) / f².
+    # nearest cell centres of each level's grid with its energy η·g·S·(1 − e^{−αℓ}) / f² (1 − e^{−τ} with a fog field's
+    # optical depths taus (sources, levels); none: (0, levels)).
     gain = GLOW_FORWARD * GLOW_SOURCE_GAIN
     for s in range(src_i.shape[0]):
         i, j = src_i[s], src_j[s]
@@ -100,7 +101,9 @@ def _splat_sources(clean, depth, u2, v2, alphas, fs, widths, offsets, grids, src
         ell = depth[i, j] * np.sqrt(1.0 + u2[j] + v2[i])
         for lv in range(alphas.shape[0]):
             f = fs[lv]
-            energy = gain / (f * f) * (1.0 - np.exp(-alphas[lv] * ell))
+            # the light lost to the fog along the source's ray: 1 − e^{−αℓ}, or 1 − e^{−τ} of a fog field
+            lost = 1.0 - np.exp(-alphas[lv] * ell) if taus.shape[0] == 0 else -math.expm1(-taus[s, lv])
+            energy = gain / (f * f) * lost
             y = (i + 0.5) / f + 1.5  # cell coordinates (a margin of two cells)
             x = (j + 0.5) / f + 1.5
             y0, x0 = int(y), int(x)
@@ -144,9 +147,11 @@ def glow_grids(clean: np.ndarray, depth: np.ndarray, K: np.ndarray, alphas: Sequ
             for k in range(len(fs))]  # fmt: skip
 
 
-def _glow_cells(clean: np.ndarray, depth: np.ndarray, K: np.ndarray, alphas: Sequence[float]):
+def _glow_cells(clean: np.ndarray, depth: np.ndarray, K: np.ndarray, alphas: Sequence[float], depths=None):
     """:func:`glow_grids` in one flat float32 buffer: ``(cells, fs, hcs, wcs, offsets)``, level k's grid being
-    ``cells[offsets[k]:…]`` as ``(hcs[k], wcs[k], 3)``; None when the frame has no source."""
+    ``cells[offsets[k]:…]`` as ``(hcs[k], wcs[k], 3)``; None when the frame has no source. With fog fields,
+    ``depths(rows, columns)`` gives the optical depth of each level along the source pixels' rays ``(sources, levels)``
+    and the sources lose ``1 − e^{−τ}`` of their light (``alphas``, the fields' peak extinctions, set the widths)."""
     h, w = depth.shape
     sigmas = [max(glow_sigma_px(K, a), 0.5) for a in alphas]
     fs = np.array([glow_factor(s) for s in sigmas], np.int64)
@@ -160,8 +165,9 @@ def _glow_cells(clean: np.ndarray, depth: np.ndarray, K: np.ndarray, alphas: Seq
     src_i, src_j = pick(_find_sources, _find_sources_serial, h * w)(flat)
     if not len(src_i):
         return None
+    taus = np.zeros((0, len(alphas))) if depths is None else np.ascontiguousarray(depths(src_i, src_j), np.float64)
     _splat_sources(flat, np.ascontiguousarray(depth, np.float32), u2, v2, np.asarray(alphas, np.float64), fs,
-                   wcs.astype(np.int64), offsets, grids, src_i, src_j)  # fmt: skip
+                   wcs.astype(np.int64), offsets, grids, src_i, src_j, taus)  # fmt: skip
     box = (int(src_i[0]), int(src_i[-1]), int(src_j.min()), int(src_j.max()))  # the sources' rows and columns
     blurred = np.zeros_like(grids)
 
@@ -231,7 +237,7 @@ def _span(mask):
     return lo, hi
 
 
-@njit(cache=True, parallel=True, fastmath=True)
+@njit(cache=True, parallel={"fusion": False}, fastmath=FASTMATH)  # (its loops read their neighbours' rows: unfused)
 def _glow_rows(grids, gofs, hcs, wcs, x0s, wxs, firsts, fofs, wide):
     # Stages 1 and 2 of the glow's addition (stage 3: _blend_glow); returns each grid row's span of active intervals
     # (span_lo, span_hi, in the order of the levels' rows; row r of level lv is rofs[lv] + cy). Level lv's grid is grids[gofs[lv]:…] as (hcs[lv], 3 wcs[lv]) float32 (a margin of
@@ -302,7 +308,7 @@ def _glow_rows(grids, gofs, hcs, wcs, x0s, wxs, firsts, fofs, wide):
     return span_lo, span_hi
 
 
-@njit(cache=True, inline="always", fastmath=True)
+@njit(cache=True, inline="always", fastmath=FASTMATH)
 def _blend_glow(o, i, lv, y0s, wys, firsts, fofs, wide, rofs, span_lo, span_hi):
     # Stage 3 for image row i of level lv: o (3W) uint8 in place blends four rows of wide over the span of the row's
     # active intervals, in a contiguous loop from the span's start that vectorises: o = clip(o + glow + 0.5, 0, 255).
@@ -319,7 +325,7 @@ def _blend_glow(o, i, lv, y0s, wys, firsts, fofs, wide, rofs, span_lo, span_hi):
         ob[k] = np.uint8(min(max(v, 0), 255))  # (the cubic's small lobes may be < 0)
 
 
-@njit(cache=True, parallel=True, fastmath=True)
+@njit(cache=True, parallel=True, fastmath=FASTMATH)
 def _add_glow_rows(out, y0s, wys, firsts, fofs, wide, rofs, span_lo, span_hi):
     # Stage 3 on fogged images out (L, H, 3W) uint8, in place (_glow_rows made wide and the spans).
     for i in prange(out.shape[1]):
@@ -366,10 +372,11 @@ def add_glows(images: np.ndarray, clean: np.ndarray, depth: np.ndarray, K: np.nd
     return images
 
 
-def _glow_rows_of(clean: np.ndarray, depth: np.ndarray, K: np.ndarray, alphas: Sequence[float]) -> tuple | None:
+def _glow_rows_of(clean: np.ndarray, depth: np.ndarray, K: np.ndarray, alphas: Sequence[float],
+                  depths=None) -> tuple | None:  # fmt: skip
     """Stages 1 and 2 of the glow (:func:`_glow_rows`) for a frame: the arguments of its stage 3 (:func:`_blend_glow`)
     after the image, ``(y0s, wys, firsts, fofs, wide, rofs, span_lo, span_hi)``; None when the frame has no source."""
-    cells = _glow_cells(clean, depth, K, alphas)
+    cells = _glow_cells(clean, depth, K, alphas, depths)
     if cells is None:
         return None
     flat, fs, hcs, wcs, gofs = cells

@@ -21,6 +21,7 @@ from numba import njit, prange
 
 import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
 from fog_gym._numba import pick, serial_twin
+from fog_gym.fog.depth import point_extinction, segment_depth
 from fog_gym.fog.physics import FogLevel
 
 # LiDAR pulse and receiver (Hahner et al.; research note §1.1)
@@ -172,4 +173,210 @@ def fog_lidar(points: np.ndarray, level: FogLevel, rng: np.random.Generator, noi
         pts, table_i, table_r, level.alpha, BETA_PER_MOR / level.visibility_m / (GAMMA / math.pi),
         math.log(max(1.0, noise / 5.0)) if noise > 0 else 0.0, u, out, -1.0 if reflectance is None else float(reflectance),
     )  # fmt: skip
+    return out
+
+
+# -- fog fields (fog_gym.fog.fields): Hahner et al. with the local extinction ------------------------------------------
+
+#: The field path's range grid [m]: returns are decided on ranges kΔ, the pulse integral on the same step.
+FIELD_STEP = 0.1
+#: The soft return's maximum is looked for every FIELD_COARSE nodes (with their own weights), then on every node within
+#: two coarse steps of the coarse maximum and of the coarse maximum within NEAR_FIELD_NODES of the sensor.
+FIELD_COARSE, NEAR_FIELD_NODES = 5, 100
+#: Fine nodes per range step in the pulse integral's kernel (the transmittance is interpolated between range nodes).
+FIELD_SUBSTEPS = 20
+#: Backscatter per extinction: Hahner et al.'s β = 0.046 / MOR with MOR = ln 20 / α, so β(r) = KAPPA · β_ext(r).
+KAPPA = BETA_PER_MOR / math.log(20.0)
+
+
+@functools.lru_cache(maxsize=4)
+def field_pulse_weights(step: float = FIELD_STEP, max_range: float = 200.0) -> tuple[np.ndarray, np.ndarray]:
+    """Weights of the soft return on the range grid ``R_k = k·step``: ``W (K, N + 1)`` and ``V (K,)`` with
+    ``F(R_k) = Σ_n W[k, n]·E_{k−n} + V[k]·β₁·E_{j₁}``, ``E_j = e^{−2τ(j·step)}`` the two-way transmittance on the ray,
+    ``β₁`` the extinction 1 m out and ``j₁`` its node (``N`` nodes over the pulse's 6 m: 60).
+
+    From the LiDAR equation with the local backscatter ``κ·β``: ``F(R) = ∫ P(t)·κβ(R′)·E(R′)·g(R′) dt``, ``R′ = R − ct/2``,
+    ``g = ξ/R′²``, ``P = sin²(πt / 2τ_H)``. Where the overlap ξ is full (``R′ ≥ 1 m``), ``βE = −½ dE/dR′ = (1/c) dE/dt``
+    and integration by parts gives ``−(κ/c) ∫ E·d/dt[P·g] dt`` plus ``(κ/c)·P·g·E`` where the window reaches 1 m (P
+    vanishes at the pulse's ends): a field-independent kernel applied to the transmittance, which stays continuous
+    where β jumps (a bank with ``edge = 0``); Simpson's rule over the nodes. The overlap's ramp (0.9–1 m, ξ linear)
+    adds ``κ·β·E·∫ P·ξ/R′² dt`` with β and E taken halfway up the ramp (``β₁``, ``E₁·e^{0.1·β₁}``).
+
+    >>> W, V = field_pulse_weights(); W.shape, V.shape
+    ((2001, 61), (2001,))
+    """
+    n_nodes = int(round(SPEED_OF_LIGHT * TAU_H / step))  # 2τ_H·c/2 = 6 m of range
+    n_nodes += n_nodes % 2
+    fine = FIELD_SUBSTEPS * n_nodes  # the kernel varies fast near the sensor (1/R′³): Simpson on a finer grid, E
+    ds = step / FIELD_SUBSTEPS  # interpolated linearly between its nodes
+    s_f = np.arange(fine + 1) * ds  # range behind R of each fine node
+    t_f = 2.0 * s_f / SPEED_OF_LIGHT
+    phase = np.pi * t_f / (2.0 * TAU_H)
+    pulse, d_pulse = np.sin(phase) ** 2, np.pi / (2.0 * TAU_H) * np.sin(2.0 * phase)
+    full = int(round(XI_R2 / step))  # the node of R′ = 1 m
+    ramp_dt = 2.0 * (XI_R2 - XI_R1) / SPEED_OF_LIGHT
+    k_max = int(round(max_range / step))
+    W = np.zeros((k_max + 1, n_nodes + 1))
+    V = np.zeros(k_max + 1)
+    node, frac = np.arange(fine + 1) // FIELD_SUBSTEPS, (np.arange(fine + 1) % FIELD_SUBSTEPS) / FIELD_SUBSTEPS
+    for k in range(full, k_max + 1):
+        m = min(fine, (k - full) * FIELD_SUBSTEPS)  # fine nodes 0 … m lie where ξ = 1
+        r = k * step - s_f[:m + 1]
+        d_pg = d_pulse[:m + 1] / r**2 + pulse[:m + 1] * (-2.0 / r**3) * (-SPEED_OF_LIGHT / 2.0)  # d/dt[P·g]
+        wf = -(KAPPA / SPEED_OF_LIGHT) * d_pg * _composite_weights(m, 2.0 * ds / SPEED_OF_LIGHT)
+        np.add.at(W[k], node[:m + 1], wf * (1.0 - frac[:m + 1]))
+        np.add.at(W[k], np.minimum(node[:m + 1] + 1, n_nodes), wf * frac[:m + 1])
+        if m < fine:  # the window reaches 1 m: the boundary term and the overlap's ramp
+            W[k, m // FIELD_SUBSTEPS] += (KAPPA / SPEED_OF_LIGHT) * pulse[m] / (XI_R2 * XI_R2)
+            ramp = np.linspace(0.0, ramp_dt, 41)  # ∫ P·ξ/R′² dt over the ramp (β and E taken 5 cm in)
+            r_ramp = XI_R2 - SPEED_OF_LIGHT * ramp / 2.0
+            p_ramp = np.sin(np.pi * (t_f[m] + ramp) / (2.0 * TAU_H)) ** 2
+            V[k] = KAPPA * float(_composite_weights(40, ramp[1]) @ (p_ramp * (r_ramp - XI_R1) / (XI_R2 - XI_R1) / r_ramp**2))
+    return W, V
+
+
+def _composite_weights(m: int, h: float) -> np.ndarray:
+    """Quadrature weights of m + 1 equally spaced nodes: Simpson, with Simpson's 3/8 on the last three intervals
+    when m is odd (the trapezoid for m = 1, nothing for m = 0)."""
+    w = np.zeros(m + 1)
+    if m == 0:
+        return w
+    if m == 1:
+        return np.array([h / 2, h / 2])
+    even = m if m % 2 == 0 else m - 3
+    if even > 0:
+        w[:even + 1] += np.r_[1.0, np.tile([4.0, 2.0], even // 2)[:-1], 1.0] * h / 3.0
+    if m % 2:
+        w[even:even + 4] += np.array([1.0, 3.0, 3.0, 1.0]) * 3.0 * h / 8.0
+    return w
+
+
+@njit(cache=True, inline="always")
+def _transmittance(trans, j, terms, u0, z0, du, dz, step):
+    # E_j = e^{−2τ(j·step)} on the ray, cached in trans (−1: not yet computed)
+    if trans[j] < 0.0:
+        trans[j] = np.exp(-2.0 * segment_depth(terms, u0, z0, du, dz, j * step))
+    return trans[j]
+
+
+@njit(cache=True, parallel=True)
+def _hahner_field(pts, pose, terms, weights, ramp, weights5, ramp5, coarse, step, log_noise, u, out, attenuation):
+    # pts (N, C) in the sensor frame; pose (8,): the sensor origin (u0, z0) in the field frame and the rows a_u, a_z
+    # that turn a unit direction of the sensor frame into its run along u and up; terms a packed field
+    # (fog_gym.fog.fields). Per point: τ(R0) in closed form, E_j = e^{−2τ(jΔ)} on the ray, F_k = Σ_n W[k, n]·E_{k−n},
+    # its maximum up to R0 and where it lies (coarse ranges first, see FIELD_COARSE); then Hahner et al.'s rule as
+    # _hahner.
+    n_nodes = weights.shape[1]
+    last = weights.shape[0] - 1
+    u0, z0 = pose[0], pose[1]
+    for n in prange(pts.shape[0]):
+        x, y, z = np.float64(pts[n, 0]), np.float64(pts[n, 1]), np.float64(pts[n, 2])
+        r0 = np.sqrt(x * x + y * y + z * z)
+        inv = 1.0 / max(r0, 1e-12)
+        du = (pose[2] * x + pose[3] * y + pose[4] * z) * inv
+        dz = (pose[5] * x + pose[6] * y + pose[7] * z) * inv
+        tau0 = segment_depth(terms, u0, z0, du, dz, r0)
+        i_orig = np.round(np.float64(pts[n, 3]) * 255.0)
+        i_hard = np.round(i_orig * np.exp(-2.0 * tau0))
+        if tau0 == 0.0:  # no fog on the ray: no backscatter either, the point is as in clear air
+            for c in range(pts.shape[1]):
+                out[n, c] = pts[n, c]
+            continue
+        top = min(int(np.round(min(r0, 200.0) / step)), last)
+        trans = np.full(top + 1, -1.0)  # E_j, computed when a window first needs it
+        clear = 0  # the last node before the fog starts on the ray (a window in clear air returns nothing)
+        while clear < top and segment_depth(terms, u0, z0, du, dz, (clear + 1) * step) == 0.0:
+            clear += 1
+        one = int(np.round(XI_R2 / step))  # the node 1 m out, and the extinction there
+        beta1 = point_extinction(terms, u0 + du * XI_R2, z0 + dz * XI_R2)
+        near = 0.0 if one > top else _transmittance(trans, one, terms, u0, z0, du, dz, step)
+        lift = beta1 * near * np.exp(beta1 * (XI_R2 - XI_R1))
+        # coarse ranges every `coarse` nodes (their own weights), then every node near the sensor (where 1/R′² varies
+        # fast) and around the coarse maximum
+        best5, best5_k, near5, near5_k = -1.0, -1, -1.0, -1  # the coarse maximum, and the one near the sensor
+        for k5 in range((max(one, clear) + coarse - 1) // coarse, top // coarse + 1):
+            f = ramp5[k5] * lift
+            for m in range(min(weights5.shape[1], k5 + 1)):
+                f += weights5[k5, m] * _transmittance(trans, coarse * (k5 - m), terms, u0, z0, du, dz, step)
+            if f > best5:
+                best5, best5_k = f, k5 * coarse
+            if f > near5 and k5 * coarse <= NEAR_FIELD_NODES:
+                near5, near5_k = f, k5 * coarse
+        best, best_k = 0.0, 0
+        start = max(one, clear)
+        for part in range(2):
+            centre = near5_k if part == 0 else best5_k
+            if centre < 0 or (part == 1 and centre == near5_k):
+                continue
+            for k in range(max(start, centre - 2 * coarse), min(centre + 2 * coarse, top) + 1):
+                f = ramp[k] * lift
+                for m in range(min(n_nodes, k + 1)):
+                    f += weights[k, m] * _transmittance(trans, k - m, terms, u0, z0, du, dz, step)
+                if f > best:
+                    best, best_k = f, k
+        ratio = math.pi / GAMMA
+        if attenuation >= 0.0:  # reflectance intensities: the point's own reflectivity stands in for Γ
+            rho = min(max(np.float64(pts[n, 3]) / np.exp(-attenuation * r0), 1e-3), 1.0)
+            ratio = ratio * REFERENCE_REFLECTIVITY / rho
+        i_soft = min(255.0, best * i_orig * r0 * r0 * ratio)
+        if i_soft > i_hard:  # the fog's own return is stronger: a fog point on the same ray
+            scale = best_k * step * inv * np.exp(log_noise * u[n])
+            out[n, 0] = np.float32(x * scale)
+            out[n, 1] = np.float32(y * scale)
+            out[n, 2] = np.float32(z * scale)
+            out[n, 3] = np.float32(i_soft / 255.0)
+        else:
+            out[n, 0] = pts[n, 0]
+            out[n, 1] = pts[n, 1]
+            out[n, 2] = pts[n, 2]
+            out[n, 3] = np.float32(i_hard / 255.0)
+        for c in range(4, pts.shape[1]):
+            out[n, c] = pts[n, c]
+
+
+def lidar_field_pose(sensor_to_world: np.ndarray, frame: tuple[float, float, float]) -> np.ndarray:
+    """A LiDAR in the field frame for :func:`fog_lidar_field`: its origin's ``(u, z)`` and the rows that turn a unit
+    direction of its own frame into its run along u and up (8 floats); ``frame`` is ``(x0, y0, heading)``.
+
+    >>> lidar_field_pose(np.eye(4), (0.0, 0.0, 0.0)).tolist()
+    [0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0]
+    """
+    M = np.asarray(sensor_to_world, np.float64)
+    x0, y0, heading = (float(v) for v in frame)
+    h = np.array([math.cos(heading), math.sin(heading), 0.0])
+    return np.concatenate([[(M[0, 3] - x0) * h[0] + (M[1, 3] - y0) * h[1], M[2, 3]], h @ M[:3, :3], M[2, :3]])
+
+
+def fog_lidar_field(points: np.ndarray, field, rng: np.random.Generator, pose: np.ndarray, time: float = 0.0,
+                    noise: float = 10.0, reflectance: float | None = None) -> np.ndarray:  # fmt: skip
+    """Hahner et al. fog with a fog field (:mod:`fog_gym.fog.fields`) on LiDAR points ``(N, 4+)`` → the same shape.
+
+    The generalisation of :func:`fog_lidar` to a local extinction β(r) along each beam (``docs/fog.md``): the hard
+    target keeps ``round(i·e^{−2τ(R0)})``, τ the optical depth to the point in closed form; the fog's soft return is
+    ``i_soft = min(255, max_{R ≤ R0} F(R)·i·R0²·π/Γ)`` with ``F(R) = ∫ P(t)·κβ(R′)·e^{−2τ(R′)}·ξ(R′)/R′² dt``
+    (:func:`field_pulse_weights`; with constant β this is Hahner et al.'s ``I(R0, α)·β``), on a range grid of
+    :data:`FIELD_STEP`. The same replace rule and noise. ``pose`` places the LiDAR in the field frame
+    (:func:`lidar_field_pose`); ``time`` [s] moves drifting banks. A homogeneous field goes through :func:`fog_lidar`.
+    """
+    if field.is_homogeneous:
+        from fog_gym.fog.physics import parse_fog
+
+        return fog_lidar(points, parse_fog(field.visibility_m) if not isinstance(field, FogLevel) else field, rng,
+                         noise, reflectance)  # fmt: skip
+    pts = np.asarray(points, np.float32)
+    if pts.ndim != 2 or pts.shape[1] < 4:
+        raise ValueError(f"expected LiDAR points of shape (N, 4), got {pts.shape}")
+    if not np.isfinite(pts).all():
+        raise ValueError("LiDAR points must be finite (no NaN or inf)")
+    if not math.isfinite(noise) or noise < 0:
+        raise ValueError(f"noise must be a finite number of metres >= 0, got {noise!r}")
+    pose = np.asarray(pose, np.float64)
+    if pose.shape != (8,) or not np.isfinite(pose).all():
+        raise ValueError(f"pose must be lidar_field_pose(sensor_to_world, frame): 8 finite numbers, got {pose!r}")
+    u = rng.uniform(-1.0, 1.0, len(pts))
+    out = np.empty_like(pts)
+    _hahner_field(pts, pose, field.pack(time), *field_pulse_weights(), *field_pulse_weights(FIELD_STEP * FIELD_COARSE),
+                  FIELD_COARSE, FIELD_STEP,
+                  math.log(max(1.0, noise / 5.0)) if noise > 0 else 0.0, u, out,
+                  -1.0 if reflectance is None else float(reflectance))  # fmt: skip
     return out

@@ -27,8 +27,8 @@ from typing import ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 
-from fog_gym.fog.camera import fog_images
-from fog_gym.fog.lidar import fog_lidar
+from fog_gym.fog.camera import field_pose, fog_field_images, fog_images
+from fog_gym.fog.lidar import fog_lidar, fog_lidar_field, lidar_field_pose
 from fog_gym.fog.physics import FogLevel, parse_fog  # noqa: F401  (parse_fog: the example)
 from fog_gym.dataset.packing import pack_points, unpack_points
 
@@ -45,6 +45,11 @@ class FogContext:
     lidar_noise: float = 10.0
     #: The LiDAR's atmosphere attenuation rate when its intensities follow the "reflectance" model (None: CARLA's)
     lidar_reflectance: float | None = None
+    #: Fog fields (:mod:`fog_gym.fog.fields`): each fogged sensor's 4×4 pose (a camera's optical frame → world, a
+    #: LiDAR's frame → world), the field frame ``(x0, y0, heading)`` and the time since reset [s]
+    poses: Mapping[str, np.ndarray] = field(default_factory=dict)
+    frame: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    time: float = 0.0
 
 
 @runtime_checkable
@@ -90,9 +95,19 @@ class Koschmieder:
 
     def apply(self, obs, channel, levels, context):
         rgb, depth, K = obs[channel], obs[f"{channel}_DEPTH"], context.intrinsics[channel]
-        alphas = [lv.alpha for lv in levels]
-        images = fog_images(rgb, depth, K, alphas, context.airlight[channel], validate=False, glow=context.night)
-        return {lv.name: img for lv, img in zip(levels, images)}
+        out = {}
+        flat = [lv for lv in levels if lv.is_homogeneous]
+        if flat:
+            images = fog_images(rgb, depth, K, [lv.alpha for lv in flat], context.airlight[channel], validate=False,
+                                glow=context.night)  # fmt: skip
+            out.update({lv.name: img for lv, img in zip(flat, images)})
+        shaped = [lv for lv in levels if not lv.is_homogeneous]
+        if shaped:
+            pose = field_pose(context.poses[channel], context.frame)
+            images = fog_field_images(rgb, depth, K, shaped, context.airlight[channel], pose, context.time,
+                                      validate=False, glow=context.night)  # fmt: skip
+            out.update({lv.name: img for lv, img in zip(shaped, images)})
+        return {lv.name: out[lv.name] for lv in levels}
 
 
 @register_model("lidar")
@@ -105,6 +120,12 @@ class Hahner:
     def apply(self, obs, channel, levels, context):
         clean = unpack_points(obs, channel)
         capacity = obs[channel].shape[0]
-        return {lv.name: pack_points(fog_lidar(clean, lv, context.rngs[lv.name], context.lidar_noise,
-                                               context.lidar_reflectance), capacity)
-                for lv in levels}  # fmt: skip
+        out = {}
+        for lv in levels:
+            if lv.is_homogeneous:
+                fogged = fog_lidar(clean, lv, context.rngs[lv.name], context.lidar_noise, context.lidar_reflectance)
+            else:  # a fog field: the local extinction along each beam
+                fogged = fog_lidar_field(clean, lv, context.rngs[lv.name], lidar_field_pose(context.poses[channel],
+                                         context.frame), context.time, context.lidar_noise, context.lidar_reflectance)  # fmt: skip
+            out[lv.name] = pack_points(fogged, capacity)
+        return out

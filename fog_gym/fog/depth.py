@@ -1,0 +1,127 @@
+"""Optical depth of a packed fog field in closed form, one implementation for the kernels and for numpy
+(``docs/fog.md``, "Fog with a shape"; the fields are in :mod:`fog_gym.fog.fields`).
+
+A packed field is a float64 table of rows ``[kind, p0, …, p6]`` (``FogField.pack``): kind 0 homogeneous ``[β]``, kind 1
+height ``[β0, H]``, kind 2 bank ``[Δβ, a, b, c, d, p, β_bg]`` (the trapezoid ``w`` rises from 0 at ``a`` to ``p`` at ``b``,
+stays until ``c`` and falls to 0 at ``d``). A segment starts at ``(u0, z0)`` in the field frame with unit-direction
+components ``du`` (along u) and ``dz`` (up).
+
+Example:
+    >>> bank = np.array([[2.0, 0.06, 100.0, 100.0, 140.0, 140.0, 1.0, 0.0]])  # 40 m of β = 0.06 from u = 100 m
+    >>> round(float(segment_depth(bank, 0.0, 1.0, 1.0, 0.0, 200.0)), 6)
+    2.4
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
+
+@njit(cache=True, inline="always")
+def _g(x):
+    """``(1 − e^{−x}) / x`` (1 at 0), stable for small ``x``."""
+    if abs(x) < 1e-8:
+        return 1.0 - 0.5 * x
+    return -math.expm1(-x) / x
+
+
+@njit(cache=True, inline="always")
+def _ramp_integral(u, a, b, c, d, p):
+    """``W(u) = ∫_{−∞}^{u} w``: the trapezoid ``w`` of knots ``a ≤ b ≤ c ≤ d`` and plateau ``p``."""
+    x = min(max(u, a), b) - a
+    rise = x * x / (2.0 * (b - a)) if b > a else 0.0
+    flat = min(max(u, b), c) - b
+    y = min(max(u, c), d) - c
+    fall = y - y * y / (2.0 * (d - c)) if d > c else 0.0
+    return p * (rise + flat + fall)
+
+
+@njit(cache=True, inline="always")
+def _ramp(u, a, b, c, d, p):
+    """``w(u)`` of the trapezoid (a step at ``a = b`` and ``c = d``)."""
+    if u < a or u > d:
+        return 0.0
+    if u < b:
+        return p * (u - a) / (b - a)
+    if u <= c:
+        return p
+    return p * (d - u) / (d - c)
+
+
+@njit(cache=True)
+def segment_depth(terms, u0, z0, du, dz, length):
+    """Optical depth ``τ`` of the packed field ``terms`` along the segment from ``(u0, z0)`` with unit direction
+    components ``du`` (along ``u``) and ``dz`` (up), ``length`` metres long, in closed form."""
+    tau = 0.0
+    for k in range(terms.shape[0]):
+        kind = terms[k, 0]
+        if kind == 0.0:  # homogeneous
+            tau += terms[k, 1] * length
+        elif kind == 1.0:  # height: β0·exp(−max(z, 0)/H)
+            b0, h = terms[k, 1], terms[k, 2]
+            z1 = z0 + dz * length
+            lo, hi = min(z0, z1), max(z0, z1)
+            if hi <= 0.0:
+                tau += b0 * length
+            elif lo >= 0.0:
+                tau += b0 * math.exp(-lo / h) * length * _g((hi - lo) / h)
+            else:  # the part below the road sees β(0)
+                below = length * (-lo) / (hi - lo)
+                tau += b0 * (below + (length - below) * _g(hi / h))
+        else:  # bank: β_bg + Δβ·w(u)
+            db, a, b, c, d, p, bg = terms[k, 1], terms[k, 2], terms[k, 3], terms[k, 4], terms[k, 5], terms[k, 6], terms[k, 7]
+            span = du * length
+            if abs(span) < 1e-6:
+                mean_w = _ramp(u0 + 0.5 * span, a, b, c, d, p)
+            else:
+                mean_w = (_ramp_integral(u0 + span, a, b, c, d, p) - _ramp_integral(u0, a, b, c, d, p)) / span
+            tau += (bg + db * mean_w) * length
+    return tau
+
+
+@njit(cache=True)
+def point_extinction(terms, u, z):
+    """``β`` of the packed field at ``(u, z)`` [1/m]."""
+    beta = 0.0
+    for k in range(terms.shape[0]):
+        kind = terms[k, 0]
+        if kind == 0.0:
+            beta += terms[k, 1]
+        elif kind == 1.0:
+            beta += terms[k, 1] * math.exp(-max(z, 0.0) / terms[k, 2])
+        else:
+            beta += terms[k, 7] + terms[k, 1] * _ramp(u, terms[k, 2], terms[k, 3], terms[k, 4], terms[k, 5], terms[k, 6])
+    return beta
+
+
+@njit(cache=True)
+def _depths(terms, u0, z0, du, dz, length, out):
+    for n in range(out.shape[0]):
+        out[n] = segment_depth(terms, u0[n], z0[n], du[n], dz[n], length[n])
+
+
+@njit(cache=True)
+def _betas(terms, u, z, out):
+    for n in range(out.shape[0]):
+        out[n] = point_extinction(terms, u[n], z[n])
+
+
+def optical_depths(terms: np.ndarray, u0, z0, du, dz, length) -> np.ndarray:
+    """:func:`segment_depth` for arrays (broadcast together), float64 of their shape."""
+    args = np.broadcast_arrays(*(np.asarray(a, np.float64) for a in (u0, z0, du, dz, length)))
+    out = np.empty(args[0].size)
+    _depths(np.ascontiguousarray(terms, np.float64), *(np.ascontiguousarray(a).reshape(-1) for a in args), out)
+    return out.reshape(args[0].shape)
+
+
+def extinctions(terms: np.ndarray, u, z) -> np.ndarray:
+    """:func:`point_extinction` for arrays (broadcast together)."""
+    uu, zz = np.broadcast_arrays(np.asarray(u, np.float64), np.asarray(z, np.float64))
+    out = np.empty(uu.size)
+    _betas(np.ascontiguousarray(terms, np.float64), np.ascontiguousarray(uu).reshape(-1),
+           np.ascontiguousarray(zz).reshape(-1), out)  # fmt: skip
+    return out.reshape(uu.shape)

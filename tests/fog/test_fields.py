@@ -1,0 +1,230 @@
+"""Fog fields (fog_gym.fog.fields): validated parameters, closed-form optical depth against quadrature, and the
+camera and LiDAR physics with a field's local extinction."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from fog_gym.fog import fog_images, fog_lidar, parse_fog
+from fog_gym.fog.camera import field_pose, fog_field_images
+from fog_gym.fog.fields import FogBank, FogSum, HeightFog, Homogeneous, field_from_info, field_json
+from fog_gym.fog.lidar import (BETA_PER_MOR, GAMMA, KAPPA, SPEED_OF_LIGHT, TAU_H, XI_R1, XI_R2, fog_lidar_field,
+                               lidar_field_pose, soft_response_table)  # fmt: skip
+
+LN20 = math.log(20.0)
+
+
+def quad_depth(field, u0, z0, du, dz, length, n=200_001):
+    """τ by the trapezoid rule on a fine grid (the reference for the closed forms)."""
+    s = np.linspace(0.0, length, n)
+    return float(np.trapezoid(field.beta(u0 + s * du, z0 + s * dz), s))
+
+
+# -- the fields ---------------------------------------------------------------------------------------------------
+
+
+def test_homogeneous_is_todays_fog_and_names_its_channel():
+    assert Homogeneous(50.0) == parse_fog("dense") == parse_fog(50.0)
+    assert Homogeneous(75.0, name="haze").channel_suffix == "FOG_HAZE"
+    assert FogBank(30.0, 100.0, 50.0, name="wall").channel_suffix == "FOG_WALL"
+
+
+@pytest.mark.parametrize("make, word", [
+    (lambda: HeightFog(0.0, 10.0), "visibility"), (lambda: HeightFog(float("nan"), 10.0), "visibility"),
+    (lambda: HeightFog(50.0, 0.0), "scale_height"), (lambda: HeightFog(50.0, -2.0), "scale_height"),
+    (lambda: FogBank(-1.0, 10.0, 5.0), "visibility"), (lambda: FogBank(50.0, 10.0, -5.0), "length"),
+    (lambda: FogBank(50.0, 10.0, 5.0, edge=-1.0), "edge"), (lambda: FogBank(50.0, float("inf"), 5.0), "start"),
+    (lambda: FogBank(50.0, 10.0, 5.0, background=0.0), "background"),
+    (lambda: FogBank(50.0, 10.0, 5.0, name="a b"), "name"),
+])  # fmt: skip
+def test_bad_parameters_raise_a_value_error_naming_the_parameter(make, word):
+    with pytest.raises(ValueError, match=word):
+        make()
+
+
+def test_fields_are_hashable_and_their_description_reads_back():
+    f = HeightFog(80.0, 5.0) + FogBank(30.0, 120.0, 60.0, edge=10.0, velocity=-2.0, name="wall")
+    assert isinstance(f, FogSum) and len({f, f}) == 1
+    assert field_from_info(json.loads(field_json(f))) == f
+    assert (f + Homogeneous(200.0)).terms[-1] == parse_fog(200.0)  # sums flatten
+
+
+def test_a_bank_has_full_strength_inside_ramps_centred_on_its_faces_and_its_background_outside():
+    b = FogBank(50.0, start=100.0, length=50.0, edge=20.0, background=500.0)
+    beta_in, beta_bg = LN20 / 50.0, LN20 / 500.0
+    got = b.beta(np.array([80.0, 100.0, 110.0, 150.0, 170.0]), 0.0)
+    assert got == pytest.approx([beta_bg, (beta_in + beta_bg) / 2, beta_in, (beta_in + beta_bg) / 2, beta_bg])
+    short = FogBank(50.0, start=100.0, length=10.0, edge=20.0)  # the ramps meet: a tent of peak (L + e) / 2e
+    assert float(short.beta(105.0, 0.0)) == pytest.approx(beta_in * 30.0 / 40.0)
+    drift = FogBank(50.0, start=100.0, length=50.0, velocity=5.0)
+    assert float(drift.beta(100.0, 0.0, time=4.0)) == 0.0 and float(drift.beta(130.0, 0.0, time=4.0)) == pytest.approx(beta_in)
+
+
+def test_height_fog_thins_with_height_and_is_constant_below_the_road():
+    f = HeightFog(50.0, 10.0)
+    assert f.beta(0.0, np.array([-3.0, 0.0, 10.0, 20.0])) == pytest.approx(LN20 / 50 * np.exp([0.0, 0.0, -1.0, -2.0]))
+
+
+@given(u0=st.floats(-200, 200), z0=st.floats(-1.0, 8.0), azimuth=st.floats(-math.pi, math.pi),
+       elevation=st.floats(-0.6, 0.6), length=st.floats(0.1, 400.0), edge=st.sampled_from([0.0, 0.5, 20.0]),
+       height=st.floats(0.5, 40.0))  # fmt: skip
+@settings(max_examples=60, deadline=None)
+def test_closed_form_optical_depth_equals_quadrature_on_random_rays(u0, z0, azimuth, elevation, length, edge, height):
+    du, dz = math.cos(elevation) * math.cos(azimuth), math.sin(elevation)
+    field = HeightFog(60.0, height) + FogBank(40.0, 30.0, 25.0, edge=edge, background=800.0) + Homogeneous(900.0)
+    closed = float(field.optical_depth(u0, z0, du, dz, length))
+    assert closed == pytest.approx(quad_depth(field, u0, z0, du, dz, length), rel=1e-4, abs=1e-6)
+
+
+def test_a_banks_edge_to_zero_limit_is_the_step():
+    rays = (0.0, 1.0, 0.8, 0.0, 200.0)
+    step = float(FogBank(50.0, 60.0, 40.0, edge=0.0).optical_depth(*rays))
+    assert step == pytest.approx(40.0 / 0.8 * LN20 / 50.0)  # 40 m of bank crossed at 0.8 m along u per metre
+    assert [float(FogBank(50.0, 60.0, 40.0, edge=e).optical_depth(*rays)) for e in (1e-3, 1e-6)] == \
+        pytest.approx([step, step], rel=1e-6)  # fmt: skip
+
+
+# -- the camera ---------------------------------------------------------------------------------------------------
+
+W, H = 96, 64
+K = np.array([[60.0, 0.0, W / 2], [0.0, 60.0, H / 2], [0.0, 0.0, 1.0]])
+#: A camera 1.5 m above the road at the field's origin, looking along its heading (optical frame → world).
+CAMERA = np.array([[0.0, 0.0, 1.0, 0.0], [-1.0, 0.0, 0.0, 0.0], [0.0, -1.0, 0.0, 1.5], [0.0, 0.0, 0.0, 1.0]])
+
+
+def scene():
+    rng = np.random.default_rng(3)
+    rgb = rng.integers(0, 256, (H, W, 3), dtype=np.uint8)
+    depth = np.where(np.arange(H)[:, None] > H / 2, 1.5 * 60.0 / np.maximum(np.arange(H)[:, None] + 0.5 - H / 2, 1e-3),
+                     1000.0) * np.ones((1, W))  # the road below the horizon, sky above  # fmt: skip
+    return rgb, depth.astype(np.float32)
+
+
+def test_camera_pixels_follow_koschmieder_with_the_fields_optical_depth():
+    rgb, depth = scene()
+    airlight = np.array([180.0, 190.0, 200.0])
+    fields = [FogBank(50.0, 30.0, 40.0, edge=10.0), HeightFog(40.0, 3.0)]
+    out = fog_field_images(rgb, depth, K, fields, airlight, field_pose(CAMERA, (0.0, 0.0, 0.0)))
+    v, u = np.mgrid[0:H, 0:W]
+    ray = np.stack([(u + 0.5 - K[0, 2]) / K[0, 0], (v + 0.5 - K[1, 2]) / K[1, 1], np.ones((H, W))], -1)
+    ell = depth * np.linalg.norm(ray, axis=-1)
+    unit = (ray / np.linalg.norm(ray, axis=-1, keepdims=True)) @ CAMERA[:3, :3].T  # world directions
+    for img, field in zip(out, fields):
+        tau = field.optical_depth(0.0, 1.5, unit[..., 0], unit[..., 2], ell)
+        expected = airlight + (rgb - airlight) * np.exp(-tau)[..., None]
+        assert np.abs(img - expected).max() <= 0.51 + 1e-3  # rounding only
+
+
+def test_a_bank_covering_everything_is_homogeneous_fog_within_one_level():
+    rgb, depth = scene()
+    airlight = np.array([150.0, 160.0, 170.0])
+    everywhere = FogBank(50.0, -5000.0, 10000.0, edge=0.0)
+    shaped = fog_field_images(rgb, depth, K, [everywhere], airlight, field_pose(CAMERA, (0.0, 0.0, 0.0)))[0]
+    flat = fog_images(rgb, depth, K, [parse_fog("dense").alpha], airlight)[0]
+    assert np.abs(shaped.astype(int) - flat).max() <= 1
+
+
+def test_ground_fog_clears_upwards_and_a_bank_ahead_leaves_the_near_road_clear():
+    rgb, depth = scene()
+    airlight = np.full(3, 200.0)
+    pose = field_pose(CAMERA, (0.0, 0.0, 0.0))
+    ground, bank = fog_field_images(rgb, depth, K, [HeightFog(30.0, 2.0), FogBank(30.0, 60.0, 100.0, edge=0.0)], airlight,
+                                    pose)  # fmt: skip
+    grey = np.full_like(rgb, 100)
+    g = fog_field_images(grey, depth, K, [HeightFog(30.0, 2.0)], airlight, pose)[0].astype(int)
+    assert g[0, W // 2, 0] < g[H // 2 - 2, W // 2, 0]  # the sky straight up sees less fog than along the horizon
+    near = depth < 50.0
+    assert np.array_equal(bank[near], rgb[near])  # the road short of the bank is as in clear air
+    assert np.abs(ground[near].astype(int) - rgb[near]).max() > 0
+
+
+# -- the LiDAR ----------------------------------------------------------------------------------------------------
+
+LIDAR = np.array([[1.0, 0, 0, 0], [0, 1.0, 0, 0], [0, 0, 1.0, 1.8], [0, 0, 0, 1.0]])  # 1.8 m up, along the heading
+
+
+def direct_soft_maximum(field, du, dz, r0, z0=1.8, n=40_001):
+    """``max_{R ≤ R0} F(R)`` and where, from the LiDAR equation with the local backscatter integrated directly (fine
+    Simpson in t at every range node, closed-form τ): the reference of the field path."""
+    t = np.linspace(0.0, 2 * TAU_H, n)
+    w = np.ones(n)
+    w[1:-1:2], w[2:-1:2] = 4.0, 2.0
+    w *= (t[1] - t[0]) / 3.0
+    pulse = np.sin(np.pi * t / (2 * TAU_H)) ** 2
+    best, where = 0.0, 0.0
+    for R in np.arange(0.0, r0 + 1e-9, 0.1):
+        rp = R - SPEED_OF_LIGHT * t / 2
+        xi = np.clip((rp - XI_R1) / (XI_R2 - XI_R1), 0.0, 1.0)
+        ok = rp > XI_R1
+        rr = np.where(ok, rp, 1.0)
+        tau = field.optical_depth(0.0, z0, du, dz, np.maximum(rr, 0.0))
+        beta = field.beta(rr * du, z0 + rr * dz)
+        f = float(np.sum(w * np.where(ok, pulse * KAPPA * beta * np.exp(-2 * tau) * xi / rr**2, 0.0)))
+        if f > best:
+            best, where = f, R
+    return best, where
+
+
+@pytest.mark.parametrize("field, direction, r0", [
+    (FogBank(40.0, 30.0, 20.0, edge=0.0), (1.0, 0.0), 70.0),
+    (FogBank(60.0, 20.0, 200.0, edge=10.0, background=300.0), (0.9, -0.05), 45.0),
+    (HeightFog(50.0, 4.0), (0.98, -0.04), 40.0),
+    (HeightFog(50.0, 10.0) + FogBank(30.0, 25.0, 10.0, edge=2.0), (0.7, -0.02), 60.0),
+])  # fmt: skip
+def test_the_lidar_soft_return_equals_a_direct_integration_of_the_lidar_equation(field, direction, r0):
+    du, dz = direction
+    dy = math.sqrt(max(1.0 - du * du - dz * dz, 0.0))
+    point = np.array([[r0 * du, r0 * dy, r0 * dz, 0.9]], np.float32)  # bright: the soft return is what decides
+    best, where = direct_soft_maximum(field, du, dz, float(np.linalg.norm(point[0, :3])))
+    out = fog_lidar_field(point, field, np.random.default_rng(0), lidar_field_pose(LIDAR, (0.0, 0.0, 0.0)), noise=0.0)
+    i_orig = round(float(point[0, 3]) * 255)  # (the float32 intensity)
+    r = float(np.linalg.norm(point[0, :3]))
+    i_soft = min(255.0, best * i_orig * r * r * math.pi / GAMMA)
+    if i_soft < 255.0 and np.linalg.norm(out[0, :3]) < r - 1e-3:  # replaced: the intensity is the soft return
+        assert float(out[0, 3]) * 255.0 == pytest.approx(i_soft, rel=1e-3)
+        assert float(np.linalg.norm(out[0, :3])) == pytest.approx(where, abs=0.11)
+    else:
+        assert best * i_orig * r * r * math.pi / GAMMA >= 255.0 or np.allclose(out[0, :3], point[0, :3])
+
+
+def test_lidar_points_in_front_of_a_bank_are_as_in_clear_air_and_behind_a_dense_one_they_are_lost():
+    rng = np.random.default_rng(1)
+    r = rng.uniform(3.0, 120.0, 4000)
+    az = rng.uniform(-0.6, 0.6, r.size)
+    pts = np.c_[r * np.cos(az), r * np.sin(az), rng.uniform(-1.7, 0.5, r.size), rng.uniform(0.2, 1.0, r.size)]
+    pts = pts.astype(np.float32)
+    bank = FogBank(15.0, 60.0, 30.0, edge=0.0)
+    out = fog_lidar_field(pts, bank, np.random.default_rng(2), lidar_field_pose(LIDAR, (0.0, 0.0, 0.0)), noise=0.0)
+    front = pts[:, 0] < 59.0
+    assert np.array_equal(out[front], pts[front])
+    behind = pts[:, 0] > 95.0  # τ = 12 on the way: every return is the fog's own, from the bank's near face
+    assert behind.sum() > 500 and np.all((out[behind, 0] > 59.9) & (out[behind, 0] < 66.0))
+
+
+def test_a_bank_covering_everything_makes_the_homogeneous_lidar_decisions():
+    rng = np.random.default_rng(4)
+    r = rng.uniform(1.5, 120.0, 3000)
+    az, el = rng.uniform(-np.pi, np.pi, r.size), rng.uniform(-0.35, 0.09, r.size)
+    pts = np.c_[r * np.cos(el) * np.cos(az), r * np.cos(el) * np.sin(az), r * np.sin(el), np.exp(-0.004 * r)]
+    pts = pts.astype(np.float32)
+    flat = fog_lidar(pts, parse_fog("dense"), np.random.default_rng(0))
+    shaped = fog_lidar_field(pts, FogBank(50.0, -5000.0, 10000.0, edge=0.0), np.random.default_rng(0),
+                             lidar_field_pose(LIDAR, (0.0, 0.0, 0.0)))  # fmt: skip
+    moved = lambda out: np.any(out[:, :3] != pts[:, :3], axis=1)  # noqa: E731
+    assert np.array_equal(moved(flat), moved(shaped))
+    assert np.abs(flat[:, 3] - shaped[:, 3]).max() <= 1.5 / 255
+
+
+def test_same_seed_same_fogged_points_and_the_soft_maximum_matches_hahners_table_for_constant_fog():
+    pts = np.array([[40.0, 3.0, -1.0, 0.5], [90.0, -5.0, 0.0, 0.8]], np.float32)
+    pose = lidar_field_pose(LIDAR, (0.0, 0.0, 0.0))
+    bank = HeightFog(50.0, 6.0)
+    a = fog_lidar_field(pts, bank, np.random.default_rng(7), pose)
+    assert np.array_equal(a, fog_lidar_field(pts, bank, np.random.default_rng(7), pose))
+    I, _ = soft_response_table(parse_fog("dense").alpha)
+    best, _ = direct_soft_maximum(FogBank(50.0, -5000.0, 10000.0, edge=0.0), 1.0, 0.0, 30.0)
+    assert best == pytest.approx(I[-1] * BETA_PER_MOR / 50.0, rel=1e-3)  # κβ·I: Hahner et al.'s constant case
