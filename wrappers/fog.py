@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import zlib
 from collections.abc import Sequence
 from typing import Any
 
@@ -10,21 +11,25 @@ import gymnasium as gym
 import numpy as np
 
 from fog_gym.fog import FogLevel, atmospheric_light, night_airlight, parse_fog
+from fog_gym.fog.fields import field_info, field_json
 from fog_gym.fog.models import FogContext, model_for
+from fog_gym.fog.physics import FogField
+from fog_gym.geometry import yaw_transform
 from fog_gym.seeds import stream
 
-FogSpec = str | float | int | FogLevel
+FogSpec = str | float | int | FogField
 
 
-def parse_fog_levels(fog: FogSpec | Sequence[FogSpec]) -> tuple[tuple[FogLevel, ...], bool]:
-    """``(levels, paired)``: one level (in place) or a list of distinct levels (paired). Errors before any work."""
+def parse_fog_levels(fog: FogSpec | Sequence[FogSpec]) -> tuple[tuple[FogField, ...], bool]:
+    """``(levels, paired)``: one level or fog field (in place) or a list of distinct ones (paired; fields beside
+    level names, each named by its ``name``). Errors before any work."""
     if isinstance(fog, (list, tuple)):
         if not fog:
             raise ValueError("fog list must name at least one level, e.g. ['light', 'moderate', 'dense']")
         levels = tuple(parse_fog(f) for f in fog)
         names = [lv.name for lv in levels]
         if len(set(names)) != len(names):
-            raise ValueError(f"fog list must not repeat a level, got {list(fog)!r}")
+            raise ValueError(f"fog list must not repeat a level or field name, got {names!r} (fields take name=...)")
         if any(lv.is_clear for lv in levels):
             raise ValueError("fog list (paired mode) holds fog levels; the clean channels are kept anyway, drop 'clear'")
         return levels, True
@@ -139,6 +144,7 @@ class FogWrapper(gym.Wrapper):
             lv.name: stream(base.episode_seed, "fog", _level_key(lv))
             for lv in self.levels
         }
+        self.field_frame, self._t0 = self._frame_at_reset(base), base.scene.time if base.scene is not None else 0.0
         return self._apply(obs), self._info(info)
 
     def step(self, action: Any):
@@ -157,21 +163,69 @@ class FogWrapper(gym.Wrapper):
         return composite(None if cam is None else self._last[cam], birds_eye_view(base.scene))
 
     # -- internals ------------------------------------------------------------------------------------------
+    @property
+    def fields(self) -> bool:
+        """Whether a level in force is a fog field that is not homogeneous (the sensors then need their poses)."""
+        return not all(lv.is_homogeneous for lv in self.levels)
+
+    def _frame_at_reset(self, base) -> tuple[float, float, float]:
+        """The field frame: the LiDAR origin (the 3D boxes' frame) at reset, on the road, and the ego's heading."""
+        if base.scene is None or not hasattr(base, "ego_pose_record"):
+            return 0.0, 0.0, 0.0
+        origin = self._lidar_to_world()[:3, 3]
+        return float(origin[0]), float(origin[1]), float(base.scene.ego_pose[2])
+
+    def _field_time(self) -> float:
+        base = self.env.unwrapped
+        return base.scene.time - self._t0 if base.scene is not None else 0.0
+
     def _info(self, info: dict) -> dict:
         info = dict(info)
-        info["fog"] = {lv.name: lv.info() for lv in self.levels} if self.paired else self.levels[0].info()
+        describe = field_info if self.fields else (lambda lv: lv.info())
+        info["fog"] = {lv.name: describe(lv) for lv in self.levels} if self.paired else describe(self.levels[0])
         if "boxes_3d" in info:  # how much fog stands between each sensor and each box (ground truth is unchanged)
-            def transmittance(distance: np.ndarray, two_way: bool) -> np.ndarray | dict[str, np.ndarray]:
+            def transmittance(distance: np.ndarray, two_way: bool, depth=None) -> np.ndarray | dict[str, np.ndarray]:
                 k = 2.0 if two_way else 1.0
-                values = {lv.name: np.exp(-k * lv.alpha * distance) for lv in self.levels}
+                values = {lv.name: np.exp(-k * (lv.alpha * distance if depth is None or lv.is_homogeneous
+                                                else depth[lv.name])) for lv in self.levels}  # fmt: skip
                 return values if self.paired else values[self.levels[0].name]
 
             b3 = info["boxes_3d"]
-            info["boxes_3d"] = b3.with_fields(transmittance=transmittance(b3["distance"], True))
-            info["boxes_2d"] = {
-                cam: b.with_fields(transmittance=transmittance(b["distance"], False)) for cam, b in info["boxes_2d"].items()
-            }
+            depths = self._box_depths(b3, info["boxes_2d"]) if self.fields else {}
+            info["boxes_3d"] = b3.with_fields(transmittance=transmittance(b3["distance"], True, depths.get(None)))
+            info["boxes_2d"] = {cam: b.with_fields(transmittance=transmittance(b["distance"], False, depths.get(cam)))
+                                for cam, b in info["boxes_2d"].items()}  # fmt: skip
         return info
+
+    def _box_depths(self, boxes_3d, boxes_2d) -> dict[str | None, dict[str, np.ndarray]]:
+        """Each field's optical depth from the LiDAR origin (key None) and from each camera's centre to each box
+        centre, by level name."""
+        base = self.env.unwrapped
+        lidar = self._lidar_to_world()
+        centres = np.asarray(boxes_3d["center"], np.float64).reshape(-1, 3) @ lidar[:3, :3].T + lidar[:3, 3]
+        row = {int(v): k for k, v in enumerate(boxes_3d["vehicle_ids"])}
+        x0, y0, heading = self.field_frame
+        h = np.array([math.cos(heading), math.sin(heading)])
+        t = self._field_time()
+
+        def depths(origin: np.ndarray, ends: np.ndarray) -> dict[str, np.ndarray]:
+            ray = ends - origin
+            length = np.linalg.norm(ray, axis=1)
+            unit = ray / np.maximum(length, 1e-9)[:, None]
+            u0 = (origin[0] - x0) * h[0] + (origin[1] - y0) * h[1]
+            return {lv.name: lv.optical_depth(u0, origin[2], unit[:, :2] @ h, unit[:, 2], length, t)
+                    for lv in self.levels}  # fmt: skip
+
+        out: dict[str | None, dict[str, np.ndarray]] = {None: depths(lidar[:3, 3], centres)}
+        for cam, b in boxes_2d.items():
+            ends = centres[[row[int(v)] for v in b["vehicle_ids"]]] if len(b["vehicle_ids"]) else np.zeros((0, 3))
+            out[cam] = depths(base.sensor_to_world(cam)[:3, 3], ends)
+        return out
+
+    def _lidar_to_world(self) -> np.ndarray:
+        """The 3D boxes' LiDAR frame → world at the current frame."""
+        base = self.env.unwrapped
+        return yaw_transform(*base.scene.ego_pose) @ base.ego_pose_record()["lidar_to_ego"]
 
     def _fogged(self, obs: dict, levels: tuple[FogLevel, ...]) -> dict[str, dict[str, np.ndarray]]:
         """Fogged channels per level name (all levels of a channel in one pass)."""
@@ -179,8 +233,12 @@ class FogWrapper(gym.Wrapper):
         out: dict[str, dict[str, np.ndarray]] = {lv.name: {} for lv in levels}
         lidar = base.config.rig.lidar if hasattr(base, "config") else None
         reflect = lidar.atmosphere_attenuation_rate if lidar is not None and lidar.intensity == "reflectance" else None
+        poses = {}
+        if self.fields:  # each fogged sensor's pose in the world, for the fields' optical depths
+            poses = {ch: base.sensor_to_world(ch) for ch in self.models}
         context = FogContext(base.intrinsics, self.airlight, self._rngs,
-                             base.scene is not None and base.scene.lighting.night, self.lidar_noise, reflect)  # fmt: skip
+                             base.scene is not None and base.scene.lighting.night, self.lidar_noise, reflect, poses,
+                             self.field_frame, self._field_time())  # fmt: skip
         for channel, model in self.models.items():  # the model of each sensor kind (fog_gym.fog.models)
             for name, fogged in model.apply(obs, channel, levels, context).items():
                 out[name][channel] = fogged
@@ -198,5 +256,8 @@ class FogWrapper(gym.Wrapper):
         return out
 
 
-def _level_key(level: FogLevel) -> int:
+def _level_key(level: FogField) -> int:
+    """The fog noise stream of a level: its visibility in mm (homogeneous), a checksum of a field's parameters."""
+    if not level.is_homogeneous:
+        return zlib.crc32(field_json(level).encode())
     return 0 if level.is_clear else int(round(level.visibility_m * 1000))
