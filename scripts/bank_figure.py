@@ -36,7 +36,8 @@ def approach(town: str, seed: int, resolution, bank_start: float, bank_visibilit
             origin = env.unwrapped.sensor_to_world("LIDAR_TOP")[:3, 3]
             gap = bank_start - ((origin[0] - x0) * math.cos(heading) + (origin[1] - y0) * math.sin(heading))
             if gap <= DISTANCES[len(shots)]:
-                shots.append((gap, obs["CAM_FRONT_FOG_BANK"], unpack_points(obs, "LIDAR_TOP"),
+                shots.append((gap, np.concatenate([obs["CAM_FRONT"], obs["CAM_FRONT_FOG_BANK"]], axis=1),
+                              unpack_points(obs, "LIDAR_TOP"),
                               unpack_points(obs, "LIDAR_TOP_FOG_BANK")))  # fmt: skip
                 bar.update()
                 if len(shots) == len(DISTANCES):
@@ -74,15 +75,15 @@ def main(argv: list[str] | None = None) -> int:
 
     shots = approach(a.town, a.seed, tuple(a.resolution), a.bank_start, a.bank_visibility)
     clean, foggy = ground(a.town, a.seed, tuple(a.resolution))
-    fig, axes = plt.subplots(len(shots) + 1, 2, figsize=(11, 3.3 * (len(shots) + 1)),
-                             gridspec_kw={"width_ratios": [4, 3]})  # fmt: skip
+    fig, axes = plt.subplots(len(shots) + 1, 2, figsize=(13, 3.3 * (len(shots) + 1)),
+                             gridspec_kw={"width_ratios": [8, 3]})  # fmt: skip
     for row, (gap, image, cloud, fogged) in zip(axes, shots):
         row[0].imshow(image)
-        row[0].set_title(f"front camera, {gap:.0f} m before a {a.bank_visibility:g} m bank", fontsize=9)
+        row[0].set_title(f"front camera, clear | fogged, {gap:.0f} m before a {a.bank_visibility:g} m bank", fontsize=9)
         moved = np.any(fogged[:, :3] != cloud[:, :3], axis=1)
         ax = row[1]
         ax.scatter(cloud[~moved, 0], cloud[~moved, 1], s=0.3, c="0.35", label="returns as in clear air")
-        ax.scatter(fogged[moved, 0], fogged[moved, 1], s=0.6, c="tab:red", label="fog returns (at the bank)")
+        ax.scatter(fogged[moved, 0], fogged[moved, 1], s=0.6, c="tab:red", label="fog returns (range noise ×½–2)")
         ax.axvline(gap, color="tab:blue", lw=0.8, ls="--", label="the bank's near face")
         ax.set_xlim(-10, 170)
         ax.set_ylim(-45, 45)

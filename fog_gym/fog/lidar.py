@@ -284,9 +284,17 @@ def _hahner_field(pts, pose, terms, weights, ramp, weights5, ramp5, coarse, step
             continue
         top = min(int(np.round(min(r0, 200.0) / step)), last)
         trans = np.full(top + 1, -1.0)  # E_j, computed when a window first needs it
-        clear = 0  # the last node before the fog starts on the ray (a window in clear air returns nothing)
-        while clear < top and segment_depth(terms, u0, z0, du, dz, (clear + 1) * step) == 0.0:
-            clear += 1
+        # the last node before the fog starts on the ray (a window in clear air returns nothing): τ only grows along
+        # the ray, so a bisection finds it
+        clear, fog = 0, top
+        if segment_depth(terms, u0, z0, du, dz, step) > 0.0:
+            fog = 1
+        while fog - clear > 1:
+            mid = (clear + fog) // 2
+            if segment_depth(terms, u0, z0, du, dz, mid * step) == 0.0:
+                clear = mid
+            else:
+                fog = mid
         one = int(np.round(XI_R2 / step))  # the node 1 m out, and the extinction there
         beta1 = point_extinction(terms, u0 + du * XI_R2, z0 + dz * XI_R2)
         near = 0.0 if one > top else _transmittance(trans, one, terms, u0, z0, du, dz, step)

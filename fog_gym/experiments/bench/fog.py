@@ -1,7 +1,7 @@
 """Fog stages on one real full-rig frame (``highway``, seed 0): Koschmieder camera fog per 1280×960 image at
 each level and for three levels in one pass, Hahner LiDAR fog on 100 k points and on the frame's sweep, the
 atmospheric-light estimate, and the full paired frame (4 cameras × 3 levels + 3 LiDAR levels) as
-``FogWrapper.fog_channels`` computes it. Each figure is the median over ``--repeats`` calls, after a warm-up
+``FogWrapper.fog_channels`` computes it; night against day; fog fields (a bank, ground fog) against homogeneous fog. Each figure is the median over ``--repeats`` calls, after a warm-up
 call that compiles the kernels. It prints a Markdown table and asserts no timing.
 
 Usage::
@@ -68,7 +68,9 @@ def bench_fog(repeats: int) -> dict[str, Any]:
     env.close()
     assert unpack_points(obs, "LIDAR_TOP_FOG_DENSE").shape == clean_lidar.shape
     return {"stages": stats, "lidar_points": int(len(clean_lidar)), "night": bench_night_fog(repeats),
-            "targets": {"LiDAR 100k": 5.0, "paired frame": 20.0, "night / day": 2.0}}  # fmt: skip
+            "fields": bench_fields(repeats),
+            "targets": {"LiDAR 100k": 5.0, "paired frame": 20.0, "night / day": 2.0, "field frame": 1.5,
+                        "field LiDAR 100k": 2.0}}  # fmt: skip
 
 
 def bench_night_fog(repeats: int, town: str = "highway") -> dict[str, Any]:
@@ -103,6 +105,51 @@ def bench_night_fog(repeats: int, town: str = "highway") -> dict[str, Any]:
             "dense ratio": stats["dense step night"]["median"] / stats["dense step day"]["median"]}  # fmt: skip
 
 
+def bench_fields(repeats: int, town: str = "highway") -> dict[str, Any]:
+    """Fog fields against homogeneous fog, timed in alternation on the same seed: a whole ``env.step`` with the fog in
+    place (full rig: render, camera and LiDAR fog, labels) and the LiDAR fog on 100 k points."""
+    from fog_gym.envs.fogdrive import FogDriveEnv
+    from fog_gym.fog import fog_lidar, parse_fog
+    from fog_gym.fog.fields import FogBank, HeightFog
+    from fog_gym.fog.lidar import fog_lidar_field, lidar_field_pose
+    from fog_gym.wrappers import FogWrapper
+
+    fields = {"homogeneous (dense)": parse_fog("dense"), "FogBank 50 m, 60 m ahead, 100 m long": FogBank(50.0, 60.0, 100.0),
+              "HeightFog 50 m, scale height 5 m": HeightFog(50.0, 5.0)}  # fmt: skip
+    envs = {name: FogWrapper(FogDriveEnv(town=town), f) for name, f in fields.items()}
+    for env in envs.values():
+        env.reset(seed=0)
+    rng = np.random.default_rng(0)
+    r = rng.uniform(1.5, 120.0, 100_000)
+    az, el = rng.uniform(-np.pi, np.pi, r.size), rng.uniform(-0.35, 0.09, r.size)
+    cloud = np.c_[r * np.cos(el) * np.cos(az), r * np.cos(el) * np.sin(az), r * np.sin(el), np.exp(-0.004 * r)]
+    cloud = cloud.astype(np.float32)
+    pose = lidar_field_pose(np.array([[1.0, 0, 0, 0], [0, 1.0, 0, 0], [0, 0, 1.0, 1.8], [0, 0, 0, 1.0]]), (0.0, 0.0, 0.0))
+
+    def lidar(field):
+        return (lambda: fog_lidar(cloud, field, rng)) if field.is_homogeneous else \
+            (lambda: fog_lidar_field(cloud, field, rng, pose))  # fmt: skip
+
+    steps: dict[str, list[float]] = {k: [] for k in fields}
+    points: dict[str, list[float]] = {k: [] for k in fields}
+    for k in tqdm(range(repeats + 1), desc="fog fields vs homogeneous", unit="round", file=sys.stderr):
+        for name, field in fields.items():
+            env = envs[name]
+            ms = timed(env.step, env.unwrapped.idle_action)[1]
+            ms_points = timed(lidar(field))[1]
+            if k:  # the first round warms up (and compiles)
+                steps[name].append(ms)
+                points[name].append(ms_points)
+    for env in envs.values():
+        env.close()
+    base = next(iter(fields))
+    step_stats = {k: summarize(v) for k, v in steps.items()}
+    point_stats = {k: summarize(v) for k, v in points.items()}
+    return {"step": step_stats, "points": point_stats,
+            "step ratio": {k: s["median"] / step_stats[base]["median"] for k, s in step_stats.items()},
+            "points ratio": {k: s["median"] / point_stats[base]["median"] for k, s in point_stats.items()}}  # fmt: skip
+
+
 def render_fog(fog: dict[str, Any], repeats: int) -> list[str]:
     rows = [[name, fmt_ms(stat)] for name, stat in fog["stages"].items()]
     lines = [f"## Fog (full rig, highway, seed 0): ms, median (p25–p75), {repeats} repeats", "",
@@ -118,6 +165,16 @@ def render_fog(fog: dict[str, Any], repeats: int) -> list[str]:
                       ["env.step, dense fog in place (render, fog, labels)", fmt_ms(st["dense step day"]),
                        fmt_ms(st["dense step night"]), f"**{night['dense ratio']:.2f}×**"]]), "",
                   "Target: night ≤ 2× day for both (the glow of lit fog is the night's addition)."]  # fmt: skip
+    fields = fog.get("fields")
+    if fields:
+        lines += ["", "### Fog fields against homogeneous fog (same seed, timed in alternation)", "",
+                  markdown_table(["fog", "env.step ms (full rig, in place)", "× homogeneous", "LiDAR fog, 100 k points, ms",
+                                  "× homogeneous"],
+                                 [[name, fmt_ms(fields["step"][name]), f"**{fields['step ratio'][name]:.2f}×**",
+                                   fmt_ms(fields["points"][name]), f"**{fields['points ratio'][name]:.1f}×**"]
+                                  for name in fields["step"]]), "",
+                  "Targets: a full-rig frame with a bank or ground fog ≤ 1.5× the homogeneous frame; LiDAR fog on "
+                  "100 k points ≤ 2× homogeneous."]  # fmt: skip
     return lines
 
 
