@@ -13,6 +13,7 @@ import numpy as np
 from fog_gym.dataset.lock import DatasetLock
 from fog_gym.dataset.layout import CAMERAS, DATA_ROOT, parse_scene_folder, scene_folder_name, scene_id
 from fog_gym.dataset.writer import SceneWriter, WriteError, build_index
+from fog_gym.fog.physics import parse_fog
 from fog_gym.wrappers.fog import FogWrapper
 
 PAIRED_LEVELS = ["light", "moderate", "dense"]
@@ -60,8 +61,9 @@ class RecordFogDrive(gym.Wrapper):
         fog = _find_fog(env)
         if fog is None:
             env = FogWrapper(env, PAIRED_LEVELS)
-        elif not fog.paired or [lv.name for lv in fog.levels] != PAIRED_LEVELS:
-            raise ValueError("RecordFogDrive needs clean data plus the paired levels light, moderate, dense")
+        elif not fog.paired or list(fog.levels) != [parse_fog(name) for name in PAIRED_LEVELS]:
+            raise ValueError("RecordFogDrive needs clean data plus the paired levels light, moderate, dense (homogeneous "
+                             "fog: datasets do not record fog fields yet)")  # fmt: skip
         self.root = Path(root)
         if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
             raise ValueError(f"workers must be a positive integer or None, got {workers!r}")
