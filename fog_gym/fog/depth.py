@@ -21,6 +21,9 @@ from numba import njit
 
 import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
 
+#: Kinds of the packed rows ``[kind, p0, …, p6]``.
+HOMOGENEOUS, HEIGHT, BANK = 0.0, 1.0, 2.0
+
 @njit(cache=True, inline="always")
 def _g(x):
     """``(1 − e^{−x}) / x`` (1 at 0), stable for small ``x``."""

@@ -36,12 +36,10 @@ from dataclasses import dataclass, fields
 from typing import Any, ClassVar
 
 import numpy as np
-from fog_gym.fog.depth import extinctions, optical_depths, point_extinction, segment_depth  # noqa: F401  (re-exported)
+from fog_gym.fog.depth import (BANK, HEIGHT, HOMOGENEOUS, extinctions, optical_depths, point_extinction,  # noqa: F401
+                               segment_depth)  # fmt: skip  (re-exported)
 from fog_gym.fog.physics import LN20, FogField, FogLevel, FogSum, parse_fog  # noqa: F401  (FogSum: re-exported)
 
-#: Kinds of the packed rows (:meth:`FogField.pack`): ``[kind, p0, …, p6]``.
-HOMOGENEOUS, HEIGHT, BANK = 0.0, 1.0, 2.0
-PACK_WIDTH = 8
 
 
 def Homogeneous(visibility: float, name: str | None = None) -> FogLevel:  # noqa: N802  (a field's constructor)

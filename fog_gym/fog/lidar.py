@@ -21,7 +21,7 @@ from numba import njit, prange
 
 import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
 from fog_gym._numba import pick, serial_twin
-from fog_gym.fog.depth import point_extinction, segment_depth
+from fog_gym.fog.depth import BANK, point_extinction, segment_depth
 from fog_gym.fog.physics import FogLevel
 
 # LiDAR pulse and receiver (Hahner et al.; research note §1.1)
@@ -251,6 +251,154 @@ def _composite_weights(m: int, h: float) -> np.ndarray:
     return w
 
 
+#: ``∫ P(t) dt`` over the pulse (sin² averages ½ over 2τ_H).
+PULSE_INTEGRAL = TAU_H
+
+
+@njit(cache=True, inline="always")
+def _soft_bound(r, beta_max):
+    # An upper bound of the soft return F at range r ≥ 7 m: κ·β_max·∫P dt / (r − 6 m)² (E ≤ 1, ξ ≤ 1, R′ ≥ r − 6 m);
+    # infinite nearer.
+    near = r - SPEED_OF_LIGHT * TAU_H
+    return KAPPA * beta_max * PULSE_INTEGRAL / (near * near) if near >= XI_R2 else np.inf
+
+
+@njit(cache=True, inline="always")
+def _field_rule(pts, n, out, r0, i_orig, i_hard, best, r_tmp, log_noise, u, attenuation):
+    # Hahner et al.'s rule for point n given its soft return's maximum `best` (s/m², with the backscatter) at range
+    # r_tmp: the fog's return replaces the point when stronger, on the same ray with the range noise; as _hahner.
+    ratio = math.pi / GAMMA
+    if attenuation >= 0.0:  # reflectance intensities: the point's own reflectivity stands in for Γ
+        rho = min(max(np.float64(pts[n, 3]) / np.exp(-attenuation * r0), 1e-3), 1.0)
+        ratio = ratio * REFERENCE_REFLECTIVITY / rho
+    i_soft = min(255.0, best * i_orig * r0 * r0 * ratio)
+    if i_soft > i_hard:  # the fog's own return is stronger: a fog point on the same ray
+        scale = r_tmp / max(r0, 1e-12) * np.exp(log_noise * u[n])
+        for c in range(3):
+            out[n, c] = np.float32(np.float64(pts[n, c]) * scale)
+        out[n, 3] = np.float32(i_soft / 255.0)
+    else:
+        for c in range(3):
+            out[n, c] = pts[n, c]
+        out[n, 3] = np.float32(i_hard / 255.0)
+    for c in range(4, pts.shape[1]):
+        out[n, c] = pts[n, c]
+
+
+@njit(cache=True, parallel=True)
+def _elevation_nodes(pts, pose, rounding, most, step, last):
+    # The beam elevations (run up per metre) of the points, rounded to `rounding`, when there are at most `most` of
+    # them; else a uniform grid of `most` over their span. Per node, the farthest range node of a point that reads
+    # its curve (the nodes on both sides of the point).
+    n = pts.shape[0]
+    dz = np.empty(n)
+    ks = np.empty(n, np.int64)
+    for i in prange(n):
+        x, y, z = np.float64(pts[i, 0]), np.float64(pts[i, 1]), np.float64(pts[i, 2])
+        r0 = np.sqrt(x * x + y * y + z * z)
+        dz[i] = (pose[5] * x + pose[6] * y + pose[7] * z) / max(r0, 1e-12)
+        ks[i] = min(int(np.round(min(r0, 200.0) / step)), last)
+    low, high = dz.min(), dz.max()
+    lo_key = int(np.round(low / rounding))
+    far = np.full(int(np.round(high / rounding)) - lo_key + 1, -1, np.int64)  # per rounded elevation, its farthest node
+    for i in range(n):
+        key = int(np.round(dz[i] / rounding)) - lo_key
+        far[key] = max(far[key], ks[i])
+    count = int((far >= 0).sum())
+    if count <= most:  # a node per elevation, which reads its own points only
+        nodes = np.empty(count)
+        tops = np.empty(count, np.int64)
+        j = 0
+        for key in range(far.shape[0]):
+            if far[key] >= 0:
+                nodes[j], tops[j] = (key + lo_key) * rounding, far[key]
+                j += 1
+        own = tops.copy()  # (a point rounds to its node but may read its neighbour's curve too)
+        for j in range(count):
+            tops[j] = max(own[max(j - 1, 0)], own[j], own[min(j + 1, count - 1)])
+        return nodes, tops, _first_at_or_above(nodes, lo_key, far.shape[0], rounding), lo_key
+    nodes = np.linspace(low, high, most)
+    tops = np.zeros(most, np.int64)
+    width = (high - low) / (most - 1)
+    for key in range(far.shape[0]):
+        if far[key] >= 0:
+            cell = min(int(((key + lo_key) * rounding - low) / width), most - 2) if width > 0.0 else 0
+            for j in range(max(cell - 1, 0), min(cell + 3, most)):
+                tops[j] = max(tops[j], far[key])
+    return nodes, tops, _first_at_or_above(nodes, lo_key, far.shape[0], rounding), lo_key
+
+
+@njit(cache=True)
+def _first_at_or_above(nodes, lo_key, keys, rounding):
+    # per rounded elevation key (lo_key + c), the first node at or above (key − ½)·rounding: a point's searchsorted in
+    # one read and at most one step (_hahner_curves)
+    first = np.empty(keys, np.int64)
+    j = 0
+    for c in range(keys):
+        while j < nodes.shape[0] and nodes[j] < (lo_key + c - 0.5) * rounding:
+            j += 1
+        first[c] = j
+    return first
+
+
+@njit(cache=True, parallel=True)
+def _soft_curves(terms, u0, z0, dus, dzs, tops, weights, ramp, step, best, where, beta_max):
+    # For beam directions (dus[i], dzs[i]): the running maximum of the soft return F over ranges k·step, k ≤ tops[i],
+    # into best[i, k], and the range node where it lies into where[i, k] (every node, as _hahner_field's refinement
+    # does near its maximum, until _soft_bound shows that no farther range can beat the maximum so far).
+    n_nodes = weights.shape[1]
+    one = int(np.round(XI_R2 / step))
+    for i in prange(dus.shape[0]):
+        du, dz, top = dus[i], dzs[i], tops[i]
+        trans = np.full(top + 1, -1.0)
+        beta1 = point_extinction(terms, u0 + du * XI_R2, z0 + dz * XI_R2)
+        lift = 0.0 if one > top else beta1 * _transmittance(trans, one, terms, u0, z0, du, dz, step) * \
+            np.exp(beta1 * (XI_R2 - XI_R1))  # fmt: skip
+        top_f, top_k = 0.0, 0
+        for k in range(top + 1):
+            if k >= one and (top_f == 0.0 or top_f < _soft_bound(k * step, beta_max)):
+                f = ramp[k] * lift
+                for m in range(min(n_nodes, k + 1)):
+                    f += weights[k, m] * _transmittance(trans, k - m, terms, u0, z0, du, dz, step)
+                if f > top_f:
+                    top_f, top_k = f, k
+            best[i, k], where[i, k] = top_f, top_k
+
+
+@njit(cache=True, parallel=True)
+def _hahner_curves(pts, pose, terms, node_dz, first, lo_key, rounding, best, where, step, log_noise, u, out,
+                   attenuation):
+    # Hahner et al. with a field whose β depends on height only: each point's soft-return maximum from the curves of
+    # the two beam elevations around its own (node_dz ascending; linear in dz, the range of the nearer), its hard
+    # return exactly (τ in closed form); then the rule (_field_rule).
+    last = best.shape[1] - 1
+    u0, z0 = pose[0], pose[1]
+    for n in prange(pts.shape[0]):
+        x, y, z = np.float64(pts[n, 0]), np.float64(pts[n, 1]), np.float64(pts[n, 2])
+        r0 = np.sqrt(x * x + y * y + z * z)
+        inv = 1.0 / max(r0, 1e-12)
+        du = (pose[2] * x + pose[3] * y + pose[4] * z) * inv
+        dz = (pose[5] * x + pose[6] * y + pose[7] * z) * inv
+        tau0 = segment_depth(terms, u0, z0, du, dz, r0)
+        i_orig = np.round(np.float64(pts[n, 3]) * 255.0)
+        i_hard = np.round(i_orig * np.exp(-2.0 * tau0))
+        if tau0 == 0.0:
+            for c in range(pts.shape[1]):
+                out[n, c] = pts[n, c]
+            continue
+        k = min(int(np.round(min(r0, 200.0) / step)), last)
+        hi = first[min(max(int(np.round(dz / rounding)) - lo_key, 0), first.shape[0] - 1)]
+        while hi < node_dz.shape[0] and node_dz[hi] < dz:  # (searchsorted: the first node at or above dz)
+            hi += 1
+        hi = min(max(hi, 1), node_dz.shape[0] - 1) if node_dz.shape[0] > 1 else 0
+        lo = max(hi - 1, 0)
+        span = node_dz[hi] - node_dz[lo]
+        t = min(max((dz - node_dz[lo]) / span, 0.0), 1.0) if span > 0.0 else 0.0
+        f = (1.0 - t) * best[lo, k] + t * best[hi, k]
+        r_tmp = where[hi if t >= 0.5 else lo, k] * step
+        _field_rule(pts, n, out, r0, i_orig, i_hard, f, r_tmp, log_noise, u, attenuation)
+
+
 @njit(cache=True, inline="always")
 def _transmittance(trans, j, terms, u0, z0, du, dz, step):
     # E_j = e^{−2τ(j·step)} on the ray, cached in trans (−1: not yet computed)
@@ -260,7 +408,8 @@ def _transmittance(trans, j, terms, u0, z0, du, dz, step):
 
 
 @njit(cache=True, parallel=True)
-def _hahner_field(pts, pose, terms, weights, ramp, weights5, ramp5, coarse, step, log_noise, u, out, attenuation):
+def _hahner_field(pts, pose, terms, weights, ramp, weights5, ramp5, coarse, step, log_noise, u, out, attenuation,
+                  beta_max):
     # pts (N, C) in the sensor frame; pose (8,): the sensor origin (u0, z0) in the field frame and the rows a_u, a_z
     # that turn a unit direction of the sensor frame into its run along u and up; terms a packed field
     # (fog_gym.fog.fields). Per point: τ(R0) in closed form, E_j = e^{−2τ(jΔ)} on the ray, F_k = Σ_n W[k, n]·E_{k−n},
@@ -303,6 +452,8 @@ def _hahner_field(pts, pose, terms, weights, ramp, weights5, ramp5, coarse, step
         # fast) and around the coarse maximum
         best5, best5_k, near5, near5_k = -1.0, -1, -1.0, -1  # the coarse maximum, and the one near the sensor
         for k5 in range((max(one, clear) + coarse - 1) // coarse, top // coarse + 1):
+            if best5 > 0.0 and _soft_bound(k5 * coarse * step, beta_max) < 0.95 * best5:
+                break  # no farther range can beat the maximum so far (a margin for the coarse weights)
             f = ramp5[k5] * lift
             for m in range(min(weights5.shape[1], k5 + 1)):
                 f += weights5[k5, m] * _transmittance(trans, coarse * (k5 - m), terms, u0, z0, du, dz, step)
@@ -322,24 +473,7 @@ def _hahner_field(pts, pose, terms, weights, ramp, weights5, ramp5, coarse, step
                     f += weights[k, m] * _transmittance(trans, k - m, terms, u0, z0, du, dz, step)
                 if f > best:
                     best, best_k = f, k
-        ratio = math.pi / GAMMA
-        if attenuation >= 0.0:  # reflectance intensities: the point's own reflectivity stands in for Γ
-            rho = min(max(np.float64(pts[n, 3]) / np.exp(-attenuation * r0), 1e-3), 1.0)
-            ratio = ratio * REFERENCE_REFLECTIVITY / rho
-        i_soft = min(255.0, best * i_orig * r0 * r0 * ratio)
-        if i_soft > i_hard:  # the fog's own return is stronger: a fog point on the same ray
-            scale = best_k * step * inv * np.exp(log_noise * u[n])
-            out[n, 0] = np.float32(x * scale)
-            out[n, 1] = np.float32(y * scale)
-            out[n, 2] = np.float32(z * scale)
-            out[n, 3] = np.float32(i_soft / 255.0)
-        else:
-            out[n, 0] = pts[n, 0]
-            out[n, 1] = pts[n, 1]
-            out[n, 2] = pts[n, 2]
-            out[n, 3] = np.float32(i_hard / 255.0)
-        for c in range(4, pts.shape[1]):
-            out[n, c] = pts[n, c]
+        _field_rule(pts, n, out, r0, i_orig, i_hard, best, best_k * step, log_noise, u, attenuation)
 
 
 def lidar_field_pose(sensor_to_world: np.ndarray, frame: tuple[float, float, float]) -> np.ndarray:
@@ -383,8 +517,42 @@ def fog_lidar_field(points: np.ndarray, field, rng: np.random.Generator, pose: n
         raise ValueError(f"pose must be lidar_field_pose(sensor_to_world, frame): 8 finite numbers, got {pose!r}")
     u = rng.uniform(-1.0, 1.0, len(pts))
     out = np.empty_like(pts)
-    _hahner_field(pts, pose, field.pack(time), *field_pulse_weights(), *field_pulse_weights(FIELD_STEP * FIELD_COARSE),
-                  FIELD_COARSE, FIELD_STEP,
-                  math.log(max(1.0, noise / 5.0)) if noise > 0 else 0.0, u, out,
-                  -1.0 if reflectance is None else float(reflectance))  # fmt: skip
+    terms = field.pack(time)
+    log_noise, attenuation = math.log(max(1.0, noise / 5.0)) if noise > 0 else 0.0, -1.0 if reflectance is None else float(reflectance)
+    if BANK not in terms[:, 0] and len(pts):  # β depends on height only: one soft-return curve per beam elevation
+        node_dz, first, lo_key, best, where = _elevation_curves(pts, pose, terms)
+        _hahner_curves(pts, pose, terms, node_dz, first, lo_key, ELEVATION_ROUND, best, where, FIELD_STEP, log_noise, u,
+                       out, attenuation)  # fmt: skip
+        return out
+    _hahner_field(pts, pose, terms, *field_pulse_weights(), *field_pulse_weights(FIELD_STEP * FIELD_COARSE),
+                  FIELD_COARSE, FIELD_STEP, log_noise, u, out, attenuation, peak_extinction(terms))  # fmt: skip
     return out
+
+
+#: Beam elevations closer than this (the run up per metre) share one soft-return curve; past ELEVATION_NODES distinct
+#: elevations the curves lie on a uniform grid and a point's maximum is interpolated between the two around it.
+ELEVATION_ROUND, ELEVATION_NODES = 1e-4, 64
+
+
+def peak_extinction(terms: np.ndarray) -> float:
+    """An upper bound of a packed field's extinction anywhere [1/m]: the sum of its terms' peaks."""
+    peak = 0.0
+    for row in np.asarray(terms, np.float64):
+        peak += row[1] if row[0] != BANK else row[7] + max(row[1], 0.0) * row[6]
+    return float(peak)
+
+
+def _elevation_curves(pts: np.ndarray, pose: np.ndarray, terms: np.ndarray) -> tuple[np.ndarray, ...]:
+    """The soft-return curves of a height-only field per beam elevation (``node_dz``; ``first`` and ``lo_key``, its
+    lookup by rounded elevation; ``best``, ``where``): a rig's
+    beams have few elevations (64 for the FogDrive LiDAR), each of which gets its own curve; arbitrary points get a
+    grid of :data:`ELEVATION_NODES`."""
+    node_dz, tops, first, lo_key = _elevation_nodes(pts, pose, ELEVATION_ROUND, ELEVATION_NODES, FIELD_STEP,
+                                                    int(round(200.0 / FIELD_STEP)))  # fmt: skip
+    weights, ramp = field_pulse_weights()
+    best = np.zeros((len(node_dz), int(tops.max()) + 1))
+    where = np.zeros(best.shape, np.int64)
+    horizontal = np.sqrt(np.maximum(1.0 - node_dz**2, 0.0))  # (a height-only field ignores the run along u)
+    _soft_curves(terms, pose[0], pose[1], horizontal, node_dz, tops, weights, ramp, FIELD_STEP, best, where,
+                 peak_extinction(terms))
+    return node_dz, first, lo_key, best, where

@@ -228,3 +228,25 @@ def test_same_seed_same_fogged_points_and_the_soft_maximum_matches_hahners_table
     I, _ = soft_response_table(parse_fog("dense").alpha)
     best, _ = direct_soft_maximum(FogBank(50.0, -5000.0, 10000.0, edge=0.0), 1.0, 0.0, 30.0)
     assert best == pytest.approx(I[-1] * BETA_PER_MOR / 50.0, rel=1e-3)  # κβ·I: Hahner et al.'s constant case
+
+
+def test_ground_fog_reads_one_curve_per_beam_elevation_and_decides_as_each_beam_alone():
+    from fog_gym.fog.lidar import FIELD_COARSE, FIELD_STEP, _hahner_field, field_pulse_weights, peak_extinction
+
+    rng = np.random.default_rng(5)
+    r = rng.uniform(2.0, 120.0, 6000)
+    az = rng.uniform(-np.pi, np.pi, r.size)
+    rig = rng.choice(np.linspace(-0.4, 0.1, 64), r.size)  # a rig's 64 elevations, and arbitrary ones
+    for el in (rig, rng.uniform(-0.4, 0.1, r.size)):
+        pts = np.c_[r * np.cos(el) * np.cos(az), r * np.cos(el) * np.sin(az), r * np.sin(el), rng.uniform(0.1, 1, r.size)]
+        pts = pts.astype(np.float32)
+        pose, field = lidar_field_pose(LIDAR, (0.0, 0.0, 0.0)), HeightFog(40.0, 4.0) + Homogeneous(400.0)
+        curves = fog_lidar_field(pts, field, np.random.default_rng(1), pose, noise=0.0)
+        alone = np.empty_like(pts)  # every beam integrated on its own (the path of fields with banks)
+        _hahner_field(pts, pose, field.pack(), *field_pulse_weights(), *field_pulse_weights(FIELD_STEP * FIELD_COARSE),
+                      FIELD_COARSE, FIELD_STEP, 0.0, np.zeros(len(pts)), alone, -1.0,
+                      peak_extinction(field.pack()))  # fmt: skip
+        moved = lambda out: np.any(out[:, :3] != pts[:, :3], axis=1)  # noqa: E731
+        assert np.array_equal(moved(curves), moved(alone)) and 0.1 < moved(alone).mean() < 0.9
+        assert np.abs(curves[:, 3] - alone[:, 3]).max() * 255 < 1e-2
+        assert np.abs(curves[:, :3] - alone[:, :3]).max() < 0.11  # the fog return's range: within a node
