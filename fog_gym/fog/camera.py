@@ -109,6 +109,18 @@ def _exp_neg(x):
     return p * p
 
 
+@njit(cache=True, inline="always", fastmath=FASTMATH)
+def _fog_row(o, t, t3, diff, airlight_row):
+    # One fogged row: each pixel's transmittance t repeated for its three channels (t3, scratch), then
+    # o = A + (J − A)·t rounded (diff = J − A).
+    for j in range(t.shape[0]):
+        t3[3 * j] = t[j]
+        t3[3 * j + 1] = t[j]
+        t3[3 * j + 2] = t[j]
+    for k in range(o.shape[0]):
+        o[k] = np.uint8(airlight_row[k] + diff[k] * t3[k] + np.float32(0.5))
+
+
 @njit(cache=True, parallel=True, fastmath=FASTMATH)
 def _koschmieder(rgb, depth, col_sq, row_sq, alphas, airlight_row, out, y0s, wys, firsts, fofs, wide, rofs, span_lo,
                  span_hi):  # fmt: skip
@@ -134,12 +146,7 @@ def _koschmieder(rgb, depth, col_sq, row_sq, alphas, airlight_row, out, y0s, wys
                 a = -alphas[lv]
                 for j in range(w):
                     t[j] = _exp_neg(a * ell[j])
-                for j in range(w):  # repeat each pixel's transmittance for its three channels
-                    t3[3 * j] = t[j]
-                    t3[3 * j + 1] = t[j]
-                    t3[3 * j + 2] = t[j]
-                for k in range(3 * w):
-                    out[lv, i, k] = np.uint8(airlight_row[k] + diff[k] * t3[k] + np.float32(0.5))
+                _fog_row(out[lv, i], t, t3, diff, airlight_row)
                 if glow:
                     _blend_glow(out[lv, i], i, lv, y0s, wys, firsts, fofs, wide, rofs, span_lo, span_hi)
 
@@ -316,12 +323,7 @@ def _koschmieder_field(rgb, depth, xs, ys, pose, terms, starts, airlight_row, ou
                             tau[j] += (bg + db * mean) * ell[j]
                 for j in range(w):
                     t[j] = _exp_neg(np.float32(-tau[j]))
-                for j in range(w):
-                    t3[3 * j] = t[j]
-                    t3[3 * j + 1] = t[j]
-                    t3[3 * j + 2] = t[j]
-                for k in range(3 * w):
-                    out[lv, i, k] = np.uint8(airlight_row[k] + diff[k] * t3[k] + np.float32(0.5))
+                _fog_row(out[lv, i], t, t3, diff, airlight_row)
                 if glow:
                     _blend_glow(out[lv, i], i, lv, y0s, wys, firsts, fofs, wide, rofs, span_lo, span_hi)
 

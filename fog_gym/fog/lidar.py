@@ -135,6 +135,18 @@ _hahner_serial = serial_twin(_hahner)
 REFERENCE_REFLECTIVITY = 0.3
 
 
+def _checked_points(points: np.ndarray, noise: float) -> np.ndarray:
+    """The points as float32 ``(N, 4+)``, or a ``ValueError`` naming what is wrong with them or with ``noise``."""
+    pts = np.asarray(points, np.float32)
+    if pts.ndim != 2 or pts.shape[1] < 4:
+        raise ValueError(f"expected LiDAR points of shape (N, 4), got {pts.shape}")
+    if not np.isfinite(pts).all():
+        raise ValueError("LiDAR points must be finite (no NaN or inf)")
+    if not math.isfinite(noise) or noise < 0:
+        raise ValueError(f"noise must be a finite number of metres >= 0, got {noise!r}")
+    return pts
+
+
 def fog_lidar(points: np.ndarray, level: FogLevel, rng: np.random.Generator, noise: float = 10.0,
               reflectance: float | None = None) -> np.ndarray:  # fmt: skip
     """Hahner et al. fog on CARLA LiDAR points ``(N, 4)`` x, y, z, intensity ∈ [0, 1] → ``(N, 4)`` float32.
@@ -157,13 +169,7 @@ def fog_lidar(points: np.ndarray, level: FogLevel, rng: np.random.Generator, noi
     0–255 intensities) and the hard return scales with ``ρ|cos θ|`` while the fog's own backscatter does not — bright
     surfaces (licence plates, lane markings) outlast dark paint.
     """
-    pts = np.asarray(points, np.float32)
-    if pts.ndim != 2 or pts.shape[1] < 4:
-        raise ValueError(f"expected LiDAR points of shape (N, 4), got {pts.shape}")
-    if not np.isfinite(pts).all():
-        raise ValueError("LiDAR points must be finite (no NaN or inf)")
-    if not math.isfinite(noise) or noise < 0:
-        raise ValueError(f"noise must be a finite number of metres >= 0, got {noise!r}")
+    pts = _checked_points(points, noise)
     if level.is_clear:
         return pts.copy()
     table_i, table_r = soft_response_table(level.alpha)
@@ -261,6 +267,23 @@ def _soft_bound(r, beta_max):
     # infinite nearer.
     near = r - SPEED_OF_LIGHT * TAU_H
     return KAPPA * beta_max * PULSE_INTEGRAL / (near * near) if near >= XI_R2 else np.inf
+
+
+@njit(cache=True, inline="always")
+def _beam(pts, n, pose, terms, out):
+    # Point n's beam in the field frame: its range, unit direction's run along u and up, τ to the point in closed form,
+    # its 0–255 intensity and hard return; a beam without fog keeps the point as in clear air (written to out).
+    x, y, z = np.float64(pts[n, 0]), np.float64(pts[n, 1]), np.float64(pts[n, 2])
+    r0 = np.sqrt(x * x + y * y + z * z)
+    inv = 1.0 / max(r0, 1e-12)
+    du = (pose[2] * x + pose[3] * y + pose[4] * z) * inv
+    dz = (pose[5] * x + pose[6] * y + pose[7] * z) * inv
+    tau0 = segment_depth(terms, pose[0], pose[1], du, dz, r0)
+    i_orig = np.round(np.float64(pts[n, 3]) * 255.0)
+    if tau0 == 0.0:
+        for c in range(pts.shape[1]):
+            out[n, c] = pts[n, c]
+    return r0, du, dz, tau0, i_orig, np.round(i_orig * np.exp(-2.0 * tau0))
 
 
 @njit(cache=True, inline="always")
@@ -372,19 +395,9 @@ def _hahner_curves(pts, pose, terms, node_dz, first, lo_key, rounding, best, whe
     # the two beam elevations around its own (node_dz ascending; linear in dz, the range of the nearer), its hard
     # return exactly (τ in closed form); then the rule (_field_rule).
     last = best.shape[1] - 1
-    u0, z0 = pose[0], pose[1]
     for n in prange(pts.shape[0]):
-        x, y, z = np.float64(pts[n, 0]), np.float64(pts[n, 1]), np.float64(pts[n, 2])
-        r0 = np.sqrt(x * x + y * y + z * z)
-        inv = 1.0 / max(r0, 1e-12)
-        du = (pose[2] * x + pose[3] * y + pose[4] * z) * inv
-        dz = (pose[5] * x + pose[6] * y + pose[7] * z) * inv
-        tau0 = segment_depth(terms, u0, z0, du, dz, r0)
-        i_orig = np.round(np.float64(pts[n, 3]) * 255.0)
-        i_hard = np.round(i_orig * np.exp(-2.0 * tau0))
-        if tau0 == 0.0:
-            for c in range(pts.shape[1]):
-                out[n, c] = pts[n, c]
+        r0, _, dz, tau0, i_orig, i_hard = _beam(pts, n, pose, terms, out)
+        if tau0 == 0.0:  # (kept as in clear air)
             continue
         k = min(int(np.round(min(r0, 200.0) / step)), last)
         hi = first[min(max(int(np.round(dz / rounding)) - lo_key, 0), first.shape[0] - 1)]
@@ -419,17 +432,8 @@ def _hahner_field(pts, pose, terms, weights, ramp, weights5, ramp5, coarse, step
     last = weights.shape[0] - 1
     u0, z0 = pose[0], pose[1]
     for n in prange(pts.shape[0]):
-        x, y, z = np.float64(pts[n, 0]), np.float64(pts[n, 1]), np.float64(pts[n, 2])
-        r0 = np.sqrt(x * x + y * y + z * z)
-        inv = 1.0 / max(r0, 1e-12)
-        du = (pose[2] * x + pose[3] * y + pose[4] * z) * inv
-        dz = (pose[5] * x + pose[6] * y + pose[7] * z) * inv
-        tau0 = segment_depth(terms, u0, z0, du, dz, r0)
-        i_orig = np.round(np.float64(pts[n, 3]) * 255.0)
-        i_hard = np.round(i_orig * np.exp(-2.0 * tau0))
-        if tau0 == 0.0:  # no fog on the ray: no backscatter either, the point is as in clear air
-            for c in range(pts.shape[1]):
-                out[n, c] = pts[n, c]
+        r0, du, dz, tau0, i_orig, i_hard = _beam(pts, n, pose, terms, out)
+        if tau0 == 0.0:  # no fog on the ray: no backscatter either, the point is kept as in clear air
             continue
         top = min(int(np.round(min(r0, 200.0) / step)), last)
         trans = np.full(top + 1, -1.0)  # E_j, computed when a window first needs it
@@ -505,13 +509,7 @@ def fog_lidar_field(points: np.ndarray, field, rng: np.random.Generator, pose: n
 
         return fog_lidar(points, parse_fog(field.visibility_m) if not isinstance(field, FogLevel) else field, rng,
                          noise, reflectance)  # fmt: skip
-    pts = np.asarray(points, np.float32)
-    if pts.ndim != 2 or pts.shape[1] < 4:
-        raise ValueError(f"expected LiDAR points of shape (N, 4), got {pts.shape}")
-    if not np.isfinite(pts).all():
-        raise ValueError("LiDAR points must be finite (no NaN or inf)")
-    if not math.isfinite(noise) or noise < 0:
-        raise ValueError(f"noise must be a finite number of metres >= 0, got {noise!r}")
+    pts = _checked_points(points, noise)
     pose = np.asarray(pose, np.float64)
     if pose.shape != (8,) or not np.isfinite(pose).all():
         raise ValueError(f"pose must be lidar_field_pose(sensor_to_world, frame): 8 finite numbers, got {pose!r}")
