@@ -10,10 +10,11 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from fog_gym.fog import fog_images, fog_lidar, parse_fog
-from fog_gym.fog.camera import field_pose, fog_field_images
+from fog_gym.fog.camera import fog_field_images
+from fog_gym.fog.depth import field_pose
 from fog_gym.fog.fields import FogBank, FogSum, HeightFog, Homogeneous, field_from_info, field_json
 from fog_gym.fog.lidar import (BETA_PER_MOR, GAMMA, KAPPA, SPEED_OF_LIGHT, TAU_H, XI_R1, XI_R2, fog_lidar_field,
-                               lidar_field_pose, soft_response_table)  # fmt: skip
+                               soft_response_table)  # fmt: skip
 
 LN20 = math.log(20.0)
 
@@ -180,7 +181,7 @@ def test_the_lidar_soft_return_equals_a_direct_integration_of_the_lidar_equation
     dy = math.sqrt(max(1.0 - du * du - dz * dz, 0.0))
     point = np.array([[r0 * du, r0 * dy, r0 * dz, 0.9]], np.float32)  # bright: the soft return is what decides
     best, where = direct_soft_maximum(field, du, dz, float(np.linalg.norm(point[0, :3])))
-    out = fog_lidar_field(point, field, np.random.default_rng(0), lidar_field_pose(LIDAR, (0.0, 0.0, 0.0)), noise=0.0)
+    out = fog_lidar_field(point, field, np.random.default_rng(0), field_pose(LIDAR, (0.0, 0.0, 0.0)), noise=0.0)
     i_orig = round(float(point[0, 3]) * 255)  # (the float32 intensity)
     r = float(np.linalg.norm(point[0, :3]))
     i_soft = min(255.0, best * i_orig * r * r * math.pi / GAMMA)
@@ -198,7 +199,7 @@ def test_lidar_points_in_front_of_a_bank_are_as_in_clear_air_and_behind_a_dense_
     pts = np.c_[r * np.cos(az), r * np.sin(az), rng.uniform(-1.7, 0.5, r.size), rng.uniform(0.2, 1.0, r.size)]
     pts = pts.astype(np.float32)
     bank = FogBank(15.0, 60.0, 30.0, edge=0.0)
-    out = fog_lidar_field(pts, bank, np.random.default_rng(2), lidar_field_pose(LIDAR, (0.0, 0.0, 0.0)), noise=0.0)
+    out = fog_lidar_field(pts, bank, np.random.default_rng(2), field_pose(LIDAR, (0.0, 0.0, 0.0)), noise=0.0)
     front = pts[:, 0] < 59.0
     assert np.array_equal(out[front], pts[front])
     behind = pts[:, 0] > 95.0  # τ = 12 on the way: every return is the fog's own, from the bank's near face
@@ -213,7 +214,7 @@ def test_a_bank_covering_everything_makes_the_homogeneous_lidar_decisions():
     pts = pts.astype(np.float32)
     flat = fog_lidar(pts, parse_fog("dense"), np.random.default_rng(0))
     shaped = fog_lidar_field(pts, FogBank(50.0, -5000.0, 10000.0, edge=0.0), np.random.default_rng(0),
-                             lidar_field_pose(LIDAR, (0.0, 0.0, 0.0)))  # fmt: skip
+                             field_pose(LIDAR, (0.0, 0.0, 0.0)))  # fmt: skip
     moved = lambda out: np.any(out[:, :3] != pts[:, :3], axis=1)  # noqa: E731
     assert np.array_equal(moved(flat), moved(shaped))
     assert np.abs(flat[:, 3] - shaped[:, 3]).max() <= 1.5 / 255
@@ -221,7 +222,7 @@ def test_a_bank_covering_everything_makes_the_homogeneous_lidar_decisions():
 
 def test_same_seed_same_fogged_points_and_the_soft_maximum_matches_hahners_table_for_constant_fog():
     pts = np.array([[40.0, 3.0, -1.0, 0.5], [90.0, -5.0, 0.0, 0.8]], np.float32)
-    pose = lidar_field_pose(LIDAR, (0.0, 0.0, 0.0))
+    pose = field_pose(LIDAR, (0.0, 0.0, 0.0))
     bank = HeightFog(50.0, 6.0)
     a = fog_lidar_field(pts, bank, np.random.default_rng(7), pose)
     assert np.array_equal(a, fog_lidar_field(pts, bank, np.random.default_rng(7), pose))
@@ -240,7 +241,7 @@ def test_ground_fog_reads_one_curve_per_beam_elevation_and_decides_as_each_beam_
     for el in (rig, rng.uniform(-0.4, 0.1, r.size)):
         pts = np.c_[r * np.cos(el) * np.cos(az), r * np.cos(el) * np.sin(az), r * np.sin(el), rng.uniform(0.1, 1, r.size)]
         pts = pts.astype(np.float32)
-        pose, field = lidar_field_pose(LIDAR, (0.0, 0.0, 0.0)), HeightFog(40.0, 4.0) + Homogeneous(400.0)
+        pose, field = field_pose(LIDAR, (0.0, 0.0, 0.0)), HeightFog(40.0, 4.0) + Homogeneous(400.0)
         curves = fog_lidar_field(pts, field, np.random.default_rng(1), pose, noise=0.0)
         alone = np.empty_like(pts)  # every beam integrated on its own (the path of fields with banks)
         _hahner_field(pts, pose, field.pack(), *field_pulse_weights(), *field_pulse_weights(FIELD_STEP * FIELD_COARSE),
@@ -250,3 +251,17 @@ def test_ground_fog_reads_one_curve_per_beam_elevation_and_decides_as_each_beam_
         assert np.array_equal(moved(curves), moved(alone)) and 0.1 < moved(alone).mean() < 0.9
         assert np.abs(curves[:, 3] - alone[:, 3]).max() * 255 < 1e-2
         assert np.abs(curves[:, :3] - alone[:, :3]).max() < 0.11  # the fog return's range: within a node
+
+
+@pytest.mark.parametrize("call, word", [
+    (lambda: fog_field_images(*scene(), K, [HeightFog(50.0, 2.0)], np.full(3, 200.0), np.zeros(7)), "pose"),
+    (lambda: fog_field_images(*scene(), K, [HeightFog(50.0, 2.0)], np.full(3, 200.0), np.full(8, np.nan)), "pose"),
+    (lambda: fog_field_images(*scene(), K, [], np.full(3, 200.0), np.zeros(8)), "fields"),
+    (lambda: fog_lidar_field(np.zeros((3, 4), np.float32), HeightFog(50.0, 2.0), np.random.default_rng(0),
+                             np.zeros(5)), "pose"),  # fmt: skip
+    (lambda: fog_lidar_field(np.zeros((3, 2), np.float32), HeightFog(50.0, 2.0), np.random.default_rng(0),
+                             np.zeros(8)), "shape"),  # fmt: skip
+])  # fmt: skip
+def test_bad_inputs_of_the_field_physics_fail_before_any_work(call, word):
+    with pytest.raises(ValueError, match=word):
+        call()
