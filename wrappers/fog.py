@@ -94,6 +94,8 @@ class FogWrapper(gym.Wrapper):
         self.has_lidar = any(model_for("lidar") is m for m in self.models.values())
         self.airlight: dict[str, np.ndarray] = {}
         self._rngs: dict[str, np.random.Generator] = {}
+        #: The field frame (x0, y0, heading) of the episode and its start time, set at reset while a fog field is in force.
+        self.field_frame, self._t0 = (0.0, 0.0, 0.0), 0.0
         if paired:
             spaces = dict(env.observation_space.spaces)
             for lv in levels:
@@ -144,7 +146,8 @@ class FogWrapper(gym.Wrapper):
             lv.name: stream(base.episode_seed, "fog", _level_key(lv))
             for lv in self.levels
         }
-        self.field_frame, self._t0 = self._frame_at_reset(base), base.scene.time if base.scene is not None else 0.0
+        if self.fields:  # (homogeneous fog needs no frame)
+            self.field_frame, self._t0 = self._frame_at_reset(base), base.scene.time if base.scene is not None else 0.0
         return self._apply(obs), self._info(info)
 
     def step(self, action: Any):

@@ -225,24 +225,6 @@ def fog_image(rgb: np.ndarray, depth: np.ndarray, K: np.ndarray, alpha: float, a
 # -- fog fields (fog_gym.fog.fields): per-pixel optical depth instead of α·ℓ ------------------------------------------
 
 
-def field_pose(camera_to_world: np.ndarray, frame: tuple[float, float, float]) -> np.ndarray:
-    """A camera in the field frame, for :func:`fog_field_images`: ``(u_c, z_c, a_u, a_z)`` as 8 floats, the camera
-    centre's distance along the frame's heading and its height, and the rows that turn a pixel's ray ``(x, y, 1)``
-    (optical frame: x right, y down, z forward) into its run along ``u`` and up per metre of planar depth.
-    ``camera_to_world`` is the 4×4 optical-frame → world transform; ``frame`` the field frame ``(x0, y0, heading)``:
-    its origin on the road and its heading [rad].
-
-    >>> pose = field_pose(np.array([[0, 0, 1, 5.0], [-1, 0, 0, 0], [0, -1, 0, 1.5], [0, 0, 0, 1]]), (0.0, 0.0, 0.0))
-    >>> pose.tolist()  # a camera 5 m ahead, 1.5 m up, looking along the heading: ray (0, 0, 1) runs 1 m along u
-    [5.0, 1.5, 0.0, 0.0, 1.0, 0.0, -1.0, 0.0]
-    """
-    M = np.asarray(camera_to_world, np.float64)
-    x0, y0, heading = (float(v) for v in frame)
-    h = np.array([math.cos(heading), math.sin(heading), 0.0])
-    centre = M[:3, 3]
-    return np.concatenate([[(centre[0] - x0) * h[0] + (centre[1] - y0) * h[1], centre[2]], h @ M[:3, :3], M[2, :3]])
-
-
 @njit(cache=True, parallel=True, fastmath=FASTMATH)
 def _koschmieder_field(rgb, depth, xs, ys, pose, terms, starts, airlight_row, out, y0s, wys, firsts, fofs, wide, rofs,
                        span_lo, span_hi):  # fmt: skip
@@ -335,15 +317,15 @@ def fog_field_images(rgb: np.ndarray, depth: np.ndarray, K: np.ndarray, fields: 
     Each pixel's transmittance is ``t = exp(−τ)``, τ the field's optical depth along the pixel's ray from the camera
     centre to the surface (planar depth → ray length; sky pixels to the far plane), in closed form; ``I = A + (J − A)·t``
     with the airlight of a clear frame as for homogeneous fog. ``pose`` places the camera in the field frame
-    (:func:`field_pose`), ``time`` [s] moves drifting banks. A homogeneous field gives :func:`fog_images`'s result
-    within 1/255 (use that for them: it is the reference). With ``glow=True`` (night) the sources lose ``1 − e^{−τ}``
+    (:func:`fog_gym.fog.depth.field_pose`), ``time`` [s] moves drifting banks. A homogeneous field gives
+    :func:`fog_images`'s result within 1/255 (use that for them: it is the reference). With ``glow=True`` (night) the sources lose ``1 − e^{−τ}``
     of their light along their own rays to the glow, whose width follows each field's peak extinction.
     """
     if validate:
         check_fog_inputs(rgb, depth, K, [1.0], airlight)
         pose = np.asarray(pose, np.float64)
         if pose.shape != (8,) or not np.isfinite(pose).all():
-            raise ValueError(f"pose must be field_pose(camera_to_world, frame): 8 finite numbers, got {pose!r}")
+            raise ValueError(f"pose must be field_pose(camera_to_world, frame) (fog_gym.fog.depth): 8 finite numbers, got {pose!r}")
     packed = [f.pack(time) for f in fields]
     if not packed:
         raise ValueError("fields must hold at least one fog field")

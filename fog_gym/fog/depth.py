@@ -128,3 +128,22 @@ def extinctions(terms: np.ndarray, u, z) -> np.ndarray:
     _betas(np.ascontiguousarray(terms, np.float64), np.ascontiguousarray(uu).reshape(-1),
            np.ascontiguousarray(zz).reshape(-1), out)  # fmt: skip
     return out.reshape(uu.shape)
+
+
+def field_pose(sensor_to_world: np.ndarray, frame: tuple[float, float, float]) -> np.ndarray:
+    """A sensor in the field frame: ``(u, z, a_u, a_z)`` as 8 floats, its origin's distance along the frame's heading
+    and its height, and the rows that turn a direction of the sensor's frame into its run along ``u`` and up (for a
+    camera's optical frame, x right, y down, z forward, a pixel's ray ``(x, y, 1)`` per metre of planar depth:
+    ``fog_gym.fog.camera.fog_field_images``; for a LiDAR, a unit direction: ``fog_gym.fog.lidar.fog_lidar_field``).
+    ``sensor_to_world`` is the sensor's 4×4 frame → world transform; ``frame`` the field frame ``(x0, y0, heading)``:
+    its origin on the road and its heading [rad].
+
+    >>> pose = field_pose(np.array([[0, 0, 1, 5.0], [-1, 0, 0, 0], [0, -1, 0, 1.5], [0, 0, 0, 1]]), (0.0, 0.0, 0.0))
+    >>> pose.tolist()  # a camera 5 m ahead, 1.5 m up, looking along the heading: ray (0, 0, 1) runs 1 m along u
+    [5.0, 1.5, 0.0, 0.0, 1.0, 0.0, -1.0, 0.0]
+    """
+    M = np.asarray(sensor_to_world, np.float64)
+    x0, y0, heading = (float(v) for v in frame)
+    h = np.array([math.cos(heading), math.sin(heading), 0.0])
+    centre = M[:3, 3]
+    return np.concatenate([[(centre[0] - x0) * h[0] + (centre[1] - y0) * h[1], centre[2]], h @ M[:3, :3], M[2, :3]])

@@ -480,19 +480,6 @@ def _hahner_field(pts, pose, terms, weights, ramp, weights5, ramp5, coarse, step
         _field_rule(pts, n, out, r0, i_orig, i_hard, best, best_k * step, log_noise, u, attenuation)
 
 
-def lidar_field_pose(sensor_to_world: np.ndarray, frame: tuple[float, float, float]) -> np.ndarray:
-    """A LiDAR in the field frame for :func:`fog_lidar_field`: its origin's ``(u, z)`` and the rows that turn a unit
-    direction of its own frame into its run along u and up (8 floats); ``frame`` is ``(x0, y0, heading)``.
-
-    >>> lidar_field_pose(np.eye(4), (0.0, 0.0, 0.0)).tolist()
-    [0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0]
-    """
-    M = np.asarray(sensor_to_world, np.float64)
-    x0, y0, heading = (float(v) for v in frame)
-    h = np.array([math.cos(heading), math.sin(heading), 0.0])
-    return np.concatenate([[(M[0, 3] - x0) * h[0] + (M[1, 3] - y0) * h[1], M[2, 3]], h @ M[:3, :3], M[2, :3]])
-
-
 def fog_lidar_field(points: np.ndarray, field, rng: np.random.Generator, pose: np.ndarray, time: float = 0.0,
                     noise: float = 10.0, reflectance: float | None = None) -> np.ndarray:  # fmt: skip
     """Hahner et al. fog with a fog field (:mod:`fog_gym.fog.fields`) on LiDAR points ``(N, 4+)`` → the same shape.
@@ -502,7 +489,8 @@ def fog_lidar_field(points: np.ndarray, field, rng: np.random.Generator, pose: n
     ``i_soft = min(255, max_{R ≤ R0} F(R)·i·R0²·π/Γ)`` with ``F(R) = ∫ P(t)·κβ(R′)·e^{−2τ(R′)}·ξ(R′)/R′² dt``
     (:func:`field_pulse_weights`; with constant β this is Hahner et al.'s ``I(R0, α)·β``), on a range grid of
     :data:`FIELD_STEP`. The same replace rule and noise. ``pose`` places the LiDAR in the field frame
-    (:func:`lidar_field_pose`); ``time`` [s] moves drifting banks. A homogeneous field goes through :func:`fog_lidar`.
+    (:func:`fog_gym.fog.depth.field_pose`); ``time`` [s] moves drifting banks. A homogeneous field goes through
+    :func:`fog_lidar`.
     """
     if field.is_homogeneous:
         from fog_gym.fog.physics import parse_fog
@@ -512,7 +500,7 @@ def fog_lidar_field(points: np.ndarray, field, rng: np.random.Generator, pose: n
     pts = _checked_points(points, noise)
     pose = np.asarray(pose, np.float64)
     if pose.shape != (8,) or not np.isfinite(pose).all():
-        raise ValueError(f"pose must be lidar_field_pose(sensor_to_world, frame): 8 finite numbers, got {pose!r}")
+        raise ValueError(f"pose must be field_pose(sensor_to_world, frame): 8 finite numbers, got {pose!r}")
     u = rng.uniform(-1.0, 1.0, len(pts))
     out = np.empty_like(pts)
     terms = field.pack(time)

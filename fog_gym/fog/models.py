@@ -27,8 +27,9 @@ from typing import ClassVar, Protocol, runtime_checkable
 
 import numpy as np
 
-from fog_gym.fog.camera import field_pose, fog_field_images, fog_images
-from fog_gym.fog.lidar import fog_lidar, fog_lidar_field, lidar_field_pose
+from fog_gym.fog.camera import fog_field_images, fog_images
+from fog_gym.fog.depth import field_pose
+from fog_gym.fog.lidar import fog_lidar, fog_lidar_field
 from fog_gym.fog.physics import FogLevel, parse_fog  # noqa: F401  (parse_fog: the example)
 from fog_gym.dataset.packing import pack_points, unpack_points
 
@@ -125,7 +126,7 @@ class Hahner:
             if lv.is_homogeneous:
                 fogged = fog_lidar(clean, lv, context.rngs[lv.name], context.lidar_noise, context.lidar_reflectance)
             else:  # a fog field: the local extinction along each beam
-                fogged = fog_lidar_field(clean, lv, context.rngs[lv.name], lidar_field_pose(context.poses[channel],
+                fogged = fog_lidar_field(clean, lv, context.rngs[lv.name], field_pose(context.poses[channel],
                                          context.frame), context.time, context.lidar_noise, context.lidar_reflectance)  # fmt: skip
             out[lv.name] = pack_points(fogged, capacity)
         return out

@@ -111,7 +111,8 @@ def bench_fields(repeats: int, town: str = "highway") -> dict[str, Any]:
     from fog_gym.envs.fogdrive import FogDriveEnv
     from fog_gym.fog import fog_lidar, parse_fog
     from fog_gym.fog.fields import FogBank, HeightFog
-    from fog_gym.fog.lidar import fog_lidar_field, lidar_field_pose
+    from fog_gym.fog.depth import field_pose
+    from fog_gym.fog.lidar import fog_lidar_field
     from fog_gym.wrappers import FogWrapper
 
     fields = {"homogeneous (dense)": parse_fog("dense"), "FogBank 50 m, 60 m ahead, 100 m long": FogBank(50.0, 60.0, 100.0),
@@ -124,7 +125,7 @@ def bench_fields(repeats: int, town: str = "highway") -> dict[str, Any]:
     az, el = rng.uniform(-np.pi, np.pi, r.size), rng.uniform(-0.35, 0.09, r.size)
     cloud = np.c_[r * np.cos(el) * np.cos(az), r * np.cos(el) * np.sin(az), r * np.sin(el), np.exp(-0.004 * r)]
     cloud = cloud.astype(np.float32)
-    pose = lidar_field_pose(np.array([[1.0, 0, 0, 0], [0, 1.0, 0, 0], [0, 0, 1.0, 1.8], [0, 0, 0, 1.0]]), (0.0, 0.0, 0.0))
+    pose = field_pose(np.array([[1.0, 0, 0, 0], [0, 1.0, 0, 0], [0, 0, 1.0, 1.8], [0, 0, 0, 1.0]]), (0.0, 0.0, 0.0))
 
     def lidar(field):
         return (lambda: fog_lidar(cloud, field, rng)) if field.is_homogeneous else \
