@@ -16,6 +16,7 @@ from pathlib import Path
 
 from fog_gym.world.towns import TIMES_OF_DAY, TOWNS
 from fog_gym.fog import FOG_PRESETS
+from fog_gym.dataset.manifest import FOG_FIELD_KINDS
 
 
 def _fail(command: str, message: str) -> SystemExit:
@@ -100,6 +101,10 @@ def build_parser() -> argparse.ArgumentParser:
     gen.add_argument("--towns", nargs="+", choices=TOWNS, default=list(TOWNS), help="towns to use (default all)")
     gen.add_argument("--lidar-only", action="store_true",
                      help="write only the LiDAR, its fog variants, the semantic LiDAR and the 3D boxes (no cameras)")
+    gen.add_argument("--fog-fields", choices=FOG_FIELD_KINDS, default="levels",
+                     help="how each scene's three fog levels are laid out: levels (FogDrive's homogeneous fog, the "
+                     "default), banks (a fog bank on the road ahead), height (ground fog) or mixed (per scene one of "
+                     "these or a bank over ground fog); fields are recorded beside each sample (fog_field/)")
     gen.add_argument("--resume", action="store_true", help="continue an interrupted run in --root (same settings)")
     gen.add_argument("--ray", metavar="ADDRESS", default=None, help="run scenes as Ray tasks on this cluster")
     val = sub.add_parser(
@@ -334,7 +339,7 @@ def _generate(args: argparse.Namespace) -> int:
         raise _fail("generate", "--seconds must be > 0")
     try:
         plan = plan_scenes(args.scenes, tuple(args.towns), args.seed, args.resolution, args.seconds,
-                           "lidar" if args.lidar_only else "full")  # fmt: skip
+                           "lidar" if args.lidar_only else "full", args.fog_fields)  # fmt: skip
         tables = generate(args.root, plan, args.workers, args.resume, args.ray)
     except (ValueError, DatasetLocked, DatasetLockError) as e:  # a second writer: one line naming root and holder
         raise _fail("generate", str(e)) from None

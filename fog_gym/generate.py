@@ -27,9 +27,12 @@ import numpy as np
 
 from fog_gym.world.towns import TOWNS
 from fog_gym.fog import FOG_PRESETS
+from fog_gym.fog.physics import FogField
 from fog_gym.dataset.layout import DATA_ROOT, MODALITIES, SAMPLE_PERIOD_US, scene_folder_name, scene_id
 from fog_gym.dataset.lock import LOCK_FILE, DatasetLock
-from fog_gym.dataset.manifest import MANIFEST_FILE, differences, make_manifest, read_manifest, write_manifest
+from fog_gym.dataset.manifest import (
+    FOG_FIELD_KINDS, MANIFEST_FILE, differences, make_manifest, read_manifest, write_manifest,
+)  # fmt: skip
 from fog_gym.dataset.writer import SceneWriter, WriteError, _atomic_write, build_index
 from fog_gym.checks import option
 
@@ -49,6 +52,7 @@ class SceneSpec:
     seconds: float
     base_seed: int = 0
     modality: str = "full"  # a key of MODALITIES: "full" (35 channels) or "lidar"
+    fog_fields: str = "levels"  # one of FOG_FIELD_KINDS: how the three fog levels are laid out (scene_fog)
 
     @property
     def folder(self) -> str:
@@ -61,13 +65,18 @@ class SceneSpec:
 
 
 def plan_scenes(n_scenes: int, towns: tuple[str, ...] = TOWNS, seed: int = 0, resolution: tuple[int, int] = (1280, 960),
-                seconds: float = 20.0, modality: str = "full") -> list[SceneSpec]:  # fmt: skip
+                seconds: float = 20.0, modality: str = "full", fog_fields: str = "levels") -> list[SceneSpec]:  # fmt: skip
     """``n_scenes`` (even) spread over ``towns`` in day/night pairs, as evenly as possible, in a fixed order.
 
     ``modality`` "lidar" writes only :data:`~fog_gym.dataset.layout.MODALITIES` ``["lidar"]``: the same scenes,
     LiDAR files and boxes as "full" (cameras are still rendered, at ``resolution``, because a 3D box is kept only
     for a vehicle in some camera's view), without the 24 PNGs per sample that dominate the cost.
+
+    ``fog_fields`` lays each scene's three fog levels out in space (:func:`scene_fog`): ``levels`` (FogDrive's
+    homogeneous fog), ``banks``, ``height`` or ``mixed``.
     """
+    if fog_fields not in FOG_FIELD_KINDS:
+        raise ValueError(f"fog_fields must be one of {FOG_FIELD_KINDS}, got {fog_fields!r}")
     if modality not in MODALITIES:
         raise ValueError(f"modality must be one of {tuple(MODALITIES)}, got {modality!r}")
     if isinstance(n_scenes, bool) or not isinstance(n_scenes, int) or n_scenes < 2 or n_scenes % 2:
@@ -86,12 +95,49 @@ def plan_scenes(n_scenes: int, towns: tuple[str, ...] = TOWNS, seed: int = 0, re
                 index = len(plan)
                 scene_seed = int(np.random.SeedSequence([seed, index]).generate_state(1)[0] & 0x7FFFFFFF)
                 plan.append(SceneSpec(index, town, tod, run, scene_seed, tuple(resolution), float(seconds), seed,
-                                      modality))  # fmt: skip
+                                      modality, fog_fields))  # fmt: skip
     return plan
 
 
+def scene_fog(spec: SceneSpec) -> list[FogField]:
+    """The three fog levels of a scene (named light, moderate, dense, at FogDrive's visibilities), laid out as
+    ``spec.fog_fields`` asks; the layout is drawn from (base seed, scene index), so a scene regenerates bit for bit,
+    and is shared by the three levels (the pairing: only the density differs).
+
+    * ``levels``: homogeneous fog (FogDrive's).
+    * ``banks``: a :class:`~fog_gym.fog.fields.FogBank` of the level's visibility in clear air, its near face
+      0–300 m ahead of the LiDAR at reset, 50–300 m long, edges 5–40 m wide, drifting at −3 … 3 m/s.
+    * ``height``: :class:`~fog_gym.fog.fields.HeightFog`, the level's visibility at road level, thinning by ``e``
+      every 3–30 m of height.
+    * ``mixed``: per scene, one of homogeneous, bank, ground fog, or a bank over ground fog four times thinner.
+
+    >>> spec = plan_scenes(2, towns=("highway",), fog_fields="banks")[0]
+    >>> [(f.name, f.visibility, f.start == scene_fog(spec)[2].start) for f in scene_fog(spec)]
+    [('light', 160.0, True), ('moderate', 100.0, True), ('dense', 50.0, True)]
+    """
+    from fog_gym.fog.fields import FogBank, FogSum, HeightFog, Homogeneous
+
+    rng = np.random.default_rng(np.random.SeedSequence([spec.base_seed, spec.index, 0xF06]))
+    bank = {"start": rng.uniform(0.0, 300.0), "length": rng.uniform(50.0, 300.0), "edge": rng.uniform(5.0, 40.0),
+            "velocity": rng.uniform(-3.0, 3.0)}  # fmt: skip
+    scale_height = rng.uniform(3.0, 30.0)
+    kind = spec.fog_fields if spec.fog_fields != "mixed" else ("levels", "banks", "height", "both")[rng.integers(4)]
+    out: list[FogField] = []
+    for name, visibility in FOG_PRESETS.items():
+        if kind == "levels":
+            out.append(Homogeneous(visibility, name=name))
+        elif kind == "banks":
+            out.append(FogBank(visibility, name=name, **bank))
+        elif kind == "height":
+            out.append(HeightFog(visibility, scale_height, name=name))
+        else:
+            out.append(FogSum((HeightFog(4.0 * visibility, scale_height), FogBank(visibility, **bank)), name=name))
+    return out
+
+
 def generate_scene(root: str | Path, spec: SceneSpec | dict[str, Any]) -> str:
-    """Render and write one scene (clean + three paired fog levels); returns its folder name.
+    """Render and write one scene (clean + three paired fog levels, laid out by :func:`scene_fog`); returns its
+    folder name. A scene with fog fields writes each sample's fields beside it (:mod:`fog_gym.dataset.fog_record`).
 
     The ego drives with highway-env's IDLE meta-action (keep lane and speed); an episode that ends early
     (collision) gives a shorter scene.
@@ -107,17 +153,18 @@ def generate_scene(root: str | Path, spec: SceneSpec | dict[str, Any]) -> str:
     # the cameras are rendered in both modalities: FogDrive's 3D boxes are the vehicles annotated in some camera,
     # so a LiDAR-only scene gets exactly the boxes (and LiDAR files) of the full scene; only the writing is skipped
     env = FogWrapper(FogDriveEnv(town=spec.town, time_of_day=spec.time_of_day, resolution=spec.resolution,
-                                 episode_seconds=spec.seconds), ["light", "moderate", "dense"])  # fmt: skip
+                                 episode_seconds=spec.seconds), scene_fog(spec))  # fmt: skip
     writer = SceneWriter(root, spec.folder, MODALITIES[spec.modality])
+    fields = spec.fog_fields != "levels"  # a set of fog fields records every scene's, homogeneous ones included
     try:
         obs, info = env.reset(seed=spec.seed)
         writer.write_extrinsics(info["extrinsics"])
-        writer.write_sample(0, obs, info, env.unwrapped.ego_pose_record())
+        writer.write_sample(0, obs, info, env.unwrapped.ego_pose_record(), env.field_record(fields))
         idle = env.unwrapped.idle_action
         index, done = 1, False
         while not done:
             obs, _, terminated, truncated, info = env.step(idle)
-            writer.write_sample(index, obs, info, env.unwrapped.ego_pose_record())
+            writer.write_sample(index, obs, info, env.unwrapped.ego_pose_record(), env.field_record(fields))
             index += 1
             done = terminated or truncated
         writer.close()
@@ -146,7 +193,7 @@ def plan_manifest(plan: list[SceneSpec]) -> dict[str, Any]:
     towns = list(dict.fromkeys(s.town for s in plan))
     first = plan[0]
     return make_manifest(len(plan), first.resolution, first.seconds, first.base_seed, towns, fog_levels=FOG_PRESETS,
-                         channels=MODALITIES[first.modality])  # fmt: skip
+                         channels=MODALITIES[first.modality], fog_fields=first.fog_fields)  # fmt: skip
 
 
 def check_manifest(root: Path, manifest: dict[str, Any], resume: bool) -> None:

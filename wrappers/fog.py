@@ -146,8 +146,8 @@ class FogWrapper(gym.Wrapper):
             lv.name: stream(base.episode_seed, "fog", _level_key(lv))
             for lv in self.levels
         }
-        if self.fields:  # (homogeneous fog needs no frame)
-            self.field_frame, self._t0 = self._frame_at_reset(base), base.scene.time if base.scene is not None else 0.0
+        # the field frame (homogeneous fog needs none, but a dataset of fields records it for every level)
+        self.field_frame, self._t0 = self._frame_at_reset(base), base.scene.time if base.scene is not None else 0.0
         return self._apply(obs), self._info(info)
 
     def step(self, action: Any):
@@ -170,6 +170,14 @@ class FogWrapper(gym.Wrapper):
     def fields(self) -> bool:
         """Whether a level in force is a fog field that is not homogeneous (the sensors then need their poses)."""
         return not all(lv.is_homogeneous for lv in self.levels)
+
+    def field_record(self, always: bool = False) -> dict[str, Any] | None:
+        """The fields in force now, as a dataset records them beside a sample (:mod:`fog_gym.dataset.fog_record`):
+        ``{"frame": (x0, y0, heading), "time": seconds since reset, "fields": {name: field}}``; None while the fog
+        is homogeneous (a level's visibility says all) unless ``always``."""
+        if not (self.fields or always):
+            return None
+        return {"frame": self.field_frame, "time": self._field_time(), "fields": {lv.name: lv for lv in self.levels}}
 
     def _frame_at_reset(self, base) -> tuple[float, float, float]:
         """The field frame: the LiDAR origin (the 3D boxes' frame) at reset, on the road, and the ego's heading."""

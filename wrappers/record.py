@@ -25,7 +25,9 @@ class RecordFogDrive(gym.Wrapper):
     rebuilds ``index/{scene,sample,sample_data}.json`` from disk when an episode ends and on ``close``.
 
     Wrap a clean FogDrive-v0 env (the paired fog wrapper is added) or one already in paired fog with the three
-    FogDrive levels. The rig must hold the FogDrive rig (4 cameras, LiDAR, semantic LiDAR, radar) with ground
+    FogDrive levels — or with three fog fields named light, moderate and dense (``FogBank(50.0, 120.0, 80.0,
+    name="dense")``, …), whose parameters, frame and time then go beside each sample
+    (:mod:`fog_gym.dataset.fog_record`). The rig must hold the FogDrive rig (4 cameras, LiDAR, semantic LiDAR, radar) with ground
     truth on; every further sensor of the rig (a rear radar, a second LiDAR, another camera with its fog levels,
     depth, semantics and 2D boxes) is recorded too, each channel in the folder its sensor declares, and the
     layout goes with the set (``index/channels.json``) for ``validate`` and the loaders. Runs are numbered after those already under ``root`` for the same town and time of day.
@@ -61,9 +63,9 @@ class RecordFogDrive(gym.Wrapper):
         fog = _find_fog(env)
         if fog is None:
             env = FogWrapper(env, PAIRED_LEVELS)
-        elif not fog.paired or list(fog.levels) != [parse_fog(name) for name in PAIRED_LEVELS]:
-            raise ValueError("RecordFogDrive needs clean data plus the paired levels light, moderate, dense (homogeneous "
-                             "fog: datasets do not record fog fields yet)")  # fmt: skip
+        elif not fog.paired or not _fogdrive_levels(fog):
+            raise ValueError("RecordFogDrive needs clean data plus the paired levels light, moderate, dense: FogDrive's "
+                             "homogeneous levels, or three fog fields named light, moderate and dense")  # fmt: skip
         self.root = Path(root)
         if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
             raise ValueError(f"workers must be a positive integer or None, got {workers!r}")
@@ -75,6 +77,7 @@ class RecordFogDrive(gym.Wrapper):
             self._lock.release()
             raise ValueError(f"cannot write the dataset root {self.root}: {e}") from None
         super().__init__(env)
+        self._fog = _find_fog(env)
         self.workers = workers
         from fog_gym.sensors import rig_layout
 
@@ -101,9 +104,11 @@ class RecordFogDrive(gym.Wrapper):
         frozen_obs = {k: np.array(v, copy=True) for k, v in obs.items()}  # the env may reuse its buffers
         frozen_info = {k: copy.deepcopy(info[k]) for k in ("boxes_2d", "boxes_3d")}
         ego_pose = self.env.unwrapped.ego_pose_record()  # now: the env moves on while the sample is written
+        fog_field = self._fog.field_record()  # None for homogeneous fog
         if self._background is None:
             self._background = ThreadPoolExecutor(1, thread_name_prefix="fogdrive-record")
-        self._pending = self._background.submit(self._writer.write_sample, index, frozen_obs, frozen_info, ego_pose)
+        self._pending = self._background.submit(self._writer.write_sample, index, frozen_obs, frozen_info, ego_pose,
+                                                fog_field)  # fmt: skip
 
     def _next_run(self, town: int, tod: str) -> int:
         runs = [p[2] for p in (parse_scene_folder(d.name) for d in (self.root / DATA_ROOT).iterdir()) if p and p[:2] == (town, tod)]
@@ -159,6 +164,13 @@ class RecordFogDrive(gym.Wrapper):
         super().close()
         if error is not None:
             raise error
+
+
+def _fogdrive_levels(fog: FogWrapper) -> bool:
+    """Whether a paired fog wrapper's levels are FogDrive's: the three presets, or fields with their names."""
+    if [lv.name for lv in fog.levels] != PAIRED_LEVELS:
+        return False
+    return fog.fields or list(fog.levels) == [parse_fog(name) for name in PAIRED_LEVELS]
 
 
 def _find_fog(env: gym.Env) -> FogWrapper | None:

@@ -19,8 +19,10 @@ from pathlib import Path, PurePosixPath
 from typing import Any
 
 from fog_gym.dataset.layout import (
-    FOGDRIVE_CHANNELS, LAYOUT_FILE, SPLITS, TABLES, ChannelSpec, ego_pose_path, layout_from_json,
+    EGO_POSE_FOLDER, FOG_FIELD_FOLDER, FOGDRIVE_CHANNELS, LAYOUT_FILE, SPLITS, TABLES, ChannelSpec, layout_from_json,
+    side_file_path,
 )  # fmt: skip
+from fog_gym.dataset.fog_record import FogRecord, decode_fog_record
 from fog_gym.dataset.poses import EgoPose, decode_ego_pose
 
 
@@ -202,6 +204,25 @@ class FogDrive:
     def get_ego_pose_path(self, sample_token: str) -> Path:
         """Where a sample's ego pose is stored (:mod:`fog_gym.dataset.poses`): beside its files, named as they
         are (the sample's index in its scene). The file exists only for sets recorded with ego poses."""
+        return self._side_file_path(sample_token, EGO_POSE_FOLDER)
+
+    def get_ego_pose(self, sample_token: str) -> EgoPose | None:
+        """A sample's ego pose (world frame, CARLA's axes), or None where the set has none (recorded before
+        ego poses were kept, or by the original pipeline). A corrupt file raises :class:`DatasetError`."""
+        return self._side_file(self.get_ego_pose_path(sample_token), decode_ego_pose)
+
+    def get_fog_field_path(self, sample_token: str) -> Path:
+        """Where a sample's fog fields are stored (:mod:`fog_gym.dataset.fog_record`), likewise. The file exists
+        only for sets generated with fog fields."""
+        return self._side_file_path(sample_token, FOG_FIELD_FOLDER)
+
+    def get_fog_field(self, sample_token: str) -> FogRecord | None:
+        """The fog field of each level of a sample (:class:`~fog_gym.dataset.fog_record.FogRecord`: the field
+        frame in the world, the field time, the fields by level name), or None where the set's fog is homogeneous
+        (the levels' visibilities are the manifest's ``fog_levels``). A corrupt file raises :class:`DatasetError`."""
+        return self._side_file(self.get_fog_field_path(sample_token), decode_fog_record)
+
+    def _side_file_path(self, sample_token: str, folder: str) -> Path:
         sample = self.get("sample", sample_token)
         recs = self._sample_channels[sample["token"]]
         rec = recs.get("BBOX_3D") or next(iter(recs.values()), None)
@@ -211,12 +232,10 @@ class FogDrive:
         if len(parts) < 3 or not PurePosixPath(parts[-1]).stem.isdigit():
             raise DatasetError(f"{self.dataroot / 'index' / 'sample_data.json'}: {rec['filename']!r} is not named "
                                "data_root/<scene>/…/<index>.<ext>")  # fmt: skip
-        return self.dataroot / ego_pose_path(parts[1], int(PurePosixPath(parts[-1]).stem))
+        return self.dataroot / side_file_path(parts[1], int(PurePosixPath(parts[-1]).stem), folder)
 
-    def get_ego_pose(self, sample_token: str) -> EgoPose | None:
-        """A sample's ego pose (world frame, CARLA's axes), or None where the set has none (recorded before
-        ego poses were kept, or by the original pipeline). A corrupt file raises :class:`DatasetError`."""
-        path = self.get_ego_pose_path(sample_token)
+    @staticmethod
+    def _side_file(path: Path, decode) -> Any:
         try:
             data = path.read_bytes()
         except FileNotFoundError:
@@ -224,7 +243,7 @@ class FogDrive:
         except OSError as e:
             raise DatasetError(f"{path}: unreadable ({e.strerror or e})") from None
         try:
-            return decode_ego_pose(data)
+            return decode(data)
         except ValueError as e:
             raise DatasetError(f"{path}: {e}") from None
 

@@ -70,7 +70,7 @@ LAYOUT_FILE = "index/channels.json"
 _NAME_RE = re.compile(r"[A-Z][A-Z0-9_]*")
 _FOLDER_RE = re.compile(r"[a-z0-9][a-z0-9_.-]*(/[a-z0-9][a-z0-9_.-]*)*")
 #: Folders of a scene that hold no channel: the extrinsics and the ego poses.
-RESERVED_FOLDERS = ("extrinsic_config", "ego_pose")
+RESERVED_FOLDERS = ("extrinsic_config", "ego_pose", "fog_field")
 
 
 def check_layout(pairs) -> dict[str, ChannelSpec]:
@@ -163,6 +163,9 @@ EXTRINSIC_FILE = "extrinsic_config/extrinsic_config.json"
 #: The ego pose of each sample (an extra file beside the channels; readers that only know FogDrive ignore it):
 #: ``data_root/<scene>/ego_pose/000000.json`` (:func:`ego_pose_path`).
 EGO_POSE_FOLDER = "ego_pose"
+#: The fog field of each sample of a set generated with fog fields (:mod:`fog_gym.dataset.fog_record`), likewise:
+#: ``data_root/<scene>/fog_field/000000.json``.
+FOG_FIELD_FOLDER = "fog_field"
 SAMPLE_PERIOD_US = 100_000  # 10 Hz keyframes
 _SCENE_RE = re.compile(r"^data_collection_T(\d+)_(day|night)_run(\d+)_([0-9a-f]+)$")
 
@@ -198,7 +201,21 @@ def ego_pose_path(scene_folder: str, index: int) -> str:
     >>> ego_pose_path("data_collection_T1_day_run1_00ab", 3)
     'data_root/data_collection_T1_day_run1_00ab/ego_pose/000003.json'
     """
-    return f"{DATA_ROOT}/{scene_folder}/{EGO_POSE_FOLDER}/{index:06d}.json"
+    return side_file_path(scene_folder, index, EGO_POSE_FOLDER)
+
+
+def fog_field_path(scene_folder: str, index: int) -> str:
+    """The fog-field file of a sample (sets generated with fog fields), relative to the dataset root.
+
+    >>> fog_field_path("data_collection_T1_day_run1_00ab", 3)
+    'data_root/data_collection_T1_day_run1_00ab/fog_field/000003.json'
+    """
+    return side_file_path(scene_folder, index, FOG_FIELD_FOLDER)
+
+
+def side_file_path(scene_folder: str, index: int, folder: str) -> str:
+    """A sample's extra JSON file in ``folder`` of its scene (not a channel: the index does not list it)."""
+    return f"{DATA_ROOT}/{scene_folder}/{folder}/{index:06d}.json"
 
 
 def channel_path(channel: str, scene_folder: str, index: int, layout: dict[str, ChannelSpec] | None = None) -> str:

@@ -1,7 +1,8 @@
 """The generation manifest: the settings a dataset was generated with, written at the start of ``fog-gym generate``.
 
 ``index/manifest.json`` holds the scene count, resolution, scene length, base seed, towns, fog levels (name and
-visibility), the channel set and the fog-gym version. ``generate --resume`` refuses settings that differ from it
+visibility), the channel set and the fog-gym version, and for a set generated with fog fields their kind
+(``fog_fields``: banks, height or mixed). ``generate --resume`` refuses settings that differ from it
 (a resumed run must not mix resolutions or scene plans), and ``validate`` checks the files against it.
 
 Example:
@@ -24,20 +25,30 @@ from fog_gym.dataset.layout import FOG_LEVELS, FOGDRIVE_CHANNELS
 MANIFEST_FILE = "index/manifest.json"
 FORMAT = 1
 #: The settings that must agree between a run and the run it resumes.
-SETTINGS = ("scenes", "resolution", "seconds", "seed", "towns", "fog_levels", "channels")
+SETTINGS = ("scenes", "resolution", "seconds", "seed", "towns", "fog_levels", "channels", "fog_fields")
+#: Settings a manifest may leave out, and what their absence means (``fog_fields``: written only for fog fields, so
+#: a homogeneous set's manifest is what it always was).
+DEFAULTS = {"fog_fields": "levels"}
+#: What ``--fog-fields`` may ask for (``fog-gym generate``): FogDrive's homogeneous levels, or each level's
+#: visibility as a fog bank, as ground fog, or a mix of homogeneous, bank, ground fog and a bank over ground fog.
+FOG_FIELD_KINDS = ("levels", "banks", "height", "mixed")
 
 
 def make_manifest(scenes: int, resolution: Sequence[int], seconds: float, seed: int, towns: Sequence[str],
-                  fog_levels: Mapping[str, float], channels: Sequence[str] | None = None) -> dict[str, Any]:  # fmt: skip
+                  fog_levels: Mapping[str, float], channels: Sequence[str] | None = None,
+                  fog_fields: str = "levels") -> dict[str, Any]:  # fmt: skip
     """The manifest of a generation run (JSON-ready); ``fog_levels`` maps each FogDrive level name (light,
-    moderate, dense) to the visibility [m] the run fogs it with."""
+    moderate, dense) to the visibility [m] the run fogs it with; ``fog_fields`` (one of :data:`FOG_FIELD_KINDS`)
+    how those levels are laid out in space (recorded only when not ``levels``)."""
     from fog_gym._version import __version__
 
+    if fog_fields not in FOG_FIELD_KINDS:
+        raise ValueError(f"fog_fields must be one of {FOG_FIELD_KINDS}, got {fog_fields!r}")
     missing = [lv.lower() for lv in FOG_LEVELS if lv.lower() not in fog_levels]
     if missing:
         raise ValueError(f"fog_levels must give a visibility for every FogDrive level, missing {missing}")
 
-    return {
+    manifest = {
         "format": FORMAT,
         "fog_gym_version": __version__,
         "scenes": int(scenes),
@@ -48,11 +59,15 @@ def make_manifest(scenes: int, resolution: Sequence[int], seconds: float, seed: 
         "fog_levels": {lv.lower(): float(fog_levels[lv.lower()]) for lv in FOG_LEVELS},
         "channels": list(channels if channels is not None else FOGDRIVE_CHANNELS),
     }
+    if fog_fields != DEFAULTS["fog_fields"]:
+        manifest["fog_fields"] = fog_fields
+    return manifest
 
 
 def differences(stored: dict[str, Any], current: dict[str, Any]) -> list[str]:
     """One line per setting in which ``current`` differs from ``stored``."""
-    return [f"{k}: {stored.get(k)} in the dataset, {current.get(k)} now" for k in SETTINGS if stored.get(k) != current.get(k)]
+    old, new = ({k: m.get(k, DEFAULTS.get(k)) for k in SETTINGS} for m in (stored, current))
+    return [f"{k}: {old[k]} in the dataset, {new[k]} now" for k in SETTINGS if old[k] != new[k]]
 
 
 def read_manifest(root: str | Path) -> dict[str, Any] | None:
@@ -64,7 +79,7 @@ def read_manifest(root: str | Path) -> dict[str, Any] | None:
     if not path.exists():
         return None
     data = read_json(path)
-    missing = [k for k in SETTINGS if not isinstance(data, dict) or k not in data]
+    missing = [k for k in SETTINGS if k not in DEFAULTS and (not isinstance(data, dict) or k not in data)]
     if missing:
         raise DatasetError(f"{path}: lacks {missing}")
     res = data["resolution"]
@@ -75,6 +90,8 @@ def read_manifest(root: str | Path) -> dict[str, Any] | None:
     for key in ("channels", "towns"):
         if not (isinstance(data[key], list) and all(isinstance(v, str) for v in data[key])):
             raise DatasetError(f"{path}: {key} must be a list of names, got {data[key]!r}")
+    if data.get("fog_fields", DEFAULTS["fog_fields"]) not in FOG_FIELD_KINDS:
+        raise DatasetError(f"{path}: fog_fields must be one of {FOG_FIELD_KINDS}, got {data['fog_fields']!r}")
     return data
 
 

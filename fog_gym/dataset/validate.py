@@ -1,7 +1,7 @@
 """Checking a FogDrive dataset (``fog-gym validate``) and measuring its footprint (``fog-gym stats``).
 
 :func:`validate` never raises on a bad dataset: every unreadable, truncated, empty or wrongly shaped file (RGB,
-depth and semantic PNG, ``.npy`` point clouds, box JSON, extrinsics, ego poses, index JSON) and every index entry
+depth and semantic PNG, ``.npy`` point clouds, box JSON, extrinsics, ego poses, fog fields, index JSON) and every index entry
 that points at a missing file or outside the root becomes one line naming the file and the problem. Where the dataset has a
 generation manifest (``index/manifest.json``, written by ``fog-gym generate``) the files are also checked against
 it: image sizes, channel set and scene count. Channels are checked as the set's layout stores them
@@ -28,6 +28,7 @@ from fog_gym.dataset.decode import box_json_problem, decode_png, png_problem, re
 from fog_gym.dataset.layout import (
     DATA_ROOT, FOGDRIVE_CHANNELS, ChannelSpec, extrinsic_key, layout_cameras,
 )  # fmt: skip
+from fog_gym.dataset.fog_record import fog_record_problem
 from fog_gym.dataset.poses import ego_pose_problem
 from fog_gym.dataset.manifest import MANIFEST_FILE, read_manifest
 
@@ -131,7 +132,7 @@ def validate(root: str | Path, progress: bool = False) -> list[str]:
 
     Checks: the index tables parse and have the D6 fields; file names stay inside the root; scenes' sample chains
     and counts; every sample has the expected channels; every file exists and decodes with the right shape and
-    size; extrinsics; the split rules (coverage, 50/50 day/night). With a manifest: image sizes, channel set and
+    size; extrinsics; ego poses and fog fields where the set has them; the split rules (coverage, 50/50 day/night). With a manifest: image sizes, channel set and
     scene count as generated.
     """
     root = Path(root)
@@ -165,6 +166,9 @@ def validate(root: str | Path, progress: bool = False) -> list[str]:
     channels = set(manifest["channels"]) if manifest else set(FOGDRIVE_CHANNELS) | set(layout)
     extrinsic_keys = list(dict.fromkeys((*EXTRINSIC_KEYS, *(extrinsic_key(c) for c in layout_cameras(layout)))))
     size = tuple(manifest["resolution"]) if manifest else None
+    # a set generated with fog fields has one fog-field file per sample naming every fog level of its layout
+    fields = bool(manifest) and manifest.get("fog_fields", "levels") != "levels"
+    levels = sorted({c.split("_FOG_", 1)[1].lower() for c in layout if "_FOG_" in c})
     if manifest and manifest["scenes"] != len(ds.scene):
         problems.append(f"{index / 'scene.json'}: {len(ds.scene)} scenes, the manifest ({MANIFEST_FILE}) says "
                         f"{manifest['scenes']}")
@@ -180,7 +184,9 @@ def validate(root: str | Path, progress: bool = False) -> list[str]:
         found = "missing file" if not ext.is_file() else check_extrinsics(ext, extrinsic_keys)
         if found:
             problems.append(f"{sc['extrinsic_config_path']}: {found}")
-        problems += _ego_pose_problems(ds, samples)
+        problems += _side_file_problems(ds, samples, ds.get_ego_pose_path, ego_pose_problem, "ego poses")
+        problems += _side_file_problems(ds, samples, ds.get_fog_field_path, lambda data: fog_record_problem(data, levels),
+                                        "fog fields", required=fields)  # fmt: skip
     orphans = [s["token"] for s in ds.sample if s["token"] not in ds._sample_scene]
     if orphans:
         problems.append(f"{index / 'sample.json'}: {len(orphans)} samples are in the prev/next chain of no scene of "
@@ -210,28 +216,30 @@ def validate(root: str | Path, progress: bool = False) -> list[str]:
     return problems
 
 
-def _ego_pose_problems(ds: FogDrive, samples: list[dict]) -> list[str]:
-    """Ego-pose files of a scene recorded with them (:mod:`fog_gym.dataset.poses`): one per sample, each valid.
-    A scene without an ``ego_pose/`` folder (recorded before poses were kept, or by the original pipeline) is
-    fine."""
+def _side_file_problems(ds: FogDrive, samples: list[dict], path_of, problem_of, what: str,
+                        required: bool = False) -> list[str]:  # fmt: skip
+    """A scene's extra files of one kind (ego poses, :mod:`fog_gym.dataset.poses`; fog fields,
+    :mod:`fog_gym.dataset.fog_record`): one per sample, each valid. A scene without their folder (recorded before
+    poses were kept, by the original pipeline, or with homogeneous fog) is fine unless they are ``required``."""
     problems: list[str] = []
     for k, s in enumerate(samples):
         try:
-            path = ds.get_ego_pose_path(s["token"])
+            path = path_of(s["token"])
         except DatasetError as e:
             return [str(e)]
         if k == 0 and not path.parent.is_dir():
-            return []
+            rel = path.parent.relative_to(ds.dataroot)
+            return [f"{rel}: missing folder (the manifest says the set has {what})"] if required else []
         rel = path.relative_to(ds.dataroot)
         try:
             data = path.read_bytes()
         except FileNotFoundError:
-            problems.append(f"{rel}: missing file (the scene has ego poses for other samples)")
+            problems.append(f"{rel}: missing file (the scene has {what} for other samples)")
             continue
         except OSError as e:
             problems.append(f"{rel}: unreadable ({e.strerror or e})")
             continue
-        found = ego_pose_problem(data)
+        found = problem_of(data)
         if found:
             problems.append(f"{rel}: {found}")
     return problems

@@ -28,14 +28,16 @@ import numpy as np
 
 from fog_gym.dataset.layout import (
     BBOX_3D, DATA_ROOT, FOGDRIVE_CHANNELS, EXTRINSIC_FILE, LAYOUT_FILE, SAMPLE_PERIOD_US, SCENE_LAYOUT_FILE, ChannelSpec,
-    channel_path, check_layout, ego_pose_path, is_fogdrive_layout, layout_from_json, layout_to_json, parse_scene_folder,
-    scene_name,
+    channel_path, check_layout, ego_pose_path, fog_field_path, is_fogdrive_layout, layout_from_json, layout_to_json,
+    parse_scene_folder, scene_name,
 )  # fmt: skip
 from fog_gym.dataset.png import encode_png
+from fog_gym.dataset.fog_record import encode_fog_record
 from fog_gym.dataset.poses import encode_ego_pose
 from fog_gym.encoding import encode_depth, semantic_to_carla_rgb
 
 EGO_POSE = "EGO_POSE"  # the key of a sample's ego-pose file among its encoded files (not a channel)
+FOG_FIELD = "FOG_FIELD"  # the key of a sample's fog-field file among its encoded files (not a channel)
 
 
 def token_for(*parts: object) -> str:
@@ -170,7 +172,9 @@ class SceneWriter:
 
     ``write_sample`` takes a paired-fog observation (clean + ``*_FOG_{LIGHT,MODERATE,DENSE}``), the env's
     ``info`` (``boxes_2d``, ``boxes_3d``) and, where known, the ego pose (``translation``, ``yaw``, ``velocity``,
-    ``lidar_to_ego``: :mod:`fog_gym.dataset.poses`; written as ``ego_pose/<index>.json`` before ``BBOX_3D``);
+    ``lidar_to_ego``: :mod:`fog_gym.dataset.poses`; written as ``ego_pose/<index>.json`` before ``BBOX_3D``) and,
+    for fog fields, the fog record (``frame``, ``time``, ``fields``: :mod:`fog_gym.dataset.fog_record`; written as
+    ``fog_field/<index>.json`` before ``BBOX_3D``);
     ``write_extrinsics`` the ``info["extrinsics"]`` dict. A file that cannot be written raises
     :class:`WriteError` naming the sample, the file and the reason, with no temporary file left behind.
 
@@ -217,6 +221,8 @@ class SceneWriter:
     def _path(self, channel: str, index: int) -> Path:
         if channel == EGO_POSE:
             return self.root / ego_pose_path(self.folder, index)
+        if channel == FOG_FIELD:
+            return self.root / fog_field_path(self.folder, index)
         return self.root / channel_path(channel, self.folder, index, self.layout)
 
     def _write_layout(self) -> None:
@@ -236,10 +242,10 @@ class SceneWriter:
         except WriteError as e:
             raise e.with_what(f"cannot write the extrinsics of scene {self.folder}") from None
 
-    def encode_jobs(self, obs: dict[str, np.ndarray], info: dict[str, Any],
-                    ego_pose: Mapping[str, Any] | None = None) -> dict[str, Callable[[], bytes]]:  # fmt: skip
-        """One zero-argument encoder per channel of the writer (and ``EGO_POSE`` where ``ego_pose`` is given), in
-        write order (``BBOX_3D`` last); each returns the file's bytes."""
+    def encode_jobs(self, obs: dict[str, np.ndarray], info: dict[str, Any], ego_pose: Mapping[str, Any] | None = None,
+                    fog_field: Mapping[str, Any] | None = None) -> dict[str, Callable[[], bytes]]:  # fmt: skip
+        """One zero-argument encoder per channel of the writer (and ``EGO_POSE``, ``FOG_FIELD`` where ``ego_pose``,
+        ``fog_field`` are given), in write order (``BBOX_3D`` last); each returns the file's bytes."""
         from fog_gym.dataset.packing import unpack_points
 
         def png(key: str, convert: Callable[[np.ndarray], np.ndarray] | None = None) -> Callable[[], bytes]:
@@ -273,17 +279,20 @@ class SceneWriter:
         if ego_pose is not None:
             pose = encode_ego_pose(**ego_pose)  # checked now, before any file of the sample is written
             jobs[EGO_POSE] = lambda: pose
+        if fog_field is not None:
+            record = encode_fog_record(**fog_field)  # checked now, likewise
+            jobs[FOG_FIELD] = lambda: record
         b3 = info["boxes_3d"]
         jobs["BBOX_3D"] = lambda: json.dumps({
             "bboxes_3d": np.asarray(b3["corners"]).tolist(), "vehicle_ids": np.asarray(b3["vehicle_ids"]).tolist(),
         }).encode()  # fmt: skip
         return jobs
 
-    def encode_sample(self, obs: dict[str, np.ndarray], info: dict[str, Any],
-                      ego_pose: Mapping[str, Any] | None = None) -> dict[str, bytes]:  # fmt: skip
+    def encode_sample(self, obs: dict[str, np.ndarray], info: dict[str, Any], ego_pose: Mapping[str, Any] | None = None,
+                      fog_field: Mapping[str, Any] | None = None) -> dict[str, bytes]:  # fmt: skip
         """The file contents of the writer's channels for one sample (no I/O, one after another), ``BBOX_3D``
         last."""
-        return {channel: job() for channel, job in self.encode_jobs(obs, info, ego_pose).items()}
+        return {channel: job() for channel, job in self.encode_jobs(obs, info, ego_pose, fog_field).items()}
 
     def write_files(self, index: int, files: dict[str, bytes]) -> None:
         """Write encoded files; ``BBOX_3D`` goes last so its presence marks the sample complete."""
@@ -297,16 +306,16 @@ class SceneWriter:
             raise e.with_what(f"cannot write sample {index} of scene {self.folder}") from None
 
     def write_sample(self, index: int, obs: dict[str, np.ndarray], info: dict[str, Any],
-                     ego_pose: Mapping[str, Any] | None = None) -> None:  # fmt: skip
+                     ego_pose: Mapping[str, Any] | None = None, fog_field: Mapping[str, Any] | None = None) -> None:  # fmt: skip
         """Encode and write one sample; with ``workers > 1`` its files in parallel, ``BBOX_3D`` after all.
         Every thread's failed file is cleaned up before the first error is raised."""
         self._write_layout()
         if self.workers == 1:
-            self.write_files(index, self.encode_sample(obs, info, ego_pose))
+            self.write_files(index, self.encode_sample(obs, info, ego_pose, fog_field))
             return
         if self._pool is None:
             self._pool = ThreadPoolExecutor(self.workers, thread_name_prefix="fogdrive-writer")
-        jobs = self.encode_jobs(obs, info, ego_pose)
+        jobs = self.encode_jobs(obs, info, ego_pose, fog_field)
         last = jobs.pop("BBOX_3D")
 
         def write(channel: str, job: Callable[[], bytes]) -> None:

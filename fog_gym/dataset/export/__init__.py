@@ -32,6 +32,7 @@ from fog_gym.dataset.lock import LOCK_FILE, DatasetLock
 from fog_gym.checks import option
 
 MANIFEST = "fog_gym_export.json"  # in OUT: the export's settings, whether it is complete, and its notes
+FOG_FIELDS = "fog_fields.json"  # in OUT, for a source set of fog fields: each sample's field at the exported level
 
 __all__ = ["FOG_CHOICES", "FORMATS", "MANIFEST", "SPLIT_CHOICES", "ExportError", "export"]
 
@@ -162,6 +163,11 @@ def _export_locked(root: Path, out: Path, format: str, fog: str, split: str, cam
     writer = {"nuscenes": write_nuscenes, "kitti": write_kitti, "coco": write_coco}[format]
     with tqdm(total=src.sample_count(), desc=f"export {format} ({fog})", unit="sample", disable=not progress) as bar:
         notes = writer(src, sink, bar)
+    fields = src.fog_fields()
+    if fields:  # a set of fog fields: each exported sample's field of the exported level, by FogDrive sample token
+        sink.write_all({FOG_FIELDS: (json.dumps({"fog": fog, "samples": fields}, indent=1) + "\n").encode()})
+        notes.append(f"{FOG_FIELDS}: the fog field of each sample at level {fog} (the source set was generated with "
+                     "fog fields), by FogDrive sample token")  # fmt: skip
     manifest.update(complete=True, notes=notes)
     sink.write_all({MANIFEST: (json.dumps(manifest, indent=1) + "\n").encode()})
     return {"format": format, "fog": fog, "samples": src.sample_count(), "files": sink.files,

@@ -4,7 +4,8 @@ large_vehicle (3; FogDrive's "bigger car": vans, large SUVs, ambulances, buses).
 
 A box is FogDrive's 2D box of the camera (inclusive pixel corners ``[[x0, y0], [x1, y1]]``) as COCO's
 ``[x0, y0, x1 − x0 + 1, y1 − y0 + 1]``: the pixels it covers, as the project's own COCO evaluation counts them.
-Images carry ``camera``, ``sample_token``, ``scene`` and ``fog``; annotations ``vehicle_id``.
+Images carry ``camera``, ``sample_token``, ``scene`` and ``fog`` (and ``fog_field``, the field of the exported level,
+for a set generated with fog fields); annotations ``vehicle_id``.
 
 The same boxes go out in Ultralytics YOLO's layout beside them: ``labels/<split>/<CAMERA>/<name>.txt`` (class = COCO
 id − 1, centre and size normalised by the image size), ``<split>.txt`` image lists (``./images/…``) and
@@ -44,13 +45,17 @@ def write_coco(src: Source, sink: Sink, bar) -> list[str]:
         split, folder = src.split_of(scene), src.folder(scene)
         for k, sample in enumerate(src.samples(scene)):
             token = sample["token"]
+            fog_field = src.fog_field(token)
             for cam in src.cameras:
                 rel = f"{split}/{cam}/{folder}_{k:06d}.png"  # a folder per split: Ultralytics caches per split
                 sink.copy(f"images/{rel}", src.image_path(token, cam))
                 width, height = src.image_size(token, cam)
                 image_id += 1
-                images[split].append({"id": image_id, "file_name": rel, "width": width, "height": height, "camera": cam,
-                                      "sample_token": token, "scene": scene["name"], "fog": src.fog})  # fmt: skip
+                image = {"id": image_id, "file_name": rel, "width": width, "height": height, "camera": cam,
+                         "sample_token": token, "scene": scene["name"], "fog": src.fog}  # fmt: skip
+                if fog_field is not None:  # a set of fog fields: the field this image was fogged with
+                    image["fog_field"] = fog_field
+                images[split].append(image)
                 b2 = src.boxes_2d(token, cam)
                 yolo = []
                 for box, vid, cls in zip(b2["bboxes"].tolist(), b2["vehicle_ids"].tolist(), b2["vehicle_class"].tolist()):

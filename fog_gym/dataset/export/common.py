@@ -8,6 +8,7 @@ Example:
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -20,6 +21,7 @@ from fog_gym.dataset.export.frames import class_from_height
 from fog_gym.dataset.layout import CAMERA_NAMES, layout_cameras
 from fog_gym.dataset.poses import EgoPose
 from fog_gym.dataset.writer import WriteError, _atomic_write, atomic_write_all
+from fog_gym.fog.fields import field_json
 
 FORMATS = ("nuscenes", "kitti", "coco")
 FOG_CHOICES = ("clear", "light", "moderate", "dense")
@@ -145,6 +147,28 @@ class Source:
 
     def ego_pose(self, token: str) -> EgoPose | None:
         return self.ds.get_ego_pose(token)
+
+    def fog_field(self, token: str) -> dict[str, Any] | None:
+        """The fog field of the exported level at this sample (:mod:`fog_gym.dataset.fog_record`), JSON-ready:
+        ``{"frame": [x0, y0, heading], "time": t, "field": {...}}`` (world frame, CARLA's axes); None for the clean
+        data and for a set of homogeneous fog (the manifest's visibilities say all)."""
+        if self.fog == "clear":
+            return None
+        record = self.ds.get_fog_field(token)
+        if record is None:
+            return None
+        return {"frame": record.frame.tolist(), "time": record.time,
+                "field": json.loads(field_json(record.fields[self.fog]))}  # fmt: skip
+
+    def fog_fields(self) -> dict[str, dict[str, Any]]:
+        """:meth:`fog_field` of every exported sample that has one, by FogDrive sample token."""
+        out = {}
+        for scene in self.scenes:
+            for sample in self.samples(scene):
+                record = self.fog_field(sample["token"])
+                if record is not None:
+                    out[sample["token"]] = record
+        return out
 
 
 class Sink:
