@@ -169,7 +169,8 @@ def generate_scene(root: str | Path, spec: SceneSpec | dict[str, Any]) -> str:
             done = terminated or truncated
         writer.close()
         try:
-            _atomic_write(root / PROGRESS_DIR / f"{spec.folder}.json", json.dumps(asdict(spec)).encode())
+            marker = {k: v for k, v in asdict(spec).items() if k != "fog_fields" or v != "levels"}  # (as before fields)
+            _atomic_write(root / PROGRESS_DIR / f"{spec.folder}.json", json.dumps(marker).encode())
         except WriteError as e:
             raise e.with_what(f"cannot mark scene {spec.folder} done") from None
     except BaseException:

@@ -11,7 +11,7 @@ import gymnasium as gym
 import numpy as np
 
 from fog_gym.fog import FogLevel, atmospheric_light, night_airlight, parse_fog
-from fog_gym.fog.fields import field_info, field_json
+from fog_gym.fog.fields import field_info, field_json, world_optical_depth
 from fog_gym.fog.models import FogContext, model_for
 from fog_gym.fog.physics import FogField
 from fog_gym.geometry import yaw_transform
@@ -177,7 +177,8 @@ class FogWrapper(gym.Wrapper):
         is homogeneous (a level's visibility says all) unless ``always``."""
         if not (self.fields or always):
             return None
-        return {"frame": self.field_frame, "time": self._field_time(), "fields": {lv.name: lv for lv in self.levels}}
+        return {"frame": self.field_frame, "time": self._field_time(),
+                "fields": {lv.name: field_info(lv) for lv in self.levels}}  # fmt: skip
 
     def _frame_at_reset(self, base) -> tuple[float, float, float]:
         """The field frame: the LiDAR origin (the 3D boxes' frame) at reset, on the road, and the ego's heading."""
@@ -215,17 +216,10 @@ class FogWrapper(gym.Wrapper):
         lidar = self._lidar_to_world()
         centres = np.asarray(boxes_3d["center"], np.float64).reshape(-1, 3) @ lidar[:3, :3].T + lidar[:3, 3]
         row = {int(v): k for k, v in enumerate(boxes_3d["vehicle_ids"])}
-        x0, y0, heading = self.field_frame
-        h = np.array([math.cos(heading), math.sin(heading)])
         t = self._field_time()
 
         def depths(origin: np.ndarray, ends: np.ndarray) -> dict[str, np.ndarray]:
-            ray = ends - origin
-            length = np.linalg.norm(ray, axis=1)
-            unit = ray / np.maximum(length, 1e-9)[:, None]
-            u0 = (origin[0] - x0) * h[0] + (origin[1] - y0) * h[1]
-            return {lv.name: lv.optical_depth(u0, origin[2], unit[:, :2] @ h, unit[:, 2], length, t)
-                    for lv in self.levels}  # fmt: skip
+            return {lv.name: world_optical_depth(lv, self.field_frame, t, origin, ends) for lv in self.levels}
 
         out: dict[str | None, dict[str, np.ndarray]] = {None: depths(lidar[:3, 3], centres)}
         for cam, b in boxes_2d.items():

@@ -14,14 +14,15 @@ The record, in CARLA's world frame (the ego poses' frame, :mod:`fog_gym.dataset.
      "fields": {"light": {...},    # each level's field: fog_gym.fog.fields.field_info (JSON; inf as "inf")
                 "moderate": {...}, "dense": {...}}}
 
+The dataset layer keeps the fields as JSON (it imports no physics); ``fog_gym.fog.fields.field_from_info`` turns one
+into a field, and ``fog_gym.fog.fields.world_optical_depth`` gives its optical depth along world segments.
+
 Example:
-    >>> from fog_gym.fog.fields import FogBank
-    >>> bank = FogBank(50.0, start=100.0, length=40.0, edge=0.0, name="dense")
+    >>> bank = {"type": "FogBank", "name": "dense", "visibility": 50.0, "start": 100.0, "length": 40.0, "edge": 0.0,
+    ...         "background": "inf", "velocity": 0.0}
     >>> record = decode_fog_record(encode_fog_record((0.0, 0.0, 0.0), 0.0, {"dense": bank}))
-    >>> round(float(record.optical_depth("dense", [0, 0, 1], [[200, 0, 1], [50, 0, 1]])[0]), 4)  # 40 m·ln 20/50
-    2.3966
-    >>> fog_record_problem(b'{"frame": [0, 0], "time": 0, "fields": {}}')
-    'frame must be three finite numbers [x0, y0, heading]'
+    >>> record.fields["dense"]["start"], fog_record_problem(b'{"frame": [0, 0], "time": 0, "fields": {}}')
+    (100.0, 'frame must be three finite numbers [x0, y0, heading]')
 """
 
 from __future__ import annotations
@@ -29,53 +30,50 @@ from __future__ import annotations
 import json
 import math
 from collections.abc import Mapping, Sequence
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from fog_gym.checks import json_numbers
-from fog_gym.fog.fields import field_from_info, field_json
-from fog_gym.fog.physics import FogField
 
 KEYS = ("frame", "time", "fields")
+#: The field types a record may hold (``fog_gym.fog.fields``), and the parameters each must give.
+FIELD_TYPES = {"Homogeneous": ("visibility_m",), "HeightFog": ("visibility", "scale_height"),
+               "FogBank": ("visibility", "start", "length"), "FogSum": ("terms",)}  # fmt: skip
 
 
 class FogRecord(NamedTuple):
     """One sample's fog fields (module docstring): the field frame in the world, the field time, and each level's
-    field by level name."""
+    field (``field_info`` JSON) by level name."""
 
     frame: np.ndarray  # (3,) x0, y0, heading
     time: float
-    fields: dict[str, FogField]
-
-    def optical_depth(self, level: str, start: Sequence[float], ends: np.ndarray) -> np.ndarray:
-        """``τ`` of level ``level``'s field along the straight segments from the world point ``start`` (3,) to each
-        world point of ``ends`` (N, 3), in closed form; ``exp(−τ)`` is their one-way transmittance."""
-        if level not in self.fields:
-            raise KeyError(f"no fog level {level!r} in this record; it has {sorted(self.fields)}")
-        start = np.asarray(start, np.float64).reshape(3)
-        ends = np.asarray(ends, np.float64).reshape(-1, 3)
-        ray = ends - start
-        length = np.linalg.norm(ray, axis=1)
-        unit = ray / np.maximum(length, 1e-9)[:, None]
-        x0, y0, heading = (float(v) for v in self.frame)
-        h = np.array([math.cos(heading), math.sin(heading)])
-        u0 = (start[0] - x0) * h[0] + (start[1] - y0) * h[1]
-        return self.fields[level].optical_depth(u0, start[2], unit[:, :2] @ h, unit[:, 2], length, self.time)
+    fields: dict[str, dict[str, Any]]
 
 
-def encode_fog_record(frame: Sequence[float], time: float, fields: Mapping[str, FogField]) -> bytes:
-    """The file's bytes; ``ValueError`` naming the argument for a bad frame, time or field."""
+def encode_fog_record(frame: Sequence[float], time: float, fields: Mapping[str, Mapping[str, Any]]) -> bytes:
+    """The file's bytes (``fields``: each level's ``field_info``); ``ValueError`` naming the argument for a bad
+    frame, time or field."""
     f = np.asarray(frame, np.float64)
     if f.shape != (3,) or not np.isfinite(f).all():
         raise ValueError(f"frame must be three finite numbers [x0, y0, heading], got {frame!r}")
     if isinstance(time, bool) or not isinstance(time, (int, float, np.number)) or not math.isfinite(float(time)):
         raise ValueError(f"time must be a finite number of seconds, got {time!r}")
-    if not fields or not all(isinstance(k, str) and isinstance(v, FogField) for k, v in fields.items()):
-        raise ValueError(f"fields must map level names to fog fields, got {fields!r}")
-    record = {"frame": f.tolist(), "time": float(time),
-              "fields": {k: json.loads(field_json(v)) for k, v in fields.items()}}  # fmt: skip
+    record = {"frame": f.tolist(), "time": float(time), "fields": _json_safe(dict(fields))}
+    problem = _fields_problem(record["fields"], None)
+    if problem:
+        raise ValueError(f"fields: {problem}")
     return json.dumps(record, sort_keys=True).encode()
+
+
+def _json_safe(value: Any) -> Any:
+    if isinstance(value, float) and math.isinf(value):
+        return "inf"
+    if isinstance(value, Mapping):
+        return {k: _json_safe(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_json_safe(v) for v in value]
+    return value
 
 
 def fog_record_problem(data: bytes, levels: Sequence[str] | None = None) -> str | None:
@@ -98,18 +96,41 @@ def fog_record_problem(data: bytes, levels: Sequence[str] | None = None) -> str 
         return "frame must be three finite numbers [x0, y0, heading]"
     if time.shape != () or not np.isfinite(time):
         return "time must be a finite number of seconds"
-    fields = record["fields"]
+    return _fields_problem(record["fields"], levels)
+
+
+def _fields_problem(fields: Any, levels: Sequence[str] | None) -> str | None:
     if not isinstance(fields, dict) or not fields:
         return "fields must map level names to fog fields"
     if levels is not None and sorted(fields) != sorted(levels):
         return f"fields must name the levels {sorted(levels)}, got {sorted(fields)}"
     for name, info in fields.items():
-        if not isinstance(info, dict):
-            return f"field {name!r} must be a JSON object"
-        try:
-            field_from_info(info)
-        except (ValueError, TypeError, KeyError, RecursionError) as e:
-            return f"field {name!r}: {e}"
+        problem = _field_problem(info)
+        if problem:
+            return f"field {name!r}: {problem}"
+    return None
+
+
+def _field_problem(info: Any, depth: int = 0) -> str | None:
+    if not isinstance(info, dict):
+        return "must be a JSON object"
+    kind = info.get("type")
+    if kind not in FIELD_TYPES or (kind == "FogSum" and depth):
+        return f"type must be one of {sorted(FIELD_TYPES)} (a sum of the others), got {kind!r}"
+    missing = [k for k in FIELD_TYPES[kind] if k not in info]
+    if missing:
+        return f"{kind} lacks {missing}"
+    if kind == "FogSum":
+        terms = info["terms"]
+        if not isinstance(terms, list) or not terms:
+            return "FogSum terms must be a non-empty list of fields"
+        return next((p for p in (_field_problem(t, depth + 1) for t in terms) if p), None)
+    for key, value in info.items():
+        if key in ("type", "name"):
+            continue
+        number = math.inf if value == "inf" else value
+        if isinstance(number, bool) or not isinstance(number, (int, float)) or math.isnan(number):
+            return f"{key} must be a number, got {value!r}"
     return None
 
 
@@ -119,5 +140,4 @@ def decode_fog_record(data: bytes) -> FogRecord:
     if problem is not None:
         raise ValueError(problem)
     r = json.loads(data)
-    return FogRecord(np.asarray(r["frame"], np.float64), float(r["time"]),
-                     {k: field_from_info(v) for k, v in r["fields"].items()})  # fmt: skip
+    return FogRecord(np.asarray(r["frame"], np.float64), float(r["time"]), r["fields"])

@@ -134,7 +134,7 @@ def field_pose(sensor_to_world: np.ndarray, frame: tuple[float, float, float]) -
     """A sensor in the field frame: ``(u, z, a_u, a_z)`` as 8 floats, its origin's distance along the frame's heading
     and its height, and the rows that turn a direction of the sensor's frame into its run along ``u`` and up (for a
     camera's optical frame, x right, y down, z forward, a pixel's ray ``(x, y, 1)`` per metre of planar depth:
-    ``fog_gym.fog.camera.fog_field_images``; for a LiDAR, a unit direction: ``fog_gym.fog.lidar.fog_lidar_field``).
+    ``fog_gym.fog.camera.fog_field_images``; for a LiDAR, a unit direction: ``fog_gym.fog.lidar_field.fog_lidar_field``).
     ``sensor_to_world`` is the sensor's 4×4 frame → world transform; ``frame`` the field frame ``(x0, y0, heading)``:
     its origin on the road and its heading [rad].
 

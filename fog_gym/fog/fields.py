@@ -204,6 +204,27 @@ def field_from_info(info: Mapping[str, Any]) -> FogField:
     return cls(**{f.name: info[f.name] for f in fields(cls) if f.name in info})
 
 
+def world_optical_depth(field: FogField, frame, time: float, start, ends) -> np.ndarray:
+    """``τ`` of ``field`` along the straight world segments from ``start`` (3,) to each point of ``ends`` (N, 3), the
+    field laid in the world at ``frame = (x0, y0, heading)`` (``u`` along ``heading`` from ``(x0, y0)``, ``z`` the
+    height) and seen ``time`` seconds after it was laid; ``exp(−τ)`` is each segment's one-way transmittance. A
+    dataset's fog record (:mod:`fog_gym.dataset.fog_record`) gives the frame, the time and the field.
+
+    >>> bank = FogBank(50.0, 30.0, 20.0, edge=0.0)
+    >>> world_optical_depth(bank, (10.0, 5.0, math.pi / 2), 0.0, (10.0, 5.0, 1.0), [[10.0, 105.0, 1.0]]).round(4)
+    array([0.5991])
+    """
+    start = np.asarray(start, np.float64).reshape(3)
+    ends = np.asarray(ends, np.float64).reshape(-1, 3)
+    ray = ends - start
+    length = np.linalg.norm(ray, axis=1)
+    unit = ray / np.maximum(length, 1e-9)[:, None]
+    x0, y0, heading = (float(v) for v in frame)
+    h = np.array([math.cos(heading), math.sin(heading)])
+    u0 = (start[0] - x0) * h[0] + (start[1] - y0) * h[1]
+    return field.optical_depth(u0, start[2], unit[:, :2] @ h, unit[:, 2], length, time)
+
+
 def field_json(field: FogField) -> str:
     """:func:`field_info` as compact JSON (inf as the string "inf")."""
     return json.dumps(_json_safe(field_info(field)), sort_keys=True, separators=(",", ":"))

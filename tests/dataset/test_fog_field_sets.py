@@ -17,7 +17,8 @@ from fog_gym.dataset.export import FOG_FIELDS, export
 from fog_gym.dataset.fog_record import decode_fog_record, encode_fog_record, fog_record_problem
 from fog_gym.dataset.manifest import read_manifest
 from fog_gym.dataset.validate import validate
-from fog_gym.fog.fields import FogBank, HeightFog, Homogeneous
+from fog_gym.fog.fields import (FogBank, FogSum, HeightFog, Homogeneous, field_from_info, field_info,
+                                field_json, world_optical_depth)  # fmt: skip
 from fog_gym.generate import generate, plan_scenes, scene_fog
 from fog_gym.wrappers.fog import FogWrapper
 from fog_gym.wrappers.record import RecordFogDrive
@@ -29,28 +30,31 @@ LEVELS = ("light", "moderate", "dense")
 # -- the record -------------------------------------------------------------------------------------------------
 def test_a_record_round_trips_every_kind_of_field():
     fields = {"light": HeightFog(160.0, 8.0, name="light"), "moderate": FogBank(100.0, 40.0, 60.0, velocity=2.0,
-              name="moderate"), "dense": HeightFog(200.0, 5.0) + FogBank(50.0, 30.0, 20.0, edge=0.0, name="b")}
-    fields["dense"] = type(fields["dense"])(fields["dense"].terms, name="dense")
-    record = decode_fog_record(encode_fog_record((3.0, -2.0, 0.25), 1.5, fields))
-    assert record.fields == fields and record.time == 1.5 and record.frame.tolist() == [3.0, -2.0, 0.25]
+              name="moderate"), "dense": FogSum((HeightFog(200.0, 5.0), FogBank(50.0, 30.0, 20.0, edge=0.0)),
+              name="dense"), "haze": Homogeneous(75.0, name="haze")}  # fmt: skip
+    record = decode_fog_record(encode_fog_record((3.0, -2.0, 0.25), 1.5, {k: field_info(v) for k, v in fields.items()}))
+    assert {k: field_from_info(v) for k, v in record.fields.items()} == fields
+    assert record.time == 1.5 and record.frame.tolist() == [3.0, -2.0, 0.25]
 
 
-def test_a_records_optical_depth_is_the_fields_along_the_world_segment():
+def test_the_optical_depth_of_a_field_laid_in_the_world_is_along_the_fields_axis():
     # a 20 m wide dense bank starting 30 m along a frame rotated by 90°: the world's +y is the field's u
     bank = FogBank(50.0, 30.0, 20.0, edge=0.0, name="dense")
-    record = decode_fog_record(encode_fog_record((10.0, 5.0, math.pi / 2), 0.0, {"dense": bank}))
-    tau = record.optical_depth("dense", [10.0, 5.0, 1.0], [[10.0, 105.0, 1.0], [10.0, 30.0, 1.0], [110.0, 5.0, 1.0]])
+    record = decode_fog_record(encode_fog_record((10.0, 5.0, math.pi / 2), 0.0, {"dense": field_info(bank)}))
+    ends = [[10.0, 105.0, 1.0], [10.0, 30.0, 1.0], [110.0, 5.0, 1.0]]
+    tau = world_optical_depth(field_from_info(record.fields["dense"]), record.frame, record.time, [10.0, 5.0, 1.0], ends)
     np.testing.assert_allclose(tau, [20.0 * math.log(20.0) / 50.0, 0.0, 0.0], atol=1e-12)
-    with pytest.raises(KeyError, match="no fog level 'light'"):
-        record.optical_depth("light", [0, 0, 0], [[1, 0, 0]])
 
 
 @pytest.mark.parametrize(("frame", "time", "fields", "match"), [
-    ((0.0, 0.0), 0.0, {"dense": Homogeneous(50.0)}, "frame"),
-    ((0.0, math.nan, 0.0), 0.0, {"dense": Homogeneous(50.0)}, "frame"),
-    ((0.0, 0.0, 0.0), math.inf, {"dense": Homogeneous(50.0)}, "time"),
+    ((0.0, 0.0), 0.0, {"dense": {"type": "Homogeneous", "visibility_m": 50.0}}, "frame"),
+    ((0.0, math.nan, 0.0), 0.0, {"dense": {"type": "Homogeneous", "visibility_m": 50.0}}, "frame"),
+    ((0.0, 0.0, 0.0), math.inf, {"dense": {"type": "Homogeneous", "visibility_m": 50.0}}, "time"),
     ((0.0, 0.0, 0.0), 0.0, {}, "fields"),
-    ((0.0, 0.0, 0.0), 0.0, {"dense": 50.0}, "fields"),
+    ((0.0, 0.0, 0.0), 0.0, {"dense": 50.0}, "must be a JSON object"),
+    ((0.0, 0.0, 0.0), 0.0, {"dense": {"type": "Fog", "visibility_m": 50.0}}, "type must be one of"),
+    ((0.0, 0.0, 0.0), 0.0, {"dense": {"type": "FogBank", "visibility": 50.0}}, r"lacks \['start', 'length'\]"),
+    ((0.0, 0.0, 0.0), 0.0, {"dense": {"type": "HeightFog", "visibility": "x", "scale_height": 2}}, "number"),
 ])  # fmt: skip
 def test_a_bad_record_is_refused_before_anything_is_written(frame, time, fields, match):
     with pytest.raises(ValueError, match=match):
@@ -104,7 +108,8 @@ def test_a_generated_set_of_fields_records_each_samples_field_and_validates(mixe
     for scene, spec in zip(sorted(ds.scene, key=lambda s: s["name"]), sorted(plan, key=lambda s: s.folder)):
         samples = ds.get_samples_for_scene(scene["token"])
         records = [ds.get_fog_field(s["token"]) for s in samples]
-        assert all(r is not None and r.fields == {f.name: f for f in scene_fog(spec)} for r in records)
+        assert all(r is not None and r.fields == {f.name: json.loads(field_json(f)) for f in scene_fog(spec)}
+                   for r in records)  # fmt: skip
         np.testing.assert_allclose([r.time for r in records], np.arange(len(records)) * 0.1, atol=1e-9)
         assert len({tuple(r.frame) for r in records}) == 1  # laid at reset
         pose = ds.get_ego_pose(samples[0]["token"])
@@ -163,7 +168,7 @@ def test_recorded_lidar_before_a_bank_is_the_clean_one_and_a_dense_bank_hides_wh
     ds = FogDrive(root)
     for sample in ds.sample:
         record, pose = ds.get_fog_field(sample["token"]), ds.get_ego_pose(sample["token"])
-        assert record.fields == {b.name: b for b in banks}
+        assert {k: field_from_info(v) for k, v in record.fields.items()} == {b.name: b for b in banks}
         paths = ds.get_sample_paths(sample["token"], ["LIDAR_TOP", "LIDAR_TOP_FOG_DENSE"])
         clean, dense = (np.load(paths[c]) for c in ("LIDAR_TOP", "LIDAR_TOP_FOG_DENSE"))
 

@@ -13,8 +13,8 @@ from fog_gym.fog import fog_images, fog_lidar, parse_fog
 from fog_gym.fog.camera import fog_field_images
 from fog_gym.fog.depth import field_pose
 from fog_gym.fog.fields import FogBank, FogSum, HeightFog, Homogeneous, field_from_info, field_json
-from fog_gym.fog.lidar import (BETA_PER_MOR, GAMMA, KAPPA, SPEED_OF_LIGHT, TAU_H, XI_R1, XI_R2, fog_lidar_field,
-                               soft_response_table)  # fmt: skip
+from fog_gym.fog.lidar import BETA_PER_MOR, GAMMA, SPEED_OF_LIGHT, TAU_H, XI_R1, XI_R2, soft_response_table
+from fog_gym.fog.lidar_field import KAPPA, fog_lidar_field
 
 LN20 = math.log(20.0)
 
@@ -232,7 +232,7 @@ def test_same_seed_same_fogged_points_and_the_soft_maximum_matches_hahners_table
 
 
 def test_ground_fog_reads_one_curve_per_beam_elevation_and_decides_as_each_beam_alone():
-    from fog_gym.fog.lidar import FIELD_COARSE, FIELD_STEP, _hahner_field, field_pulse_weights, peak_extinction
+    from fog_gym.fog.lidar_field import FIELD_COARSE, FIELD_STEP, _hahner_field, field_pulse_weights, peak_extinction
 
     rng = np.random.default_rng(5)
     r = rng.uniform(2.0, 120.0, 6000)

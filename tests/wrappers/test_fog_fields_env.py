@@ -76,11 +76,3 @@ def test_the_native_vector_env_refuses_a_field_with_a_clear_error():
                      fog=FogBank(50.0, 100.0, 50.0))  # fmt: skip
 
 
-def test_the_recorder_refuses_fog_fields_named_like_the_levels(tmp_path):
-    from fog_gym.wrappers import RecordFogDrive
-
-    env = FogWrapper(FogDriveEnv(town="merge", resolution=(160, 120)),
-                     [FogBank(160.0, 50.0, 50.0, name="light"), "moderate", "dense"])  # fmt: skip
-    with pytest.raises(ValueError, match="fog fields"):
-        RecordFogDrive(env, tmp_path / "set")
-    env.close()

@@ -8,7 +8,6 @@ Example:
 
 from __future__ import annotations
 
-import json
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any, NamedTuple
@@ -21,7 +20,6 @@ from fog_gym.dataset.export.frames import class_from_height
 from fog_gym.dataset.layout import CAMERA_NAMES, layout_cameras
 from fog_gym.dataset.poses import EgoPose
 from fog_gym.dataset.writer import WriteError, _atomic_write, atomic_write_all
-from fog_gym.fog.fields import field_json
 
 FORMATS = ("nuscenes", "kitti", "coco")
 FOG_CHOICES = ("clear", "light", "moderate", "dense")
@@ -157,8 +155,7 @@ class Source:
         record = self.ds.get_fog_field(token)
         if record is None:
             return None
-        return {"frame": record.frame.tolist(), "time": record.time,
-                "field": json.loads(field_json(record.fields[self.fog]))}  # fmt: skip
+        return {"frame": record.frame.tolist(), "time": record.time, "field": record.fields[self.fog]}
 
     def fog_fields(self) -> dict[str, dict[str, Any]]:
         """:meth:`fog_field` of every exported sample that has one, by FogDrive sample token."""

@@ -112,7 +112,7 @@ def bench_fields(repeats: int, town: str = "highway") -> dict[str, Any]:
     from fog_gym.fog import fog_lidar, parse_fog
     from fog_gym.fog.fields import FogBank, HeightFog
     from fog_gym.fog.depth import field_pose
-    from fog_gym.fog.lidar import fog_lidar_field
+    from fog_gym.fog.lidar_field import fog_lidar_field
     from fog_gym.wrappers import FogWrapper
 
     fields = {"homogeneous (dense)": parse_fog("dense"), "FogBank 50 m, 60 m ahead, 100 m long": FogBank(50.0, 60.0, 100.0),
