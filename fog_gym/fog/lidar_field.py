@@ -213,10 +213,11 @@ def _first_at_or_above(nodes, lo_key, keys, rounding):
 
 
 @njit(cache=True, parallel=True)
-def _soft_curves(terms, u0, z0, dus, dzs, tops, weights, ramp, step, best, where, beta_max):
+def _soft_curves(terms, u0, z0, dus, dzs, tops, weights, ramp, step, best, where, stops, beta_max):
     # For beam directions (dus[i], dzs[i]): the running maximum of the soft return F over ranges k·step, k ≤ tops[i],
-    # into best[i, k], and the range node where it lies into where[i, k] (every node, as _hahner_field's refinement
-    # does near its maximum, until _soft_bound shows that no farther range can beat the maximum so far).
+    # into best[i, k], and the range node where it lies into where[i, k] (every node from the first with fog on the
+    # ray, as _hahner_field's refinement does near its maximum, until _soft_bound shows that no farther range can beat
+    # the maximum so far: stops[i] is the last node written, and the curve is constant beyond it).
     n_nodes = weights.shape[1]
     one = int(np.round(XI_R2 / step))
     for i in prange(dus.shape[0]):
@@ -225,19 +226,40 @@ def _soft_curves(terms, u0, z0, dus, dzs, tops, weights, ramp, step, best, where
         beta1 = point_extinction(terms, u0 + du * XI_R2, z0 + dz * XI_R2)
         lift = 0.0 if one > top else beta1 * _transmittance(trans, one, terms, u0, z0, du, dz, step) * \
             np.exp(beta1 * (XI_R2 - XI_R1))  # fmt: skip
-        top_f, top_k = 0.0, 0
-        for k in range(top + 1):
-            if k >= one and (top_f == 0.0 or top_f < _soft_bound(k * step, beta_max)):
+        start = max(one, _clear_node(terms, u0, z0, du, dz, step, top))
+        top_f, top_k, k = 0.0, 0, 0
+        while k <= top:
+            if k >= start:
+                if top_f > 0.0 and top_f >= _soft_bound(k * step, beta_max):
+                    break
                 f = ramp[k] * lift
                 for m in range(min(n_nodes, k + 1)):
                     f += weights[k, m] * _transmittance(trans, k - m, terms, u0, z0, du, dz, step)
                 if f > top_f:
                     top_f, top_k = f, k
             best[i, k], where[i, k] = top_f, top_k
+            k += 1
+        stops[i] = k - 1
+
+
+@njit(cache=True, inline="always")
+def _clear_node(terms, u0, z0, du, dz, step, top):
+    # The last node before the fog starts on the ray (a window in clear air returns nothing): τ only grows along the
+    # ray, so a bisection finds it (0 where the fog starts at the sensor, top where the ray stays clear).
+    clear, fog = 0, top
+    if segment_depth(terms, u0, z0, du, dz, step) > 0.0:
+        fog = 1
+    while fog - clear > 1:
+        mid = (clear + fog) // 2
+        if segment_depth(terms, u0, z0, du, dz, mid * step) == 0.0:
+            clear = mid
+        else:
+            fog = mid
+    return clear
 
 
 @njit(cache=True, parallel=True)
-def _hahner_curves(pts, pose, terms, node_dz, first, lo_key, rounding, best, where, step, log_noise, u, out,
+def _hahner_curves(pts, pose, terms, node_dz, first, lo_key, rounding, best, where, stops, step, log_noise, u, out,
                    attenuation):
     # Hahner et al. with a field whose β depends on height only: each point's soft-return maximum from the curves of
     # the two beam elevations around its own (node_dz ascending; linear in dz, the range of the nearer), its hard
@@ -255,8 +277,103 @@ def _hahner_curves(pts, pose, terms, node_dz, first, lo_key, rounding, best, whe
         lo = max(hi - 1, 0)
         span = node_dz[hi] - node_dz[lo]
         t = min(max((dz - node_dz[lo]) / span, 0.0), 1.0) if span > 0.0 else 0.0
-        f = (1.0 - t) * best[lo, k] + t * best[hi, k]
-        r_tmp = where[hi if t >= 0.5 else lo, k] * step
+        f = (1.0 - t) * best[lo, min(k, stops[lo])] + t * best[hi, min(k, stops[hi])]
+        near = hi if t >= 0.5 else lo
+        r_tmp = where[near, min(k, stops[near])] * step
+        _field_rule(pts, n, out, r0, i_orig, i_hard, f, r_tmp, log_noise, u, attenuation)
+
+
+#: A single fog bank's curves: beam runs along u (the bank's axis) on a geometric grid of this ratio, face-aligned (a
+#: point reads the two runs around its own at the same range past the bank's face); inside a bank the runs go down to
+#: ±BANK_MIN_RUN on both sides of 0.
+BANK_RATIO, BANK_MIN_RUN = 1.05, 0.02
+
+
+def _bank_plan(terms: np.ndarray, pose: np.ndarray):
+    """``(side, align, nodes, background)`` for a field of one bank and homogeneous terms (None for any other field),
+    ``background`` the extinction outside the bank: ``side``
+    +1 where the sensor lies before the bank (the beams that reach it run along +u and meet its face at ``u = align``),
+    −1 past it, 0 inside it (every beam starts in fog; ``nodes`` the signed runs); else ``nodes`` the runs
+    ``side·du`` > 0 of the curves, from the shallowest whose ray meets the face within the points' range."""
+    kinds = terms[:, 0]
+    if (kinds == BANK).sum() != 1 or not np.all((kinds == BANK) | (kinds == 0.0)):
+        return None
+    a, d = terms[kinds == BANK][0, [2, 5]]
+    u0, r_max = float(pose[0]), 201.0  # (ranges are cut at 200 m)
+    if a < u0 < d or (u0 == a == d):
+        side, align, low = 0, u0, BANK_MIN_RUN
+    else:
+        side, align = (1, a) if u0 <= a else (-1, d)
+        low = min(max(abs(align - u0) / r_max, BANK_MIN_RUN), 0.5)  # (a bank out of range: every point reads the background)
+    n = int(math.ceil(math.log(1.0 / low) / math.log(BANK_RATIO))) + 1
+    runs = np.minimum(low * BANK_RATIO ** np.arange(n), 1.0)
+    if side == 0:
+        runs = np.r_[-runs[::-1], runs]
+    background = float(terms[kinds == 0.0, 1].sum() + terms[kinds == BANK][0, 7])
+    return side, float(align), runs, background
+
+
+@njit(cache=True, inline="always")
+def _bank_read(r0, du, side, dist, nodes, log_ratio, step, last):
+    # The two curves a point reads (j, j + 1; j = len(nodes): the background's curve only), the weight of j + 1 and
+    # the range node of each. Before or past the bank (side ±1) a curve is read at the point's range past the face:
+    # k = (R0 − s + s_j)/step, s = dist / run the face's range on the point's ray, s_j the node's; a point whose ray
+    # meets no face before it reads the background's curve at its range. Inside (side 0) the signed runs around du.
+    n_nodes = nodes.shape[0]
+    k0 = min(int(np.round(min(r0, 200.0) / step)), last)
+    if side == 0:
+        half = n_nodes // 2  # nodes: −runs reversed, then runs
+        low = nodes[half]
+        if abs(du) < low:
+            return half - 1, (du + low) / (2.0 * low), k0, k0
+        if du > 0.0:
+            j = half + min(int(math.log(du / low) / log_ratio), half - 2)
+        else:
+            j = half - 2 - min(int(math.log(-du / low) / log_ratio), half - 2)
+        return j, min(max((du - nodes[j]) / (nodes[j + 1] - nodes[j]), 0.0), 1.0), k0, k0
+    g = side * du
+    if g < nodes[0] or dist >= g * r0:
+        return n_nodes, 0.0, k0, k0
+    j = min(int(math.log(g / nodes[0]) / log_ratio), n_nodes - 2)
+    face = dist / g
+    k_j = min(max(int(np.round((r0 - face + dist / nodes[j]) / step)), 0), last)
+    k_j1 = min(max(int(np.round((r0 - face + dist / nodes[j + 1]) / step)), 0), last)
+    return j, min(max((g - nodes[j]) / (nodes[j + 1] - nodes[j]), 0.0), 1.0), k_j, k_j1
+
+
+@njit(cache=True, parallel=True)
+def _hahner_bank(pts, pose, terms, side, align, nodes, clear_outside, best, where, stops, step, log_noise, u, out,
+                 attenuation):
+    # Hahner et al. with one bank: each point's soft-return maximum interpolated between the curves of the two runs
+    # around its own (_bank_read), its hard return exactly; then the rule (_field_rule). A point whose ray meets no
+    # face before it sees the homogeneous background only: it reads the background's curve (the last), or is kept
+    # as in clear air when there is no background (clear_outside).
+    n_nodes = nodes.shape[0]
+    last = best.shape[1] - 1
+    dist = abs(align - pose[0])
+    half = n_nodes // 2
+    log_ratio = math.log(nodes[1] / nodes[0]) if side != 0 else math.log(nodes[half + 1] / nodes[half])
+    for n in prange(pts.shape[0]):
+        x, y, z = np.float64(pts[n, 0]), np.float64(pts[n, 1]), np.float64(pts[n, 2])
+        r0 = np.sqrt(x * x + y * y + z * z)
+        du = (pose[2] * x + pose[3] * y + pose[4] * z) / max(r0, 1e-12)
+        j, t, k_j, k_j1 = _bank_read(r0, du, side, dist, nodes, log_ratio, step, last)
+        if j == n_nodes and clear_outside:  # no fog on the ray
+            for c in range(pts.shape[1]):
+                out[n, c] = pts[n, c]
+            continue
+        r0, du, dz, tau0, i_orig, i_hard = _beam(pts, n, pose, terms, out)
+        if tau0 == 0.0:  # (kept as in clear air)
+            continue
+        j1 = min(j + 1, n_nodes)  # (the background's curve alone: weight 0)
+        k_j, k_j1 = min(k_j, stops[j]), min(k_j1, stops[j1])
+        f = (1.0 - t) * best[j, k_j] + t * best[j1, k_j1]
+        near, kn = (j1, k_j1) if t >= 0.5 else (j, k_j)
+        r_tmp = where[near, kn] * step
+        if side != 0 and near < n_nodes:  # the maximum's range moves with the face (unless it lies before it)
+            face, face_node = dist / (side * du), dist / nodes[near]
+            if r_tmp >= face_node:
+                r_tmp += face - face_node
         _field_rule(pts, n, out, r0, i_orig, i_hard, f, r_tmp, log_noise, u, attenuation)
 
 
@@ -285,17 +402,7 @@ def _hahner_field(pts, pose, terms, weights, ramp, weights5, ramp5, coarse, step
             continue
         top = min(int(np.round(min(r0, 200.0) / step)), last)
         trans = np.full(top + 1, -1.0)  # E_j, computed when a window first needs it
-        # the last node before the fog starts on the ray (a window in clear air returns nothing): τ only grows along
-        # the ray, so a bisection finds it
-        clear, fog = 0, top
-        if segment_depth(terms, u0, z0, du, dz, step) > 0.0:
-            fog = 1
-        while fog - clear > 1:
-            mid = (clear + fog) // 2
-            if segment_depth(terms, u0, z0, du, dz, mid * step) == 0.0:
-                clear = mid
-            else:
-                fog = mid
+        clear = _clear_node(terms, u0, z0, du, dz, step, top)
         one = int(np.round(XI_R2 / step))  # the node 1 m out, and the extinction there
         beta1 = point_extinction(terms, u0 + du * XI_R2, z0 + dz * XI_R2)
         near = 0.0 if one > top else _transmittance(trans, one, terms, u0, z0, du, dz, step)
@@ -354,9 +461,19 @@ def fog_lidar_field(points: np.ndarray, field, rng: np.random.Generator, pose: n
     terms = field.pack(time)
     log_noise, attenuation = math.log(max(1.0, noise / 5.0)) if noise > 0 else 0.0, -1.0 if reflectance is None else float(reflectance)
     if BANK not in terms[:, 0] and len(pts):  # β depends on height only: one soft-return curve per beam elevation
-        node_dz, first, lo_key, best, where = _elevation_curves(pts, pose, terms)
-        _hahner_curves(pts, pose, terms, node_dz, first, lo_key, ELEVATION_ROUND, best, where, FIELD_STEP, log_noise, u,
-                       out, attenuation)  # fmt: skip
+        node_dz, first, lo_key, best, where, stops = _elevation_curves(pts, pose, terms)
+        _hahner_curves(pts, pose, terms, node_dz, first, lo_key, ELEVATION_ROUND, best, where, stops, FIELD_STEP,
+                       log_noise, u, out, attenuation)  # fmt: skip
+        return out
+    plan = _bank_plan(terms, pose)
+    if plan is not None and len(pts):  # one bank (in homogeneous fog or none): curves per run along u, face-aligned
+        side, align, nodes, background = plan
+        runs = nodes if side == 0 else np.r_[side * nodes, 0.0]  # (before or past: and the background's curve)
+        # every curve up to 200 m: each stops where its bound does (stops), and a point reads it no farther
+        tops = np.full(len(runs), int(round(200.0 / FIELD_STEP)), np.int64)
+        best, where, stops = _curves(terms, pose, runs, np.zeros(len(runs)), tops)
+        _hahner_bank(pts, pose, terms, side, align, nodes, background == 0.0, best, where, stops, FIELD_STEP,
+                     log_noise, u, out, attenuation)  # fmt: skip
         return out
     _hahner_field(pts, pose, terms, *field_pulse_weights(), *field_pulse_weights(FIELD_STEP * FIELD_COARSE),
                   FIELD_COARSE, FIELD_STEP, log_noise, u, out, attenuation, peak_extinction(terms))  # fmt: skip
@@ -383,10 +500,17 @@ def _elevation_curves(pts: np.ndarray, pose: np.ndarray, terms: np.ndarray) -> t
     grid of :data:`ELEVATION_NODES`."""
     node_dz, tops, first, lo_key = _elevation_nodes(pts, pose, ELEVATION_ROUND, ELEVATION_NODES, FIELD_STEP,
                                                     int(round(200.0 / FIELD_STEP)))  # fmt: skip
-    weights, ramp = field_pulse_weights()
-    best = np.zeros((len(node_dz), int(tops.max()) + 1))
-    where = np.zeros(best.shape, np.int64)
     horizontal = np.sqrt(np.maximum(1.0 - node_dz**2, 0.0))  # (a height-only field ignores the run along u)
-    _soft_curves(terms, pose[0], pose[1], horizontal, node_dz, tops, weights, ramp, FIELD_STEP, best, where,
+    best, where, stops = _curves(terms, pose, horizontal, node_dz, tops)
+    return node_dz, first, lo_key, best, where, stops
+
+
+def _curves(terms: np.ndarray, pose: np.ndarray, dus: np.ndarray, dzs: np.ndarray, tops: np.ndarray):
+    """:func:`_soft_curves` of these beam directions: ``best``, ``where`` (each row written up to its ``stops``)."""
+    weights, ramp = field_pulse_weights()
+    best = np.empty((len(dus), int(tops.max(initial=0)) + 1))
+    where = np.empty(best.shape, np.int64)
+    stops = np.zeros(len(dus), np.int64)
+    _soft_curves(terms, pose[0], pose[1], dus, dzs, tops, weights, ramp, FIELD_STEP, best, where, stops,
                  peak_extinction(terms))
-    return node_dz, first, lo_key, best, where
+    return best, where, stops

@@ -253,6 +253,37 @@ def test_ground_fog_reads_one_curve_per_beam_elevation_and_decides_as_each_beam_
         assert np.abs(curves[:, :3] - alone[:, :3]).max() < 0.11  # the fog return's range: within a node
 
 
+@pytest.mark.parametrize("field, ego_u", [
+    (FogBank(50.0, 60.0, 100.0), 0.0),  # ahead (the bench's)
+    (FogBank(20.0, 30.0, 30.0, edge=0.0), 0.0),  # a wall
+    (FogBank(50.0, -50.0, 100.0), 0.0),  # inside
+    (FogBank(50.0, 0.5, 100.0), 0.0),  # at its face
+    (FogBank(50.0, -120.0, 100.0), 0.0),  # past it
+    (FogBank(60.0, 20.0, 200.0, edge=10.0, background=300.0), 0.0),  # in thinner fog
+    (FogBank(50.0, 60.0, 100.0) + Homogeneous(500.0), 0.0),
+    (FogBank(40.0, 40.0, 60.0, velocity=3.0), 25.0),  # drifting, the sensor moved along u
+])  # fmt: skip
+def test_a_bank_reads_curves_per_run_along_its_axis_and_decides_as_each_beam_alone(field, ego_u):
+    from fog_gym.fog.lidar_field import FIELD_COARSE, FIELD_STEP, _hahner_field, field_pulse_weights, peak_extinction
+
+    rng = np.random.default_rng(6)
+    r = rng.uniform(1.5, 120.0, 20_000)
+    az = rng.uniform(-np.pi, np.pi, r.size)
+    el = rng.choice(np.linspace(-0.4, 0.1, 64), r.size)
+    pts = np.c_[r * np.cos(el) * np.cos(az), r * np.cos(el) * np.sin(az), r * np.sin(el), rng.uniform(0.02, 1, r.size)]
+    pts = pts.astype(np.float32)
+    pose = field_pose(LIDAR @ np.r_[np.c_[np.eye(3), [ego_u, 0.0, 0.0]], [[0, 0, 0, 1]]], (0.0, 0.0, 0.0))
+    curves = fog_lidar_field(pts, field, np.random.default_rng(1), pose, time=1.5, noise=0.0)
+    alone = np.empty_like(pts)
+    terms = field.pack(1.5)
+    _hahner_field(pts, pose, terms, *field_pulse_weights(), *field_pulse_weights(FIELD_STEP * FIELD_COARSE),
+                  FIELD_COARSE, FIELD_STEP, 0.0, np.zeros(len(pts)), alone, -1.0, peak_extinction(terms))  # fmt: skip
+    moved = lambda out: np.any(out[:, :3] != pts[:, :3], axis=1)  # noqa: E731
+    assert np.array_equal(moved(curves), moved(alone)) and moved(alone).mean() > 0.005
+    assert np.abs(curves[:, 3] - alone[:, 3]).max() * 255 < 1e-2
+    assert np.abs(np.linalg.norm(curves[:, :3], axis=1) - np.linalg.norm(alone[:, :3], axis=1)).max() < 0.35
+
+
 @pytest.mark.parametrize("call, word", [
     (lambda: fog_field_images(*scene(), K, [HeightFog(50.0, 2.0)], np.full(3, 200.0), np.zeros(7)), "pose"),
     (lambda: fog_field_images(*scene(), K, [HeightFog(50.0, 2.0)], np.full(3, 200.0), np.full(8, np.nan)), "pose"),

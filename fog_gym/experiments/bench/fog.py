@@ -116,6 +116,7 @@ def bench_fields(repeats: int, town: str = "highway") -> dict[str, Any]:
     from fog_gym.wrappers import FogWrapper
 
     fields = {"homogeneous (dense)": parse_fog("dense"), "FogBank 50 m, 60 m ahead, 100 m long": FogBank(50.0, 60.0, 100.0),
+              "FogBank 50 m, the ego inside (from −50 m, 100 m long)": FogBank(50.0, -50.0, 100.0),
               "HeightFog 50 m, scale height 5 m": HeightFog(50.0, 5.0)}  # fmt: skip
     envs = {name: FogWrapper(FogDriveEnv(town=town), f) for name, f in fields.items()}
     for env in envs.values():
