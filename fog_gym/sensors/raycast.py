@@ -314,7 +314,10 @@ def _cast(origin, rotation, directions, max_range, centers, halves, yaws, meshes
     index = np.empty(n_rays, dtype=np.int32)
     cosine = np.empty(n_rays, dtype=np.float32)
     material = np.empty(n_rays, dtype=np.uint8)
-    for i in prange(n_rays):
+    half = (n_rays + 1) // 2
+    for task in prange(n_rays):
+        # rays 0, 2, 4, … then 1, 3, …: the threads' contiguous shares each hold every part of the sweep
+        i = 2 * np.int64(task) if np.int64(task) < half else 2 * (np.int64(task) - half) + 1
         # unit world direction
         ax, ay, az = directions[i, 0], directions[i, 1], directions[i, 2]
         inv_n = 1.0 / np.sqrt(ax * ax + ay * ay + az * az)
