@@ -16,6 +16,7 @@ from typing import Any
 
 #: Public name → the module of this package that defines it.
 _LAZY = {
+    "FogBankEpisodes": "fog_bank_episodes",
     "FogCurriculum": "curriculum",
     "FogWrapper": "fog",
     "parse_fog_levels": "fog",

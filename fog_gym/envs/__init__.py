@@ -6,6 +6,7 @@
 ``FogDriveRL-v0``         the RL preset: 64×64 front camera and LiDAR bird's-eye image, 5 Hz policy
 ``FogDriveRLHazard-v0``   the RL preset on stalled vehicles ahead: seeing far enough decides the episode
 ``FogDriveRLObjects-v0``  the hazard task on perceived objects, lanes layout, a flat vector (CleanRL, SB3)
+``FogDriveRLFogBank-v0``  the hazard task with a fog bank on the road ahead, drawn per episode (pixels)
 ========================  =================================================================================
 
 Entry points live in :mod:`fog_gym.envs.presets`, the env class in :mod:`fog_gym.envs.fogdrive`, its configuration
@@ -17,7 +18,7 @@ entry points are here.
 Example:
     >>> import gymnasium as gym
     >>> sorted(k for k in gym.registry if k.startswith("FogDrive"))
-    ['FogDrive-v0', 'FogDriveRL-v0', 'FogDriveRLHazard-v0', 'FogDriveRLObjects-v0']
+    ['FogDrive-v0', 'FogDriveRL-v0', 'FogDriveRLFogBank-v0', 'FogDriveRLHazard-v0', 'FogDriveRLObjects-v0']
 """
 
 from __future__ import annotations
@@ -32,6 +33,7 @@ ENV_IDS = {
     "FogDriveRL-v0": ("fog_gym.envs.presets:make_fogdrive_rl", "fog_gym.envs:make_rl_vector"),
     "FogDriveRLHazard-v0": ("fog_gym.envs.presets:make_fogdrive_rl_hazard", "fog_gym.envs:make_rl_hazard_vector"),
     "FogDriveRLObjects-v0": ("fog_gym.envs.presets:make_fogdrive_rl_objects", "fog_gym.envs:make_rl_objects_vector"),
+    "FogDriveRLFogBank-v0": ("fog_gym.envs.presets:make_fogdrive_rl_fog_bank", "fog_gym.envs:make_rl_fog_bank_vector"),
 }
 
 for _id, (_entry, _vector) in ENV_IDS.items():
@@ -64,3 +66,8 @@ def make_rl_objects_vector(num_envs: int = 1, shards: int = 1, **kwargs: Any) ->
 def make_rl_hazard_vector(num_envs: int = 1, shards: int = 1, **kwargs: Any) -> Any:
     """``FogDriveRLHazard-v0``'s vector entry point (``shards``: worker processes, see :func:`make_vector`)."""
     return make_vector("FogDriveRLHazard-v0", num_envs, shards, **kwargs)
+
+
+def make_rl_fog_bank_vector(num_envs: int = 1, shards: int = 1, **kwargs: Any) -> Any:
+    """``FogDriveRLFogBank-v0``'s vector entry point (``shards``: worker processes, see :func:`make_vector`)."""
+    return make_vector("FogDriveRLFogBank-v0", num_envs, shards, **kwargs)

@@ -8,7 +8,9 @@
   truth. Observation: ``{"CAM_FRONT": (3, 64, 64) uint8, "LIDAR_BEV": (2, 64, 64) uint8}`` — SB3's
   ``MultiInputPolicy`` takes it;
 * ``FogDriveRLHazard-v0`` — :func:`make_fogdrive_rl_hazard`: the same sensors on a task where seeing far enough
-  decides the episode (stalled vehicles ahead).
+  decides the episode (stalled vehicles ahead);
+* ``FogDriveRLFogBank-v0`` — :func:`make_fogdrive_rl_fog_bank`: the hazard task with a fog bank on the road ahead,
+  drawn per episode.
 
 The env class never imports the wrappers; the presets compose them.
 
@@ -25,6 +27,7 @@ from collections.abc import Sequence
 from typing import Any
 
 import gymnasium as gym
+import numpy as np
 
 from fog_gym.envs.fogdrive import FogDriveEnv
 from fog_gym.sensors.camera import FOGDRIVE_CAMERA_POSES, CameraConfig
@@ -177,3 +180,34 @@ def make_fogdrive_rl_objects(fog: Any = "clear", **kwargs: Any) -> gym.Env:
     ((20,), 5)
     """
     return make_fogdrive_rl_hazard(fog=fog, **{**OBJECTS_PRESET, **kwargs})
+
+
+def make_fogdrive_rl_fog_bank(banks: Any = None, observation: str = "pixels", **kwargs: Any) -> gym.Env:
+    """``FogDriveRLFogBank-v0``: the hazard task (:func:`make_fogdrive_rl_hazard`: stalled vehicles ahead, the ego at
+    25 m/s) with a fog bank on the road ahead, drawn anew at every reset
+    (:class:`~fog_gym.wrappers.FogBankEpisodes`, ``banks`` a :class:`~fog_gym.fog.banks.BankConfig`): its near face
+    140–340 m ahead (beyond every sensor's clear-air reach at reset), 100–400 m deep, 25–80 m of visibility inside,
+    edges 5–30 m wide, clear air around it. Stalled vehicles are placed as in the hazard task, so some lie inside
+    the bank. The question the preset asks: does the agent slow down before the wall of fog, not inside it?
+
+    Pixels only for now: perceived objects (``observation="objects"``) take homogeneous fog.
+
+    >>> import gymnasium as gym, fog_gym
+    >>> env = gym.make("FogDriveRLFogBank-v0")
+    >>> obs, info = env.reset(seed=0)
+    >>> info["fog"]["type"], sorted(obs)
+    ('FogBank', ['CAM_FRONT', 'LIDAR_BEV'])
+    """
+    from fog_gym.fog.banks import BankConfig
+    from fog_gym.wrappers import FogBankEpisodes
+
+    if "fog" in kwargs:
+        raise ValueError("FogDriveRLFogBank-v0 draws a fog bank per episode: configure it with banks=BankConfig(...), "
+                         "not fog=")  # fmt: skip
+    if check_observation(observation) != "pixels":
+        raise ValueError("FogDriveRLFogBank-v0 has observation='pixels' only: perceived objects take homogeneous fog")
+    banks = BankConfig() if banks is None else banks
+    if not isinstance(banks, BankConfig):
+        raise ValueError(f"banks must be a fog_gym.fog.banks.BankConfig, got {banks!r}")
+    first = banks.draw(np.random.default_rng(0))  # (replaced at every reset)
+    return FogBankEpisodes(make_fogdrive_rl_hazard(fog=first, **kwargs), banks)

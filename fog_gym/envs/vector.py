@@ -39,7 +39,7 @@ from gymnasium.vector.utils import batch_space
 
 from fog_gym.envs.presets import (HAZARD_BEV_AHEAD, HAZARD_TRAFFIC, OBJECT_ARGS, OBJECTS_PRESET, RL_TRAFFIC,
                                   check_observation, make_fogdrive_rl, objects_config)  # fmt: skip
-from fog_gym.fog.physics import parse_level
+from fog_gym.fog.physics import parse_fog, parse_level
 from fog_gym.world.hazards import HazardConfig
 
 #: Env ids with a native vector path → (traffic, hazards by default, bird's-eye look-ahead).
@@ -47,13 +47,14 @@ VECTOR_PRESETS: dict[str, tuple[dict, bool, float]] = {
     "FogDriveRL-v0": (RL_TRAFFIC, False, 0.0),
     "FogDriveRLHazard-v0": (HAZARD_TRAFFIC, True, HAZARD_BEV_AHEAD),
     "FogDriveRLObjects-v0": (HAZARD_TRAFFIC, True, HAZARD_BEV_AHEAD),
+    "FogDriveRLFogBank-v0": (HAZARD_TRAFFIC, True, HAZARD_BEV_AHEAD),
 }
 #: Env ids whose own arguments the vector env applies first (the caller's override them).
 PRESET_DEFAULTS: dict[str, dict[str, Any]] = {"FogDriveRLObjects-v0": OBJECTS_PRESET}
 #: Keyword arguments the vector env accepts besides the presets' own (``make_fogdrive_rl``'s).
 PRESET_ARGS = ("fog", "town", "camera_size", "grayscale", "bev_size", "frame_stack", "highway_config", "bev_ahead",
                "observation", "hazards", "episode_seconds", "traffic", "static_world", "time_of_day", "geometry",
-               *OBJECT_ARGS)  # fmt: skip
+               "banks", *OBJECT_ARGS)  # fmt: skip
 
 
 def check_vector_arguments(env_id: str, num_envs: Any, autoreset_mode: Any, kwargs: dict) -> AutoresetMode:
@@ -123,10 +124,22 @@ class FogDriveVectorEnv(gym.vector.VectorEnv):
         hazards = kwargs.pop("hazards", None)
         if with_hazards and hazards is None:
             hazards = HazardConfig()
-        fog = kwargs.pop("fog", "clear")
+        banks = kwargs.pop("banks", None)
+        if env_id == "FogDriveRLFogBank-v0":  # a bank per episode and sub-env (FogBankEpisodes), pixels only
+            from fog_gym.fog.banks import BankConfig
+
+            if "fog" in kwargs or observation != "pixels":
+                raise ValueError("FogDriveRLFogBank-v0 draws a fog bank per episode (banks=BankConfig(...), not fog=) "
+                                 "and has observation='pixels' only: perceived objects take homogeneous fog")
+            banks = BankConfig() if banks is None else banks
+            if not isinstance(banks, BankConfig):
+                raise ValueError(f"banks must be a fog_gym.fog.banks.BankConfig, got {banks!r}")
+        elif banks is not None:
+            raise ValueError(f"banks configures FogDriveRLFogBank-v0, not {env_id}")
+        fog = kwargs.pop("fog", "clear" if banks is None else banks.draw(np.random.default_rng(0)))
         if isinstance(fog, (list, tuple)):
             raise ValueError("fog: the RL presets take one level (in place), not a paired list")
-        parse_level(fog, "the native vector env")
+        parse_level(fog, "the native vector env's perceived objects") if observation == "objects" else parse_fog(fog)
         if observation == "objects":
             from fog_gym.envs.objects import FogDriveObjectsEnv, ObjectWorlds
 
@@ -157,8 +170,12 @@ class FogDriveVectorEnv(gym.vector.VectorEnv):
             for i in range(self.num_envs):
                 world = NativeTrafficWorld("highway", core=self.core, index=i,
                                            episode_seconds=kwargs.get("episode_seconds", 20.0))  # fmt: skip
-                self.envs.append(make_fogdrive_rl(fog=fog, highway_config=highway_config, hazards=hazards, world=world,
-                                                  **kwargs))  # fmt: skip
+                env = make_fogdrive_rl(fog=fog, highway_config=highway_config, hazards=hazards, world=world, **kwargs)
+                if banks is not None:
+                    from fog_gym.wrappers import FogBankEpisodes
+
+                    env = FogBankEpisodes(env, banks)
+                self.envs.append(env)
         sub_spec = _sub_env_spec(env_id, spec_kwargs)
         for env in self.envs:
             env.unwrapped.spec = sub_spec

@@ -21,8 +21,9 @@ CASES = [
     ("FogDriveRL-v0", {"observation": "objects", "episode_seconds": 1.0}),
     ("FogDriveRLHazard-v0", {"observation": "objects", "episode_seconds": 1.0}),
     ("FogDriveRLObjects-v0", {"episode_seconds": 1.0}),
+    ("FogDriveRLFogBank-v0", {"episode_seconds": 1.0}),
 ]  # fmt: skip
-IDS = ["FogDrive", "RL-pixels", "Hazard-pixels", "RL-objects", "Hazard-objects", "RLObjects"]
+IDS = ["FogDrive", "RL-pixels", "Hazard-pixels", "RL-objects", "Hazard-objects", "RLObjects", "FogBank-pixels"]
 
 
 def test_the_cases_cover_every_registered_env_and_observation():
