@@ -7,10 +7,7 @@ from typing import Any
 import gymnasium as gym
 import numpy as np
 
-from fog_gym.fog.banks import BankConfig
-
-#: The stream of the banks in a reset's seed sequence (so they do not share draws with the traffic or the fog noise).
-BANK_STREAM = 0xBA4C
+from fog_gym.fog.banks import BankConfig, bank_rng
 
 
 class FogBankEpisodes(gym.Wrapper):
@@ -43,10 +40,8 @@ class FogBankEpisodes(gym.Wrapper):
         self.bank = None  # the bank of the current episode
 
     def reset(self, *, seed: int | None = None, options: dict[str, Any] | None = None):
-        if seed is not None:
-            self._rng = np.random.default_rng(np.random.SeedSequence([int(seed), BANK_STREAM]))
-        elif self._rng is None:
-            self._rng = np.random.default_rng()
+        if seed is not None or self._rng is None:
+            self._rng = bank_rng(seed)
         self.bank = self.banks.draw(self._rng)
         self.env.get_wrapper_attr("set_fog")(self.bank)
         return self.env.reset(seed=seed, options=options)

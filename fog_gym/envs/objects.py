@@ -26,8 +26,11 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.utils import seeding
 
+from fog_gym.fog.banks import BankConfig, bank_rng
+from fog_gym.fog.fields import field_info
 from fog_gym.fog.lidar import BETA_PER_MOR, GAMMA, soft_response_table
-from fog_gym.fog.physics import FogLevel, parse_level
+from fog_gym.fog.lidar_field import FIELD_COARSE, FIELD_STEP, field_pulse_weights, peak_extinction
+from fog_gym.fog.physics import FogField, FogLevel, parse_fog
 from fog_gym.perception import objects as PO
 from fog_gym.seeds import stream
 from fog_gym.dataset.packing import pad_rows
@@ -39,6 +42,17 @@ from fog_gym.world.traffic.native import NativeTraffic
 from fog_gym.world.traffic_world import NativeTrafficWorld
 
 SKY_HORIZON = np.array([205.0, 218.0, 232.0])  # the day sky's horizon colour (Lighting.for_time_of_day)
+#: The most packed rows a world's fog field may have (a bank over ground fog over homogeneous fog is three).
+MAX_FIELD_ROWS = 4
+
+
+def parse_objects_fog(fog: Any) -> FogField:
+    """A fog level or field for the perceived objects (:func:`~fog_gym.fog.physics.parse_fog`), with at most
+    :data:`MAX_FIELD_ROWS` packed rows; bad values fail here, naming the problem."""
+    level = parse_fog(fog)
+    if not level.is_homogeneous and len(level.pack(0.0)) > MAX_FIELD_ROWS:
+        raise ValueError(f"fog: the perceived objects take fields of at most {MAX_FIELD_ROWS} terms, got {level!r}")
+    return level
 
 
 def _luma(rgb: np.ndarray) -> np.ndarray:
@@ -54,14 +68,20 @@ class ObjectWorlds:
 
     def __init__(self, num_worlds: int, highway_config: Mapping[str, Any], hazards: HazardConfig | None, fog: Any,
                  objects: PO.ObjectsConfig, episode_seconds: float = 20.0, keyframe_frequency: int = 5,
-                 simulation_frequency: int = 20, surface_resolution: float = 0.1) -> None:  # fmt: skip
+                 simulation_frequency: int = 20, surface_resolution: float = 0.1, banks: Any = None) -> None:  # fmt: skip
+        if banks is not None and not isinstance(banks, BankConfig):
+            raise ValueError(f"banks must be a fog_gym.fog.banks.BankConfig, got {banks!r}")
+        first = parse_objects_fog(fog)
         self.core = NativeTraffic(num_worlds, highway_config, hazards, simulation_frequency, keyframe_frequency)
         self.n = num_worlds
         self.objects = objects
         self.keyframe_frequency = keyframe_frequency
         self.episode_steps = int(round(episode_seconds * keyframe_frequency))
-        self.levels: list[FogLevel] = [parse_level(fog, "the native vector env")] * num_worlds
-        self.pending: list[FogLevel | None] = [None] * num_worlds
+        self.levels: list[FogField] = [first] * num_worlds
+        self.pending: list[FogField | None] = [None] * num_worlds
+        #: A fog bank per episode (FogDriveRLFogBank-v0): each world draws its own from its reset's seed.
+        self.banks = banks
+        self._bank_rngs: list[np.random.Generator | None] = [None] * num_worlds
         self.np_random = [seeding.np_random(None)[0] for _ in range(num_worlds)]
         self.episode_seed = np.zeros(num_worlds, np.int64)
         self.keys = np.zeros(num_worlds, np.uint64)
@@ -80,6 +100,12 @@ class ObjectWorlds:
         self.beta_ratios = np.zeros(num_worlds)
         self.tables_i = np.zeros((num_worlds, 101))
         self.tables_r = np.zeros((num_worlds, 101))
+        # fog fields (a world with rows > 0): packed terms, the field frame (the ego at reset) and the peak extinction
+        self.fterms = np.zeros((num_worlds, MAX_FIELD_ROWS, 8))
+        self.frows = np.zeros(num_worlds, np.int64)
+        self.fframes = np.zeros((num_worlds, 3))
+        self.fbeta = np.zeros(num_worlds)
+        self._pulse = tuple(np.zeros((1, 1)) if k % 2 == 0 else np.zeros(1) for k in range(4))  # (set with a field)
         static = town_static_world(NativeTrafficWorld("highway", core=self.core), "highway",
                                    self.core.lanes, surface_resolution, 1050.0)  # fmt: skip
         s = static.surface
@@ -102,8 +128,21 @@ class ObjectWorlds:
             self._set_level(w, self.levels[w])
 
     # -- fog ------------------------------------------------------------------------------------------
-    def _set_level(self, w: int, level: FogLevel) -> None:
+    def _set_level(self, w: int, level: FogField) -> None:
         self.levels[w] = level
+        self.frows[w] = 0
+        if not level.is_homogeneous:  # a fog field: closed-form τ on every ray, the soft return beam by beam
+            terms = level.pack(0.0)
+            self.fterms[w, : len(terms)] = terms
+            self.frows[w] = len(terms)
+            self.fbeta[w] = peak_extinction(terms)
+            if self._pulse[0].shape[0] == 1:
+                self._pulse = (*field_pulse_weights(), *field_pulse_weights(FIELD_STEP * FIELD_COARSE))
+            self.alphas[w], self.beta_ratios[w] = 0.0, 0.0
+            self.tables_i[w] = self.tables_r[w] = 0.0
+            return
+        if not isinstance(level, FogLevel):  # (a sum of homogeneous terms)
+            level = parse_fog(level.visibility_m)
         self.alphas[w] = level.alpha
         if level.is_clear:
             self.beta_ratios[w] = 0.0
@@ -121,8 +160,8 @@ class ObjectWorlds:
         return obs.reshape(*lead, *self.objects.observation_shape).copy()
 
     def set_fog(self, w: int, fog: Any) -> None:
-        """World ``w``'s fog from its next reset on."""
-        self.pending[w] = parse_level(fog, "the native vector env")
+        """World ``w``'s fog (a level or a fog field) from its next reset on."""
+        self.pending[w] = parse_objects_fog(fog)
 
     # -- episodes -------------------------------------------------------------------------------------
     def reset(self, w: int, seed: int | None = None) -> None:
@@ -135,12 +174,18 @@ class ObjectWorlds:
         for w, seed in zip(worlds, seeds):
             if seed is not None:
                 self.np_random[w] = seeding.np_random(seed)[0]
+            if self.banks is not None:  # the episode's bank, from the reset's seed (as FogBankEpisodes draws it)
+                if seed is not None or self._bank_rngs[w] is None:
+                    self._bank_rngs[w] = bank_rng(seed)
+                self.pending[w] = self.banks.draw(self._bank_rngs[w])
             if self.pending[w] is not None:
                 self._set_level(w, self.pending[w])
                 self.pending[w] = None
             world_seed = int(self.np_random[w].integers(0, 2**31 - 1))
             self.episode_seed[w] = world_seed
             self.core.reset(w, world_seed)
+            ego = self.core.floats[w, 0]
+            self.fframes[w] = ego[K.FX], ego[K.FY], ego[K.FH]  # the field frame: the ego (and its LiDAR) at reset
             light = Lighting.for_time_of_day("day", stream(world_seed, "scenery"))
             self.suns[w] = light.sun_dir
             self.shades[w] = light.ambient, light.sun_intensity, light.ground_shade
@@ -153,6 +198,10 @@ class ObjectWorlds:
     def step(self, actions: np.ndarray, active: np.ndarray) -> None:
         self.core.step(actions, active)
         self.steps[active] += 1
+        for w in np.flatnonzero(active & (self.frows > 0)):  # a drifting bank moves with the episode's time
+            level = self.levels[w]
+            if any(getattr(t, "velocity", 0.0) for t in getattr(level, "terms", (level,))):
+                self.fterms[w, : self.frows[w]] = level.pack(self.steps[w] / self.keyframe_frequency)
         self._perceive(active)
 
     def _perceive(self, active: np.ndarray) -> None:
@@ -163,7 +212,7 @@ class ObjectWorlds:
                            self._az_cos, self._az_sin, self.objects.lidar_range, self.objects.lidar_height, self._drop,
                            self._cam, self._rad, self._mask, self._rules, 1.0 / self.keyframe_frequency, c.lanes,
                            self.present, self.pos, self.vel, self.prev_present, self.prev_pos, self.prev_vel,
-                           self.obs)  # fmt: skip
+                           self.obs, self.fterms, self.frows, self.fframes, self.fbeta, *self._pulse)  # fmt: skip
 
     # -- per-world results ----------------------------------------------------------------------------
     def terminated(self, w: int) -> bool:
@@ -176,7 +225,8 @@ class ObjectWorlds:
         c = self.core
         level = self.levels[w]
         info: dict[str, Any] = {"speed": float(c.floats[w, 0, K.FS]), "crashed": c.ego_crashed(w),
-                                "fog": level.info(), "step": int(self.steps[w])}  # fmt: skip
+                                "fog": level.info() if isinstance(level, FogLevel) else field_info(level),
+                                "step": int(self.steps[w])}  # fmt: skip
         if c.hazards is not None:
             info.update(hazard_info(c.hazards_ego(w), c.hazards))
         if detections:
@@ -221,12 +271,13 @@ class FogDriveObjectsEnv(gym.Env):
 
     def __init__(self, highway_config: Mapping[str, Any] | None = None, hazards: HazardConfig | None = None,
                  fog: Any = "clear", objects: PO.ObjectsConfig | None = None, episode_seconds: float = 20.0,
-                 info_detections: bool = True, worlds: ObjectWorlds | None = None, index: int = 0) -> None:  # fmt: skip
+                 info_detections: bool = True, worlds: ObjectWorlds | None = None, index: int = 0,
+                 banks: Any = None) -> None:  # fmt: skip
         if not isinstance(info_detections, bool):
             raise ValueError(f"info_detections must be True or False, got {info_detections!r}")
         if worlds is None:
             self.objects = objects if objects is not None else PO.ObjectsConfig()
-            worlds = ObjectWorlds(1, highway_config or {}, hazards, fog, self.objects, episode_seconds)
+            worlds = ObjectWorlds(1, highway_config or {}, hazards, fog, self.objects, episode_seconds, banks=banks)
         self.objects = worlds.objects
         self.worlds, self.index = worlds, int(index)
         self.info_detections = info_detections

@@ -94,13 +94,14 @@ def make_fogdrive_rl(fog: Any = "clear", town: str = "highway", camera_size: Seq
         hazards = kwargs.pop("hazards", None)
         episode_seconds = kwargs.pop("episode_seconds", 20.0)
         info_detections = kwargs.pop("info_detections", True)
+        banks = kwargs.pop("banks", None)
         kwargs.pop("traffic", None)
         if kwargs:
             raise ValueError(f"observation='objects' does not take {sorted(kwargs)}")
         if town != "highway":
             raise ValueError(f"observation='objects' runs on the highway town only, got town {town!r}")
         return FogDriveObjectsEnv({**RL_TRAFFIC, **(highway_config or {})}, hazards, fog, objects, episode_seconds,
-                                  info_detections)  # fmt: skip
+                                  info_detections, banks=banks)  # fmt: skip
     if "info_detections" in kwargs:
         raise ValueError("info_detections configures observation='objects'; this env has observation='pixels'")
     leftover = [k for k in OBJECT_ARGS if k in kwargs]
@@ -190,7 +191,8 @@ def make_fogdrive_rl_fog_bank(banks: Any = None, observation: str = "pixels", **
     edges 5–30 m wide, clear air around it. Stalled vehicles are placed as in the hazard task, so some lie inside
     the bank. The question the preset asks: does the agent slow down before the wall of fog, not inside it?
 
-    Pixels only for now: perceived objects (``observation="objects"``) take homogeneous fog.
+    ``observation="objects"`` gives the perceived objects (:mod:`fog_gym.envs.objects`), fogged by the same bank
+    (drawn from the same seed).
 
     >>> import gymnasium as gym, fog_gym
     >>> env = gym.make("FogDriveRLFogBank-v0")
@@ -204,10 +206,10 @@ def make_fogdrive_rl_fog_bank(banks: Any = None, observation: str = "pixels", **
     if "fog" in kwargs:
         raise ValueError("FogDriveRLFogBank-v0 draws a fog bank per episode: configure it with banks=BankConfig(...), "
                          "not fog=")  # fmt: skip
-    if check_observation(observation) != "pixels":
-        raise ValueError("FogDriveRLFogBank-v0 has observation='pixels' only: perceived objects take homogeneous fog")
     banks = BankConfig() if banks is None else banks
     if not isinstance(banks, BankConfig):
         raise ValueError(f"banks must be a fog_gym.fog.banks.BankConfig, got {banks!r}")
     first = banks.draw(np.random.default_rng(0))  # (replaced at every reset)
+    if check_observation(observation) == "objects":  # the worlds draw the bank themselves (as the vector env's do)
+        return make_fogdrive_rl_hazard(fog=first, observation="objects", banks=banks, **kwargs)
     return FogBankEpisodes(make_fogdrive_rl_hazard(fog=first, **kwargs), banks)

@@ -39,7 +39,8 @@ from gymnasium.vector.utils import batch_space
 
 from fog_gym.envs.presets import (HAZARD_BEV_AHEAD, HAZARD_TRAFFIC, OBJECT_ARGS, OBJECTS_PRESET, RL_TRAFFIC,
                                   check_observation, make_fogdrive_rl, objects_config)  # fmt: skip
-from fog_gym.fog.physics import parse_fog, parse_level
+from fog_gym.envs.objects import parse_objects_fog
+from fog_gym.fog.physics import parse_fog
 from fog_gym.world.hazards import HazardConfig
 
 #: Env ids with a native vector path → (traffic, hazards by default, bird's-eye look-ahead).
@@ -128,9 +129,9 @@ class FogDriveVectorEnv(gym.vector.VectorEnv):
         if env_id == "FogDriveRLFogBank-v0":  # a bank per episode and sub-env (FogBankEpisodes), pixels only
             from fog_gym.fog.banks import BankConfig
 
-            if "fog" in kwargs or observation != "pixels":
-                raise ValueError("FogDriveRLFogBank-v0 draws a fog bank per episode (banks=BankConfig(...), not fog=) "
-                                 "and has observation='pixels' only: perceived objects take homogeneous fog")
+            if "fog" in kwargs:
+                raise ValueError("FogDriveRLFogBank-v0 draws a fog bank per episode: configure it with "
+                                 "banks=BankConfig(...), not fog=")  # fmt: skip
             banks = BankConfig() if banks is None else banks
             if not isinstance(banks, BankConfig):
                 raise ValueError(f"banks must be a fog_gym.fog.banks.BankConfig, got {banks!r}")
@@ -139,7 +140,7 @@ class FogDriveVectorEnv(gym.vector.VectorEnv):
         fog = kwargs.pop("fog", "clear" if banks is None else banks.draw(np.random.default_rng(0)))
         if isinstance(fog, (list, tuple)):
             raise ValueError("fog: the RL presets take one level (in place), not a paired list")
-        parse_level(fog, "the native vector env's perceived objects") if observation == "objects" else parse_fog(fog)
+        parse_objects_fog(fog) if observation == "objects" else parse_fog(fog)
         if observation == "objects":
             from fog_gym.envs.objects import FogDriveObjectsEnv, ObjectWorlds
 
@@ -149,7 +150,7 @@ class FogDriveVectorEnv(gym.vector.VectorEnv):
             kwargs.pop("town", None)
             if kwargs:
                 raise ValueError(f"observation='objects' does not take {sorted(kwargs)}")
-            self.worlds = ObjectWorlds(self.num_envs, highway_config, hazards, fog, objects, episode_seconds)
+            self.worlds = ObjectWorlds(self.num_envs, highway_config, hazards, fog, objects, episode_seconds, banks=banks)
             self.core = self.worlds.core
             self.envs: list[gym.Env] = [FogDriveObjectsEnv(worlds=self.worlds, index=i, info_detections=info_detections)
                                         for i in range(self.num_envs)]  # fmt: skip

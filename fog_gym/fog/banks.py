@@ -25,6 +25,16 @@ from fog_gym.checks import finite
 from fog_gym.fog.fields import FogBank
 
 
+#: The banks' stream in a reset's seed sequence (so they share no draws with the traffic or the fog noise).
+BANK_STREAM = 0xBA4C
+
+
+def bank_rng(seed: int | None) -> np.random.Generator:
+    """The generator of the banks from ``reset(seed=seed)`` on (fresh entropy for None): the pixel path
+    (``FogBankEpisodes``) and the perceived objects draw the same bank for the same seed."""
+    return np.random.default_rng(np.random.SeedSequence(None if seed is None else [int(seed), BANK_STREAM]))
+
+
 @dataclass(frozen=True)
 class BankConfig:
     """The ranges (min, max) each episode's bank is drawn from, uniformly: ``start`` [m] of its near face ahead of

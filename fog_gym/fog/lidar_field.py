@@ -385,53 +385,76 @@ def _transmittance(trans, j, terms, u0, z0, du, dz, step):
     return trans[j]
 
 
+@njit(cache=True, inline="always")
+def beam_soft_maximum(terms, u0, z0, du, dz, r0, weights, ramp, weights5, ramp5, coarse, step, beta_max):
+    """The soft return's maximum ``max_{R ≤ R0} F(R)`` (s/m², with the backscatter) on a beam from ``(u0, z0)`` with
+    unit-direction components ``du`` (along u) and ``dz`` (up) to range ``r0``, and the range node where it lies:
+    ``E_j = e^{−2τ(jΔ)}`` on the ray, ``F_k = Σ_n W[k, n]·E_{k−n}`` (:func:`field_pulse_weights`) on coarse ranges every
+    ``coarse`` nodes (their own weights ``weights5``), stopped by the bound, then on every node near the sensor (where
+    1/R′² varies fast) and around the coarse maximum."""
+    n_nodes = weights.shape[1]
+    top = min(int(np.round(min(r0, 200.0) / step)), weights.shape[0] - 1)
+    trans = np.full(top + 1, -1.0)  # E_j, computed when a window first needs it
+    clear = _clear_node(terms, u0, z0, du, dz, step, top)
+    one = int(np.round(XI_R2 / step))  # the node 1 m out, and the extinction there
+    beta1 = point_extinction(terms, u0 + du * XI_R2, z0 + dz * XI_R2)
+    near = 0.0 if one > top else _transmittance(trans, one, terms, u0, z0, du, dz, step)
+    lift = beta1 * near * np.exp(beta1 * (XI_R2 - XI_R1))
+    best5, best5_k, near5, near5_k = -1.0, -1, -1.0, -1  # the coarse maximum, and the one near the sensor
+    for k5 in range((max(one, clear) + coarse - 1) // coarse, top // coarse + 1):
+        if best5 > 0.0 and _soft_bound(k5 * coarse * step, beta_max) < 0.95 * best5:
+            break  # no farther range can beat the maximum so far (a margin for the coarse weights)
+        f = ramp5[k5] * lift
+        for m in range(min(weights5.shape[1], k5 + 1)):
+            f += weights5[k5, m] * _transmittance(trans, coarse * (k5 - m), terms, u0, z0, du, dz, step)
+        if f > best5:
+            best5, best5_k = f, k5 * coarse
+        if f > near5 and k5 * coarse <= NEAR_FIELD_NODES:
+            near5, near5_k = f, k5 * coarse
+    best, best_k = 0.0, 0
+    start = max(one, clear)
+    for part in range(2):
+        centre = near5_k if part == 0 else best5_k
+        if centre < 0 or (part == 1 and centre == near5_k):
+            continue
+        for k in range(max(start, centre - 2 * coarse), min(centre + 2 * coarse, top) + 1):
+            f = ramp[k] * lift
+            for m in range(min(n_nodes, k + 1)):
+                f += weights[k, m] * _transmittance(trans, k - m, terms, u0, z0, du, dz, step)
+            if f > best:
+                best, best_k = f, k
+    return best, best_k
+
+
+@njit(cache=True)
+def field_keeps(r0, intensity, terms, u0, z0, du, dz, weights, ramp, weights5, ramp5, beta_max):
+    """Whether a return at range ``r0`` with CARLA intensity ``intensity`` ∈ [0, 1] on the beam ``(u0, z0, du, dz)``
+    survives the fog field ``terms`` (``i_soft <= i_hard``): the decision :func:`fog_lidar_field` makes per point (CARLA
+    intensities), for the perception kernels; the field's counterpart of ``fog_gym.fog.lidar.hahner_keeps``."""
+    tau0 = segment_depth(terms, u0, z0, du, dz, r0)
+    if tau0 == 0.0:
+        return True
+    i_orig = np.round(intensity * 255.0)
+    i_hard = np.round(i_orig * np.exp(-2.0 * tau0))
+    best, _ = beam_soft_maximum(terms, u0, z0, du, dz, r0, weights, ramp, weights5, ramp5, FIELD_COARSE, FIELD_STEP,
+                                beta_max)  # fmt: skip
+    return not min(255.0, best * i_orig * r0 * r0 * math.pi / GAMMA) > i_hard
+
+
 @njit(cache=True, parallel=True)
 def _hahner_field(pts, pose, terms, weights, ramp, weights5, ramp5, coarse, step, log_noise, u, out, attenuation,
                   beta_max):
     # pts (N, C) in the sensor frame; pose (8,): the sensor origin (u0, z0) in the field frame and the rows a_u, a_z
     # that turn a unit direction of the sensor frame into its run along u and up; terms a packed field
-    # (fog_gym.fog.fields). Per point: τ(R0) in closed form, E_j = e^{−2τ(jΔ)} on the ray, F_k = Σ_n W[k, n]·E_{k−n},
-    # its maximum up to R0 and where it lies (coarse ranges first, see FIELD_COARSE); then Hahner et al.'s rule as
-    # _hahner.
-    n_nodes = weights.shape[1]
-    last = weights.shape[0] - 1
+    # (fog_gym.fog.fields). Per point: τ(R0) in closed form, the soft return's maximum on its beam
+    # (beam_soft_maximum); then Hahner et al.'s rule as _hahner.
     u0, z0 = pose[0], pose[1]
     for n in prange(pts.shape[0]):
         r0, du, dz, tau0, i_orig, i_hard = _beam(pts, n, pose, terms, out)
         if tau0 == 0.0:  # no fog on the ray: no backscatter either, the point is kept as in clear air
             continue
-        top = min(int(np.round(min(r0, 200.0) / step)), last)
-        trans = np.full(top + 1, -1.0)  # E_j, computed when a window first needs it
-        clear = _clear_node(terms, u0, z0, du, dz, step, top)
-        one = int(np.round(XI_R2 / step))  # the node 1 m out, and the extinction there
-        beta1 = point_extinction(terms, u0 + du * XI_R2, z0 + dz * XI_R2)
-        near = 0.0 if one > top else _transmittance(trans, one, terms, u0, z0, du, dz, step)
-        lift = beta1 * near * np.exp(beta1 * (XI_R2 - XI_R1))
-        # coarse ranges every `coarse` nodes (their own weights), then every node near the sensor (where 1/R′² varies
-        # fast) and around the coarse maximum
-        best5, best5_k, near5, near5_k = -1.0, -1, -1.0, -1  # the coarse maximum, and the one near the sensor
-        for k5 in range((max(one, clear) + coarse - 1) // coarse, top // coarse + 1):
-            if best5 > 0.0 and _soft_bound(k5 * coarse * step, beta_max) < 0.95 * best5:
-                break  # no farther range can beat the maximum so far (a margin for the coarse weights)
-            f = ramp5[k5] * lift
-            for m in range(min(weights5.shape[1], k5 + 1)):
-                f += weights5[k5, m] * _transmittance(trans, coarse * (k5 - m), terms, u0, z0, du, dz, step)
-            if f > best5:
-                best5, best5_k = f, k5 * coarse
-            if f > near5 and k5 * coarse <= NEAR_FIELD_NODES:
-                near5, near5_k = f, k5 * coarse
-        best, best_k = 0.0, 0
-        start = max(one, clear)
-        for part in range(2):
-            centre = near5_k if part == 0 else best5_k
-            if centre < 0 or (part == 1 and centre == near5_k):
-                continue
-            for k in range(max(start, centre - 2 * coarse), min(centre + 2 * coarse, top) + 1):
-                f = ramp[k] * lift
-                for m in range(min(n_nodes, k + 1)):
-                    f += weights[k, m] * _transmittance(trans, k - m, terms, u0, z0, du, dz, step)
-                if f > best:
-                    best, best_k = f, k
+        best, best_k = beam_soft_maximum(terms, u0, z0, du, dz, r0, weights, ramp, weights5, ramp5, coarse, step,
+                                         beta_max)  # fmt: skip
         _field_rule(pts, n, out, r0, i_orig, i_hard, best, best_k * step, log_noise, u, attenuation)
 
 

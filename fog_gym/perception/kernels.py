@@ -30,7 +30,9 @@ import numpy as np
 from numba import njit
 
 import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
+from fog_gym.fog.depth import segment_depth
 from fog_gym.fog.lidar import hahner_keeps
+from fog_gym.fog.lidar_field import field_keeps
 
 _MASK = np.uint64(0xFFFFFFFFFFFFFFFF)
 #: Sensor keys of the hash streams.
@@ -181,9 +183,12 @@ def angular_extents(n, bx, by, byaw, bl, bw, bh, sx, sy, sz, syaw, amin, amax, e
 
 @njit(cache=True)
 def lidar_detect(n, bx, by, byaw, bl, bw, bh, ex, ey, eyaw, sz, elev, az_cos, az_sin, rng_max, key, tick, alpha,
-                 beta_ratio, table_i, table_r, drop_general, drop_limit, drop_zero, max_rays, count, centroid):  # fmt: skip
+                 beta_ratio, table_i, table_r, drop_general, drop_limit, drop_zero, max_rays, count, centroid, terms,
+                 frame, weights, ramp, weights5, ramp5, beta_max):  # fmt: skip
     """Surviving LiDAR returns per vehicle (``count``, scaled by the stride) and their centroid in the sensor frame
-    (``centroid`` (V, 3)), for a LiDAR at height ``sz`` above the ego origin (ex, ey) with the ego's yaw."""
+    (``centroid`` (V, 3)), for a LiDAR at height ``sz`` above the ego origin (ex, ey) with the ego's yaw. ``terms``
+    (rows, 8): a packed fog field laid at ``frame`` = (x0, y0, heading) (:func:`fog_gym.fog.lidar_field.field_keeps`
+    decides with ``weights`` … ``beta_max``); no rows: homogeneous fog of extinction ``alpha``."""
     amin = np.empty(n)
     amax = np.empty(n)
     emin = np.empty(n)
@@ -194,6 +199,9 @@ def lidar_detect(n, bx, by, byaw, bl, bw, bh, ex, ey, eyaw, sz, elev, az_cos, az
     n_el = elev.shape[0]
     n_az = az_cos.shape[0]
     step = 2.0 * math.pi / n_az
+    field = terms.shape[0] > 0
+    fh, gh = math.cos(frame[2]), math.sin(frame[2])  # the field's axis u
+    u0 = (ex - frame[0]) * fh + (ey - frame[1]) * gh
     for j in range(1, n):
         count[j] = 0.0
         centroid[j, 0] = centroid[j, 1] = centroid[j, 2] = 0.0
@@ -230,7 +238,11 @@ def lidar_detect(n, bx, by, byaw, bl, bw, bh, ex, ey, eyaw, sz, elev, az_cos, az
                 inten = math.exp(-0.004 * t)
                 if inten <= drop_limit and uniform(key, tick, 2, ci, k) >= inten * drop_zero / drop_limit + 1 - drop_zero:
                     continue
-                if alpha > 0.0 and not hahner_keeps(t, inten, table_i, table_r, alpha, beta_ratio):
+                if field:
+                    if not field_keeps(t, inten, terms, u0, sz, dx * fh + dy * gh, fz, weights, ramp, weights5, ramp5,
+                                       beta_max):  # fmt: skip
+                        continue
+                elif alpha > 0.0 and not hahner_keeps(t, inten, table_i, table_r, alpha, beta_ratio):
                     continue
                 w = stride * stride
                 total += w
@@ -249,8 +261,10 @@ def _luma(r, g, b):
 
 @njit(cache=True)
 def _pixel_luminance(t, hit, axis, sign, dx, dy, dz, ox, oy, oz, byaw, colors, sun, ambient, sun_int, grid, gx0,
-                     gy0, res, surf_luma, ground_shade, sky_luma, alpha):  # fmt: skip
-    """Fogged luminance (0–255) seen along one ray and whether it hit anything but the sky."""
+                     gy0, res, surf_luma, ground_shade, sky_luma, alpha, terms, u_o, du):  # fmt: skip
+    """Fogged luminance (0–255) seen along one ray and whether it hit anything but the sky; the transmittance is
+    ``exp(−α·t)``, or with a fog field (``terms`` with rows) ``exp(−τ)`` along the ray from ``(u_o, oz)`` with run ``du``
+    along the field's axis."""
     if hit == -2:
         return sky_luma, False
     if hit == -1:
@@ -270,20 +284,22 @@ def _pixel_luminance(t, hit, axis, sign, dx, dy, dz, ox, oy, oz, byaw, colors, s
         lam = nx * sun[0] + ny * sun[1] + nz * sun[2]
         shade = ambient + sun_int * max(lam, 0.0)
         j_l = _luma(colors[hit, 0], colors[hit, 1], colors[hit, 2]) * 255.0 * shade
-    tr = math.exp(-alpha * t)
+    tr = math.exp(-(segment_depth(terms, u_o, oz, du, dz, t) if terms.shape[0] > 0 else alpha * t))
     return j_l * tr + sky_luma * (1.0 - tr), True
 
 
 @njit(cache=True)
 def camera_detect(n, bx, by, byaw, bl, bw, bh, colors, ex, ey, eyaw, cam_x, cam_z, fx_, width, height, alpha, sun,
                   ambient, sun_int, ground_shade, sky_luma, grid, gx0, gy0, res, surf_luma, max_rays, rng_max,
-                  pixels, contrast, bearing, size_px):  # fmt: skip
+                  pixels, contrast, bearing, size_px, terms, frame):  # fmt: skip
     """Per vehicle: visible pixels (scaled by the stride), Weber contrast in the fogged image against its background,
     bearing of its visible pixels (radians, + right) and its visible box height in pixels, for a camera
     ``cam_x`` ahead of the ego origin at height ``cam_z`` looking along the ego's heading (pinhole, focal ``fx_``,
     ``width`` × ``height`` pixels, principal point at the centre)."""
     c0, s0 = math.cos(eyaw), math.sin(eyaw)
     ox, oy, oz = ex + c0 * cam_x, ey + s0 * cam_x, cam_z
+    fh, gh = math.cos(frame[2]), math.sin(frame[2])  # a fog field's axis u (terms with rows)
+    u_o = (ox - frame[0]) * fh + (oy - frame[1]) * gh
     amin = np.empty(n)
     amax = np.empty(n)
     emin = np.empty(n)
@@ -334,8 +350,10 @@ def camera_detect(n, bx, by, byaw, bl, bw, bh, colors, ex, ey, eyaw, cam_x, cam_
                                              rmin, order, az, el, 1e4)  # fmt: skip
                 if hit != j:
                     continue
+                du = dx * fh + dy * gh
                 lum, _ = _pixel_luminance(t, hit, axis, sign, dx, dy, dfz, ox, oy, oz, byaw, colors, sun, ambient,
-                                          sun_int, grid, gx0, gy0, res, surf_luma, ground_shade, sky_luma, alpha)  # fmt: skip
+                                          sun_int, grid, gx0, gy0, res, surf_luma, ground_shade, sky_luma, alpha, terms,
+                                          u_o, du)  # fmt: skip
                 # what the same pixel shows without the vehicle: its background, fogged
                 a_lo, a_hi = amin[j], amax[j]
                 amin[j], amax[j] = 1.0, -1.0
@@ -343,7 +361,8 @@ def camera_detect(n, bx, by, byaw, bl, bw, bh, colors, ex, ey, eyaw, cam_x, cam_
                                            rmin, order, az, el, 1e4)  # fmt: skip
                 amin[j], amax[j] = a_lo, a_hi
                 lum_bg, _ = _pixel_luminance(tb, hb, axb, sgb, dx, dy, dfz, ox, oy, oz, byaw, colors, sun, ambient,
-                                             sun_int, grid, gx0, gy0, res, surf_luma, ground_shade, sky_luma, alpha)  # fmt: skip
+                                             sun_int, grid, gx0, gy0, res, surf_luma, ground_shade, sky_luma, alpha,
+                                             terms, u_o, du)  # fmt: skip
                 w = stride * stride
                 vis += w
                 lum_v += w * lum

@@ -327,8 +327,11 @@ def _lane_rows(n, f, present, pos, vel, lanes, obs):
 def perceive_worlds(active, floats, counts, classes, colors, heights, keys, ticks, alphas, beta_ratios, tables_i, tables_r,
                     suns, shades, sky_luma, grid, gx0, gy0, res, surf_luma, elev, az_cos, az_sin, lidar_range, lidar_h,
                     drop, cam, rad, mask, rules, dt, lanes, present, pos, vel, prev_present, prev_pos, prev_vel,
-                    obs):  # fmt: skip
-    """Detect and fuse in every active world (parallel over worlds); see the module docstring."""
+                    obs, fterms, frows, fframes, fbeta, weights, ramp, weights5, ramp5):  # fmt: skip
+    """Detect and fuse in every active world (parallel over worlds); see the module docstring. World ``w`` with
+    ``frows[w] > 0`` is fogged by the field ``fterms[w, :frows[w]]`` laid at ``fframes[w]`` (peak extinction
+    ``fbeta[w]``; ``weights`` … ``ramp5``: :func:`fog_gym.fog.lidar_field.field_pulse_weights` at the field step and
+    at the coarse step), the others by their homogeneous level."""
     for w in prange(floats.shape[0]):
         if not active[w]:
             continue
@@ -341,12 +344,14 @@ def perceive_worlds(active, floats, counts, classes, colors, heights, keys, tick
         vy = f[:n, 3] * np.sin(byaw)
         key = keys[w]
         tick = ticks[w]
+        terms = fterms[w, :frows[w]]
         lid_count = np.zeros(n)
         lid_cen = np.zeros((n, 3))
         if mask[LID]:
             PK.lidar_detect(n, bx, by, byaw, bl, bw, bh, bx[0], by[0], byaw[0], lidar_h, elev, az_cos, az_sin, lidar_range,
                             key, tick, alphas[w], beta_ratios[w], tables_i[w], tables_r[w], drop[0], drop[1], drop[2],
-                            int(rules[4]), lid_count, lid_cen)  # fmt: skip
+                            int(rules[4]), lid_count, lid_cen, terms, fframes[w], weights, ramp, weights5, ramp5,
+                            fbeta[w])  # fmt: skip
         cam_pix = np.zeros(n)
         cam_con = np.zeros(n)
         cam_bear = np.zeros(n)
@@ -355,7 +360,7 @@ def perceive_worlds(active, floats, counts, classes, colors, heights, keys, tick
             PK.camera_detect(n, bx, by, byaw, bl, bw, bh, colors[w, :n], bx[0], by[0], byaw[0], cam[0], cam[1],
                              cam[2], int(cam[3]), int(cam[4]), alphas[w], suns[w], shades[w, 0], shades[w, 1],
                              shades[w, 2], sky_luma, grid, gx0, gy0, res, surf_luma, int(rules[4]), cam[5], cam_pix,
-                             cam_con, cam_bear, cam_size)  # fmt: skip
+                             cam_con, cam_bear, cam_size, terms, fframes[w])  # fmt: skip
         rad_hits = np.zeros(n)
         rad_rng = np.zeros(n)
         rad_az = np.zeros(n)

@@ -61,7 +61,6 @@ def test_the_vector_env_draws_a_bank_per_sub_env_as_the_single_env_does():
 
 @pytest.mark.parametrize("kwargs, match", [
     ({"fog": "dense"}, "draws a fog bank per episode"),
-    ({"observation": "objects"}, "pixels"),
     ({"banks": (140.0, 340.0)}, "BankConfig"),
 ])  # fmt: skip
 def test_bad_settings_fail_before_any_world_is_built(kwargs, match):

@@ -22,8 +22,10 @@ CASES = [
     ("FogDriveRLHazard-v0", {"observation": "objects", "episode_seconds": 1.0}),
     ("FogDriveRLObjects-v0", {"episode_seconds": 1.0}),
     ("FogDriveRLFogBank-v0", {"episode_seconds": 1.0}),
+    ("FogDriveRLFogBank-v0", {"observation": "objects", "episode_seconds": 1.0}),
 ]  # fmt: skip
-IDS = ["FogDrive", "RL-pixels", "Hazard-pixels", "RL-objects", "Hazard-objects", "RLObjects", "FogBank-pixels"]
+IDS = ["FogDrive", "RL-pixels", "Hazard-pixels", "RL-objects", "Hazard-objects", "RLObjects", "FogBank-pixels",
+       "FogBank-objects"]
 
 
 def test_the_cases_cover_every_registered_env_and_observation():
@@ -31,7 +33,7 @@ def test_the_cases_cover_every_registered_env_and_observation():
     from fog_gym.envs.presets import OBSERVATIONS
 
     assert {c[0] for c in CASES} == set(ENV_IDS)
-    for env_id in ("FogDriveRL-v0", "FogDriveRLHazard-v0"):
+    for env_id in ("FogDriveRL-v0", "FogDriveRLHazard-v0", "FogDriveRLFogBank-v0"):
         assert {c[1].get("observation", "pixels") for c in CASES if c[0] == env_id} == set(OBSERVATIONS)
 
 

@@ -24,6 +24,10 @@ def _boxes(*specs):
     return len(rows), a[:, 0].copy(), a[:, 1].copy(), np.zeros(len(rows)), a[:, 2].copy(), a[:, 3].copy(), a[:, 4].copy()
 
 
+#: No fog field (no packed rows; a frame at the origin): the kernels use the homogeneous level.
+HOMOGENEOUS_FIELD = (np.zeros((0, 8)), np.zeros(3))
+
+
 def _lidar(level, *specs, cfg=ObjectsConfig()):
     n, bx, by, byaw, bl, bw, bh = _boxes(*specs)
     ti, tr = soft_response_table(level.alpha) if not level.is_clear else (np.zeros(101), np.zeros(101))
@@ -32,7 +36,7 @@ def _lidar(level, *specs, cfg=ObjectsConfig()):
     count, cen = np.zeros(n), np.zeros((n, 3))
     PK.lidar_detect(n, bx, by, byaw, bl, bw, bh, 0.0, 0.0, 0.0, cfg.lidar_height, cfg.lidar_elevations(), np.cos(az),
                     np.sin(az), cfg.lidar_range, 7, 0, level.alpha, beta, ti, tr, 0.45, 0.8, 0.4, cfg.max_rays, count,
-                    cen)  # fmt: skip
+                    cen, *HOMOGENEOUS_FIELD, np.zeros((1, 1)), np.zeros(1), np.zeros((1, 1)), np.zeros(1), 0.0)  # fmt: skip
     return count, cen
 
 
@@ -44,7 +48,7 @@ def _camera(level, *specs, color=(0.05, 0.05, 0.05), cam_z=1.2, cfg=ObjectsConfi
     surf = 0.2126 * np.array([96.0, 82, 150, 225]) + 0.7152 * np.array([118.0, 82, 146, 225]) + 0.0722 * np.array([68.0, 86, 140, 220])
     PK.camera_detect(n, bx, by, byaw, bl, bw, bh, colors, 0.0, 0.0, 0.0, 1.8, cam_z, cfg.camera_focal, 640, 480,
                      level.alpha, np.array([0.0, 0.0, 1.0]), 1.0, 0.0, 1.0, 216.0, grid, -1e5, -1e5, 2e4, surf,
-                     cfg.max_rays, 1e4, *out)  # fmt: skip
+                     cfg.max_rays, 1e4, *out, *HOMOGENEOUS_FIELD)  # fmt: skip
     return out
 
 

@@ -64,15 +64,3 @@ def test_radar_is_the_same_in_every_field_and_the_same_seed_gives_the_same_fog()
     assert all(np.array_equal(again[k], outs[0][k]) for k in ("CAM_FRONT", "LIDAR_TOP"))
     for env in (a, b, c):
         env.close()
-
-
-def test_the_native_vector_env_refuses_a_field_with_a_clear_error():
-    import gymnasium as gym
-
-    import fog_gym  # noqa: F401  (registers the envs)
-
-    with pytest.raises(ValueError, match="homogeneous fog"):
-        gym.make_vec("FogDriveRL-v0", num_envs=2, vectorization_mode="vector_entry_point", observation="objects",
-                     fog=FogBank(50.0, 100.0, 50.0))  # fmt: skip
-
-
