@@ -1,5 +1,5 @@
 """The ``fog-gym`` command: ``demo``, ``generate``, ``validate``, ``stats``, ``export``, ``audit``, ``view``, ``minari``,
-``bench`` and the studies ``exp1``, ``exp2`` and ``rl-bench`` (:mod:`fog_gym.experiments.runner`).
+``bench`` and the studies ``exp1``, ``exp2``, ``rl-bench`` and ``bank-study`` (:mod:`fog_gym.experiments.runner`).
 
 Example:
     >>> parser = build_parser()
@@ -138,6 +138,8 @@ STUDIES = {
     "exp1": "Experiment 1: does mixing fog densities in training make a 3D detector robust? (see fog-gym exp1 --help)",
     "exp2": "Experiment 2: defog-then-detect vs train-on-fog, 2D detection (see fog-gym exp2 --help)",
     "rl-bench": "the fog RL benchmark: agents per fog condition, train x test matrix (see fog-gym rl-bench --help)",
+    "bank-study": "fog banks: do agents trained on fog, on banks or on a curriculum of banks slow down before one? "
+                  "(see fog-gym bank-study --help)",
 }
 
 
@@ -150,6 +152,10 @@ def _study(name: str):
         from fog_gym.experiments.defog.study import Exp2Study
 
         return Exp2Study
+    if name == "bank-study":
+        from fog_gym.experiments.bank_study import BankStudy
+
+        return BankStudy
     from fog_gym.experiments.rl_bench.study import RLStudy
 
     return RLStudy

@@ -227,6 +227,10 @@ class ObjectWorlds:
         info: dict[str, Any] = {"speed": float(c.floats[w, 0, K.FS]), "crashed": c.ego_crashed(w),
                                 "fog": level.info() if isinstance(level, FogLevel) else field_info(level),
                                 "step": int(self.steps[w])}  # fmt: skip
+        if self.frows[w] > 0:  # where the ego stands in its fog field: the distance along the field's axis [m]
+            x0, y0, heading = self.fframes[w]
+            info["fog_u"] = float((c.floats[w, 0, K.FX] - x0) * math.cos(heading)
+                                  + (c.floats[w, 0, K.FY] - y0) * math.sin(heading))  # fmt: skip
         if c.hazards is not None:
             info.update(hazard_info(c.hazards_ego(w), c.hazards))
         if detections:
