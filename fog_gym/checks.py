@@ -118,3 +118,24 @@ def json_numbers(name: str, value: Any, limit: int = 10_000_000) -> Any:
         return np.asarray(value, np.float64)
     except (ValueError, OverflowError):
         raise ValueError(f"{name} must be a regular array of numbers") from None
+
+
+def json_record(data: bytes, keys: tuple[str, ...]) -> tuple[dict | None, str | None]:
+    """A small JSON file's bytes as ``(object, None)`` holding every key of ``keys``, or ``(None, problem)`` with one
+    phrase (empty, corrupt, not an object, missing keys). Never raises.
+
+    >>> json_record(b'{"a": 1}', ("a", "b"))
+    (None, "missing keys ['b']")
+    """
+    import json
+
+    try:
+        record = json.loads(data)
+    except (ValueError, RecursionError) as e:  # not UTF-8, not JSON, nested too deeply, an over-long number
+        return None, f"corrupt JSON ({type(e).__name__})" if data else "empty file"
+    if not isinstance(record, dict):
+        return None, "expected a JSON object"
+    missing = [k for k in keys if k not in record]
+    if missing:
+        return None, f"missing keys {missing}"
+    return record, None

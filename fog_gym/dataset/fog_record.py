@@ -34,7 +34,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from fog_gym.checks import json_numbers
+from fog_gym.checks import json_numbers, json_record
 
 KEYS = ("frame", "time", "fields")
 #: The field types a record may hold (``fog_gym.fog.fields``), and the parameters each must give.
@@ -79,15 +79,9 @@ def _json_safe(value: Any) -> Any:
 def fog_record_problem(data: bytes, levels: Sequence[str] | None = None) -> str | None:
     """The problem with a fog-field file's bytes (one phrase), or None; ``levels``: the level names it must hold.
     Never raises."""
-    try:
-        record = json.loads(data)
-    except (ValueError, RecursionError) as e:  # not UTF-8, not JSON, nested too deeply, an over-long number
-        return f"corrupt JSON ({type(e).__name__})" if data else "empty file"
-    if not isinstance(record, dict):
-        return "expected a JSON object"
-    missing = [k for k in KEYS if k not in record]
-    if missing:
-        return f"missing keys {missing}"
+    record, problem = json_record(data, KEYS)
+    if record is None:
+        return problem
     try:
         frame, time = json_numbers("frame", record["frame"]), json_numbers("time", record["time"])
     except ValueError:

@@ -27,7 +27,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from fog_gym.checks import json_numbers
+from fog_gym.checks import json_numbers, json_record
 
 KEYS = ("translation", "yaw", "velocity", "lidar_to_ego")
 
@@ -74,15 +74,9 @@ def _finite(value: Any, shape: tuple[int, ...], name: str) -> Any:
 
 def ego_pose_problem(data: bytes) -> str | None:
     """The problem with an ego-pose file's bytes (one phrase), or None. Never raises."""
-    try:
-        record = json.loads(data)
-    except (ValueError, RecursionError) as e:  # not UTF-8, not JSON, nested too deeply, an over-long number
-        return f"corrupt JSON ({type(e).__name__})" if data else "empty file"
-    if not isinstance(record, dict):
-        return "expected a JSON object"
-    missing = [k for k in KEYS if k not in record]
-    if missing:
-        return f"missing keys {missing}"
+    record, problem = json_record(data, KEYS)
+    if record is None:
+        return problem
     for key, shape in (("translation", (3,)), ("yaw", ()), ("velocity", (3,)), ("lidar_to_ego", (4, 4))):
         try:
             a = json_numbers(key, record[key])

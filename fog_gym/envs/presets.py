@@ -183,6 +183,20 @@ def make_fogdrive_rl_objects(fog: Any = "clear", **kwargs: Any) -> gym.Env:
     return make_fogdrive_rl_hazard(fog=fog, **{**OBJECTS_PRESET, **kwargs})
 
 
+def check_banks(banks: Any, kwargs: dict[str, Any]) -> Any:
+    """``FogDriveRLFogBank-v0``'s bank settings (a :class:`~fog_gym.fog.banks.BankConfig`, default when None); a
+    ``fog`` among ``kwargs`` or another ``banks`` is a ValueError before any world is built."""
+    from fog_gym.fog.banks import BankConfig
+
+    if "fog" in kwargs:
+        raise ValueError("FogDriveRLFogBank-v0 draws a fog bank per episode: configure it with banks=BankConfig(...), "
+                         "not fog=")  # fmt: skip
+    banks = BankConfig() if banks is None else banks
+    if not isinstance(banks, BankConfig):
+        raise ValueError(f"banks must be a fog_gym.fog.banks.BankConfig, got {banks!r}")
+    return banks
+
+
 def make_fogdrive_rl_fog_bank(banks: Any = None, observation: str = "pixels", **kwargs: Any) -> gym.Env:
     """``FogDriveRLFogBank-v0``: the hazard task (:func:`make_fogdrive_rl_hazard`: stalled vehicles ahead, the ego at
     25 m/s) with a fog bank on the road ahead, drawn anew at every reset
@@ -200,15 +214,9 @@ def make_fogdrive_rl_fog_bank(banks: Any = None, observation: str = "pixels", **
     >>> info["fog"]["type"], sorted(obs)
     ('FogBank', ['CAM_FRONT', 'LIDAR_BEV'])
     """
-    from fog_gym.fog.banks import BankConfig
     from fog_gym.wrappers import FogBankEpisodes
 
-    if "fog" in kwargs:
-        raise ValueError("FogDriveRLFogBank-v0 draws a fog bank per episode: configure it with banks=BankConfig(...), "
-                         "not fog=")  # fmt: skip
-    banks = BankConfig() if banks is None else banks
-    if not isinstance(banks, BankConfig):
-        raise ValueError(f"banks must be a fog_gym.fog.banks.BankConfig, got {banks!r}")
+    banks = check_banks(banks, kwargs)
     first = banks.draw(np.random.default_rng(0))  # (replaced at every reset)
     if check_observation(observation) == "objects":  # the worlds draw the bank themselves (as the vector env's do)
         return make_fogdrive_rl_hazard(fog=first, observation="objects", banks=banks, **kwargs)

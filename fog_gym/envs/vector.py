@@ -38,7 +38,7 @@ from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
 from fog_gym.envs.presets import (HAZARD_BEV_AHEAD, HAZARD_TRAFFIC, OBJECT_ARGS, OBJECTS_PRESET, RL_TRAFFIC,
-                                  check_observation, make_fogdrive_rl, objects_config)  # fmt: skip
+                                  check_banks, check_observation, make_fogdrive_rl, objects_config)  # fmt: skip
 from fog_gym.envs.objects import parse_objects_fog
 from fog_gym.fog.physics import parse_fog
 from fog_gym.world.hazards import HazardConfig
@@ -126,15 +126,8 @@ class FogDriveVectorEnv(gym.vector.VectorEnv):
         if with_hazards and hazards is None:
             hazards = HazardConfig()
         banks = kwargs.pop("banks", None)
-        if env_id == "FogDriveRLFogBank-v0":  # a bank per episode and sub-env (FogBankEpisodes), pixels only
-            from fog_gym.fog.banks import BankConfig
-
-            if "fog" in kwargs:
-                raise ValueError("FogDriveRLFogBank-v0 draws a fog bank per episode: configure it with "
-                                 "banks=BankConfig(...), not fog=")  # fmt: skip
-            banks = BankConfig() if banks is None else banks
-            if not isinstance(banks, BankConfig):
-                raise ValueError(f"banks must be a fog_gym.fog.banks.BankConfig, got {banks!r}")
+        if env_id == "FogDriveRLFogBank-v0":  # a bank per episode and world (drawn as the single env draws it)
+            banks = check_banks(banks, kwargs)
         elif banks is not None:
             raise ValueError(f"banks configures FogDriveRLFogBank-v0, not {env_id}")
         fog = kwargs.pop("fog", "clear" if banks is None else banks.draw(np.random.default_rng(0)))
