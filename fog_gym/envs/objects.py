@@ -265,7 +265,8 @@ class FogDriveObjectsEnv(gym.Env):
     """One world of :class:`ObjectWorlds` as a Gymnasium env (what ``gym.make(<RL preset>, observation="objects")``
     returns). Observation: ``Box(-1, 1, (max_objects, 6 + len(sensors)), float32)`` (``layout="lanes"``: ``(4, 5)``);
     actions, reward, termination and truncation as the preset's; ``info``: speed, crashed, fog, step, hazards and
-    hazard_count (hazard preset), detections (unless ``info_detections=False``: the fastest training loop).
+    hazard_count (hazard preset), fog_u (in a fog field: the ego's distance along the field's axis), detections
+    (unless ``info_detections=False``: the fastest training loop).
 
     ``worlds`` and ``index`` make it a view of world ``index`` of a shared :class:`ObjectWorlds` (the native vector
     env's sub-envs, for ``get_attr`` / ``set_attr`` / ``call``); it then reads the world's state and draws on its
