@@ -118,20 +118,62 @@ def _soft_bound(r, beta_max):
 
 
 @njit(cache=True, inline="always")
-def _beam(pts, n, pose, terms, out):
+def _beam(pts, n, pose, terms, out, height):
     # Point n's beam in the field frame: its range, unit direction's run along u and up, τ to the point in closed form,
     # its 0–255 intensity and hard return; a beam without fog keeps the point as in clear air (written to out).
+    # height: empty, or for a field of height and homogeneous terms each term's constants (_height_depth).
     x, y, z = np.float64(pts[n, 0]), np.float64(pts[n, 1]), np.float64(pts[n, 2])
     r0 = np.sqrt(x * x + y * y + z * z)
     inv = 1.0 / max(r0, 1e-12)
     du = (pose[2] * x + pose[3] * y + pose[4] * z) * inv
     dz = (pose[5] * x + pose[6] * y + pose[7] * z) * inv
-    tau0 = segment_depth(terms, pose[0], pose[1], du, dz, r0)
+    if height.shape[0]:
+        tau0 = _height_depth(terms, height, pose[1], dz, r0)
+    else:
+        tau0 = segment_depth(terms, pose[0], pose[1], du, dz, r0)
     i_orig = np.round(np.float64(pts[n, 3]) * 255.0)
     if tau0 == 0.0:
         for c in range(pts.shape[1]):
             out[n, c] = pts[n, c]
     return r0, du, dz, tau0, i_orig, np.round(i_orig * np.exp(-2.0 * tau0))
+
+
+@njit(cache=True, inline="always")
+def _height_depth(terms, height, z0, dz, length):
+    # segment_depth of height and homogeneous terms from a sensor at z0 > 0, with the sensor's constants per term
+    # (height[k] = e^{−z0/H}, g(z0/H) = (1 − e^{−z0/H})/(z0/H)): a segment that ends below the road sees β(0) there
+    # and the mean of β over [0, z0] above it (no exponential); one that stays above it β(z0)·L·(e^{x} − 1)/x down or
+    # β(z0)·L·(1 − e^{−x})/x up, x = |Δz|/H (one). The same formulas as segment_depth, rearranged.
+    z1 = z0 + dz * length
+    tau = 0.0
+    for k in range(terms.shape[0]):
+        b0 = terms[k, 1]
+        if terms[k, 0] == 0.0:
+            tau += b0 * length
+        elif z1 < 0.0:  # (z0 > 0: the part below the road is (−z1)/(z0 − z1) of the segment)
+            below = length * (-z1) / (z0 - z1)
+            tau += b0 * (below + (length - below) * height[k, 1])
+        else:
+            x = abs(z1 - z0) / terms[k, 2]
+            if x < 1e-6:
+                mean = 1.0 + 0.5 * x if z1 < z0 else 1.0 - 0.5 * x
+            else:
+                mean = (math.exp(x) - 1.0) / x if z1 < z0 else -math.expm1(-x) / x
+            tau += b0 * height[k, 0] * length * mean
+    return tau
+
+
+def _height_constants(terms: np.ndarray, z0: float) -> np.ndarray:
+    """_height_depth's constants of a field of height and homogeneous terms seen from z0 > 0 (empty otherwise: the
+    general closed form)."""
+    if z0 <= 0.0 or not np.all((terms[:, 0] == 0.0) | (terms[:, 0] == 1.0)):
+        return np.zeros((0, 2))
+    out = np.zeros((len(terms), 2))
+    for k, row in enumerate(terms):
+        if row[0] == 1.0:
+            x = z0 / row[2]
+            out[k] = math.exp(-x), -math.expm1(-x) / x
+    return out
 
 
 @njit(cache=True, inline="always")
@@ -259,14 +301,14 @@ def _clear_node(terms, u0, z0, du, dz, step, top):
 
 
 @njit(cache=True, parallel=True)
-def _hahner_curves(pts, pose, terms, node_dz, first, lo_key, rounding, best, where, stops, step, log_noise, u, out,
-                   attenuation):
+def _hahner_curves(pts, pose, terms, height, node_dz, first, lo_key, rounding, best, where, stops, step, log_noise, u,
+                   out, attenuation):
     # Hahner et al. with a field whose β depends on height only: each point's soft-return maximum from the curves of
     # the two beam elevations around its own (node_dz ascending; linear in dz, the range of the nearer), its hard
     # return exactly (τ in closed form); then the rule (_field_rule).
     last = best.shape[1] - 1
     for n in prange(pts.shape[0]):
-        r0, _, dz, tau0, i_orig, i_hard = _beam(pts, n, pose, terms, out)
+        r0, _, dz, tau0, i_orig, i_hard = _beam(pts, n, pose, terms, out, height)
         if tau0 == 0.0:  # (kept as in clear air)
             continue
         k = min(int(np.round(min(r0, 200.0) / step)), last)
@@ -353,6 +395,7 @@ def _hahner_bank(pts, pose, terms, side, align, nodes, clear_outside, best, wher
     dist = abs(align - pose[0])
     half = n_nodes // 2
     log_ratio = math.log(nodes[1] / nodes[0]) if side != 0 else math.log(nodes[half + 1] / nodes[half])
+    none = np.zeros((0, 2))  # (_beam's general closed form)
     for n in prange(pts.shape[0]):
         x, y, z = np.float64(pts[n, 0]), np.float64(pts[n, 1]), np.float64(pts[n, 2])
         r0 = np.sqrt(x * x + y * y + z * z)
@@ -362,7 +405,7 @@ def _hahner_bank(pts, pose, terms, side, align, nodes, clear_outside, best, wher
             for c in range(pts.shape[1]):
                 out[n, c] = pts[n, c]
             continue
-        r0, du, dz, tau0, i_orig, i_hard = _beam(pts, n, pose, terms, out)
+        r0, du, dz, tau0, i_orig, i_hard = _beam(pts, n, pose, terms, out, none)
         if tau0 == 0.0:  # (kept as in clear air)
             continue
         j1 = min(j + 1, n_nodes)  # (the background's curve alone: weight 0)
@@ -449,8 +492,9 @@ def _hahner_field(pts, pose, terms, weights, ramp, weights5, ramp5, coarse, step
     # (fog_gym.fog.fields). Per point: τ(R0) in closed form, the soft return's maximum on its beam
     # (beam_soft_maximum); then Hahner et al.'s rule as _hahner.
     u0, z0 = pose[0], pose[1]
+    none = np.zeros((0, 2))  # (_beam's general closed form)
     for n in prange(pts.shape[0]):
-        r0, du, dz, tau0, i_orig, i_hard = _beam(pts, n, pose, terms, out)
+        r0, du, dz, tau0, i_orig, i_hard = _beam(pts, n, pose, terms, out, none)
         if tau0 == 0.0:  # no fog on the ray: no backscatter either, the point is kept as in clear air
             continue
         best, best_k = beam_soft_maximum(terms, u0, z0, du, dz, r0, weights, ramp, weights5, ramp5, coarse, step,
@@ -485,8 +529,8 @@ def fog_lidar_field(points: np.ndarray, field, rng: np.random.Generator, pose: n
     log_noise, attenuation = math.log(max(1.0, noise / 5.0)) if noise > 0 else 0.0, -1.0 if reflectance is None else float(reflectance)
     if BANK not in terms[:, 0] and len(pts):  # β depends on height only: one soft-return curve per beam elevation
         node_dz, first, lo_key, best, where, stops = _elevation_curves(pts, pose, terms)
-        _hahner_curves(pts, pose, terms, node_dz, first, lo_key, ELEVATION_ROUND, best, where, stops, FIELD_STEP,
-                       log_noise, u, out, attenuation)  # fmt: skip
+        _hahner_curves(pts, pose, terms, _height_constants(terms, float(pose[1])), node_dz, first, lo_key,
+                       ELEVATION_ROUND, best, where, stops, FIELD_STEP, log_noise, u, out, attenuation)  # fmt: skip
         return out
     plan = _bank_plan(terms, pose)
     if plan is not None and len(pts):  # one bank (in homogeneous fog or none): curves per run along u, face-aligned
