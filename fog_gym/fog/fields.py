@@ -211,8 +211,8 @@ def world_optical_depth(field: FogField, frame, time: float, start, ends) -> np.
     dataset's fog record (:mod:`fog_gym.dataset.fog_record`) gives the frame, the time and the field.
 
     >>> bank = FogBank(50.0, 30.0, 20.0, edge=0.0)
-    >>> world_optical_depth(bank, (10.0, 5.0, math.pi / 2), 0.0, (10.0, 5.0, 1.0), [[10.0, 105.0, 1.0]]).round(4)
-    array([0.5991])
+    >>> world_optical_depth(bank, (10.0, 5.0, math.pi / 2), 0.0, (10.0, 5.0, 1.0), [[10.0, 105.0, 1.0]]).round(4)  # 20 m
+    array([1.1983])
     """
     start = np.asarray(start, np.float64).reshape(3)
     ends = np.asarray(ends, np.float64).reshape(-1, 3)

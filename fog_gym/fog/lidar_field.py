@@ -4,14 +4,15 @@
 
 Three paths give the same decisions (tested against each other and against a direct integration of the LiDAR
 equation): fields whose β depends on height only read one soft-return curve per beam elevation; a single fog bank
-reads curves per beam run along the bank's axis, aligned on the bank's face (:func:`_bank_curves_plan`); any other
+reads curves per beam run along the bank's axis, aligned on the bank's face (:func:`_bank_plan`); any other
 field integrates each beam on its own (:func:`_hahner_field`).
 
 Example:
     >>> from fog_gym.fog.fields import FogBank
     >>> from fog_gym.fog.depth import field_pose
     >>> pts = np.array([[30.0, 0, 0, 0.5], [120.0, 0, 0, 0.5]], np.float32)
-    >>> out = fog_lidar_field(pts, FogBank(20.0, 60.0, 30.0), np.random.default_rng(0), field_pose(np.eye(4), (0, 0, 0)))
+    >>> pose = field_pose(np.eye(4), (0, 0, 0))
+    >>> out = fog_lidar_field(pts, FogBank(20.0, 60.0, 30.0), np.random.default_rng(0), pose, noise=0.0)
     >>> out[0].tolist() == pts[0].tolist(), bool(50.0 < out[1, 0] < 70.0)  # kept before the bank; behind: its face
     (True, True)
 """
