@@ -41,37 +41,21 @@ def _params():
     out = []
     for page in PAGES:
         rel = page.relative_to(ROOT).as_posix()
-        for line, lang, code, marks in doc_blocks(page.read_text()):
+        for index, (line, lang, code, marks) in enumerate(doc_blocks(page.read_text())):
             m = [pytest.mark.slow] if "slow" in marks.split() else []
-            need = re.search(r"needs (\S+)", marks)
-            if need and importlib.util.find_spec(need.group(1)) is None:
-                m.append(pytest.mark.skip(reason=f"needs the optional {need.group(1)}"))
-            out.append(pytest.param(rel, lang, code, id=f"{rel}:{line}", marks=m))
+            if not _runnable(marks):
+                need = re.search(r"needs (\S+)", marks).group(1)
+                m.append(pytest.mark.skip(reason=f"needs the optional {need}"))
+            out.append(pytest.param(rel, index, lang, code, id=f"{rel}:{line}", marks=m))
     return out
 
 
-@pytest.fixture(scope="module")
-def namespaces(tmp_path_factory):
-    """page → (its namespace, its working folder), made on the page's first block."""
-    spaces: dict[str, tuple[dict, Path]] = {}
-
-    def get(page: str) -> tuple[dict, Path]:
-        if page not in spaces:
-            folder = tmp_path_factory.mktemp(re.sub(r"\W+", "_", page))
-            spaces[page] = ({"__name__": "__docs__"}, folder)
-        return spaces[page]
-
-    yield get
-    for ns, _ in spaces.values():
-        for value in list(ns.values()):
-            if isinstance(value, gym.Env):  # environments the page made
-                value.close()
+def _runnable(marks: str) -> bool:
+    need = re.search(r"needs (\S+)", marks)
+    return not (need and importlib.util.find_spec(need.group(1)) is None)
 
 
-@pytest.mark.parametrize("page, lang, code", _params())
-def test_doc_block_runs(namespaces, monkeypatch, page, lang, code):
-    ns, folder = namespaces(page)
-    monkeypatch.chdir(folder)
+def _run_block(ns: dict, page: str, lang: str, code: str) -> None:
     if lang == "python":
         exec(compile(code, str(ROOT / page), "exec"), ns)
         return
@@ -81,6 +65,41 @@ def test_doc_block_runs(namespaces, monkeypatch, page, lang, code):
     runner.run(test, out=failures.append, clear_globs=False)
     assert not failures, "".join(failures)
     ns.update(test.globs)
+
+
+@pytest.fixture(scope="module")
+def namespaces(tmp_path_factory):
+    """page → (its namespace, its working folder, [how many of its blocks ran in it]), made on the page's first
+    block in this process."""
+    spaces: dict[str, tuple[dict, Path, list[int]]] = {}
+
+    def get(page: str) -> tuple[dict, Path, list[int]]:
+        if page not in spaces:
+            folder = tmp_path_factory.mktemp(re.sub(r"\W+", "_", page))
+            spaces[page] = ({"__name__": "__docs__"}, folder, [0])
+        return spaces[page]
+
+    yield get
+    for ns, _, _ in spaces.values():
+        for value in list(ns.values()):
+            if isinstance(value, gym.Env):  # environments the page made
+                value.close()
+
+
+@pytest.mark.parametrize("page, index, lang, code", _params())
+def test_doc_block_runs(namespaces, monkeypatch, page, index, lang, code):
+    """A block runs after the page's earlier blocks, in the page's namespace: where another test process ran some of
+    them (pytest-xdist shares a page's blocks out), this one runs them first (all but slow ones and those whose
+    optional module is missing, as a run in one process does)."""
+    ns, folder, done = namespaces(page)
+    monkeypatch.chdir(folder)
+    if done[0] < index:
+        blocks = doc_blocks((ROOT / page).read_text())
+        for _, earlier_lang, earlier_code, marks in blocks[done[0]:index]:
+            if "slow" not in marks.split() and _runnable(marks):
+                _run_block(ns, page, earlier_lang, earlier_code)
+    _run_block(ns, page, lang, code)
+    done[0] = max(done[0], index + 1)
 
 
 def test_readme_is_a_front_door():
