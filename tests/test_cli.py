@@ -41,3 +41,18 @@ def test_errors_read_fog_gym_command_message(argv, message, tmp_path, monkeypatc
     with pytest.raises(SystemExit) as e:
         main(argv)
     assert str(e.value.code).startswith(message)
+
+
+def test_generate_lays_out_fog_fields_and_validate_checks_their_records(tmp_path, capsys):
+    import json
+
+    root = tmp_path / "set"
+    assert main(["generate", "--root", str(root), "--scenes", "2", "--seconds", "0.1", "--resolution", "32x24",
+                 "--towns", "highway", "--fog-fields", "height"]) == 0  # fmt: skip
+    assert json.loads((root / "index" / "manifest.json").read_text())["fog_fields"] == "height"
+    records = sorted(root.glob("data_root/*/fog_field/*.json"))
+    assert len(records) == 4 and all(json.loads(r.read_text())["fields"]["dense"]["type"] == "HeightFog" for r in records)
+    assert main(["validate", str(root)]) == 0
+    with pytest.raises(SystemExit) as e:
+        main(["generate", "--root", str(tmp_path / "b"), "--scenes", "2", "--fog-fields", "fog"])
+    assert e.value.code == 2 and "--fog-fields" in capsys.readouterr().err
