@@ -23,7 +23,7 @@ their reach in 50 m fog (it drives slowly throughout) — the bounds an agent on
 
 Units (the study runner, :mod:`fog_gym.experiments.runner`: resume, seeds, ``--jobs``): ``train/<condition>_s<seed>``
 (the model, ``models/<name>.zip``; a unit cut short trains again from the start), ``eval/<condition>_s<seed>`` and
-``driver/<reach>``. The report: ``bank_study.md``, ``bank_study.json`` and ``bank_study.png`` (speed against the
+``driver/<reach>`` (the agents' camera+lidar set) and ``driver/<sensors>-<reach>`` (the others). The report: ``bank_study.md``, ``bank_study.json`` and ``bank_study.png`` (speed against the
 distance to the bank's face, per condition, and the collision rates).
 """
 
@@ -42,6 +42,9 @@ CONDITIONS = ("homogeneous", "banks", "bank-curriculum")
 #: The perceived-objects observation every agent learns on (FogDriveRLObjects-v0's, from the camera and the LiDAR: the
 #: radar sees through fog, so with it the fog would hardly matter) and the env kwargs of the test.
 SENSORS = ("camera", "lidar")
+#: The scripted driver's sensor sets (its bound per set; the agents' set, camera+lidar, has the keys "clear" and "fog").
+DRIVER_SETS = {"camera+lidar": SENSORS, "camera": ("camera",), "lidar": ("lidar",), "radar": ("radar",),
+               "fused": ("camera", "lidar", "radar")}  # fmt: skip
 OBJECTS = {"observation": "objects", "layout": "lanes", "flat": True, "sensors": list(SENSORS)}
 EVAL_SEED = 1_000_000
 #: Distances to the bank's face [m] at which the speed profile is read (negative: before it).
@@ -120,6 +123,8 @@ class BankStudy(Study):
         out = [Unit("train", f"{c}_s{s}", s, {"condition": c}) for s in seeds for c in self.conditions]
         out += [Unit("eval", f"{c}_s{s}", s, {"condition": c}) for s in seeds for c in self.conditions]
         out += [Unit("driver", reach, 0, {"reach": reach}) for reach in ("clear", "fog")]
+        out += [Unit("driver", f"{name}-{reach}", 0, {"reach": reach, "sensors": name})
+                for name in DRIVER_SETS if name != "camera+lidar" for reach in ("clear", "fog")]  # fmt: skip
         return out
 
     def artefacts(self, unit: Unit) -> list[str]:
@@ -133,7 +138,7 @@ class BankStudy(Study):
 
             model = PPO.load(str(out / "models" / f"{unit.key}.zip"), device="cpu")
             return self._evaluate(lambda obs: int(model.predict(obs, deterministic=True)[0]), progress)
-        return self._driver(unit.params["reach"], progress)
+        return self._driver(unit.params["reach"], unit.params.get("sensors", "camera+lidar"), progress)
 
     # -- units ------------------------------------------------------------------------------------------------
     def _train(self, unit: Unit, out: Path, progress: bool) -> dict[str, Any]:
@@ -201,13 +206,14 @@ class BankStudy(Study):
     def _evaluate(self, act, progress: bool) -> dict[str, Any]:
         return {"episodes": self._episodes(act, progress)}
 
-    def _driver(self, reach: str, progress: bool) -> dict[str, Any]:
+    def _driver(self, reach: str, sensors: str, progress: bool) -> dict[str, Any]:
         from fog_gym.perception.driver import DetectionDriver, sensor_reach
 
         fog = "clear" if reach == "clear" else 50.0
-        metres = sensor_reach(SENSORS, fog, episodes=4 if self.episodes < 8 else 8)
+        metres = sensor_reach(DRIVER_SETS[sensors], fog, episodes=4 if self.episodes < 8 else 8)
         driver = DetectionDriver(metres)
-        rows = self._episodes(driver.act, progress, {"layout": "list", "flat": False})  # (the driver reads the list)
+        rows = self._episodes(driver.act, progress, {"layout": "list", "flat": False,  # (the driver reads the list)
+                                                     "sensors": list(DRIVER_SETS[sensors])})  # fmt: skip
         return {"reach_m": metres, "cruise": driver.cruise, "episodes": rows}
 
     # -- report -----------------------------------------------------------------------------------------------
@@ -233,7 +239,9 @@ class BankStudy(Study):
             known = {k: v for k, v in summary(eps).items() if v is not None}  # (a seed without a metric: not counted)
             cells.setdefault(cond, {}).setdefault("test", {})[rec["seed"]] = known
             profiles.setdefault(cond, []).extend(e["profile"] for e in eps)
-        drivers = {r["params"]["reach"]: r["result"] for r in records.values() if r["stage"] == "driver"}
+        every = {(r["params"].get("sensors", "camera+lidar"), r["params"]["reach"]): r["result"]
+                 for r in records.values() if r["stage"] == "driver"}  # fmt: skip
+        drivers = {reach: res for (name, reach), res in every.items() if name == "camera+lidar"}
         stats = aggregate(cells, ("return", "collisions", "crash_in_bank", "reached", "v_before", "v_entry", "slowed",
                                   "dv"))  # fmt: skip
         cols = ["return", "collisions", "crash_in_bank", "reached", "v_before", "v_entry", "dv", "slowed"]
@@ -248,6 +256,15 @@ class BankStudy(Study):
             s = summary(res["episodes"])
             lines.append(f"| driver, {reach} reach ({res['reach_m']:.0f} m, cruise {res['cruise']:.0f} m/s) | "
                          + " | ".join("–" if s[c] is None else f"{s[c]:.2f}" for c in cols) + " |")  # fmt: skip
+        others = sorted(k for k in every if k[0] != "camera+lidar")
+        if others:
+            lines += ["", "The scripted detection driver per sensor set (its reach in clear air and in 50 m fog):", "",
+                      "| sensors | reach | reach [m] | cruise [m/s] | " + " | ".join(cols) + " |",
+                      "|---|---|---|---|" + "---|" * len(cols)]  # fmt: skip
+            for name, reach in sorted(every):
+                res, sm = every[(name, reach)], summary(every[(name, reach)]["episodes"])
+                lines.append(f"| {name} | {reach} | {res['reach_m']:.0f} | {res['cruise']:.0f} | "
+                             + " | ".join("–" if sm[c] is None else f"{sm[c]:.2f}" for c in cols) + " |")  # fmt: skip
         lines += ["", "v_before: speed 100 m before the bank's face; v_entry: at the face [m/s]; dv = v_entry − "
                   "v_before; slowed: share of episodes with dv ≤ −2.5 m/s; reached: share of episodes that reached "
                   "the face; crash_in_bank: share of episodes that ended in a collision inside the bank. Means over "
@@ -283,8 +300,8 @@ class BankStudy(Study):
             save_figure(fig, path)
             plt.close(fig)
 
-        data = {"stats": stats, "drivers": {r: {**summary(d["episodes"]), "reach_m": d["reach_m"],
-                                                "cruise": d["cruise"]} for r, d in drivers.items()}}  # fmt: skip
+        data = {"stats": stats, "drivers": {f"{n}/{r}": {**summary(d["episodes"]), "reach_m": d["reach_m"],
+                                                        "cruise": d["cruise"]} for (n, r), d in every.items()}}  # fmt: skip
         return Report("\n".join(lines) + "\n", data, "bank_study.md", "bank_study.json",
                       {"bank_study.png": figure} if cells else {})
 

@@ -7,7 +7,7 @@ import json
 import numpy as np
 import pytest
 
-from fog_gym.experiments.bank_study import CONDITIONS, BankStudy, curriculum_banks, episode_measures
+from fog_gym.experiments.bank_study import CONDITIONS, DRIVER_SETS, BankStudy, curriculum_banks, episode_measures
 
 
 def test_the_curriculum_thickens_the_banks_monotonically_in_extinction_and_then_holds_the_tests_range():
@@ -46,7 +46,8 @@ def test_the_units_train_then_test_every_condition_per_seed_and_drive_the_script
     stages = [u.stage for u in units]
     assert stages == sorted(stages, key=["train", "eval", "driver"].index)
     assert {u.key for u in units if u.stage == "train"} == {f"{c}_s{s}" for c in CONDITIONS for s in (0, 1)}
-    assert [u.key for u in units if u.stage == "driver"] == ["clear", "fog"]
+    drivers = [u.key for u in units if u.stage == "driver"]
+    assert drivers[:2] == ["clear", "fog"] and len(drivers) == 2 * len(DRIVER_SETS)
 
 
 @pytest.mark.slow
@@ -55,6 +56,9 @@ def test_the_smoke_study_runs_end_to_end_and_reports(tmp_path):
 
     assert main(["--smoke", "--out", str(tmp_path)]) == 0
     data = json.loads((tmp_path / "bank_study.json").read_text())
-    assert set(data["stats"]) == set(CONDITIONS) and set(data["drivers"]) == {"clear", "fog"}
-    assert data["drivers"]["clear"]["reach_m"] > data["drivers"]["fog"]["reach_m"]  # fog shortens the reach
+    assert set(data["stats"]) == set(CONDITIONS)
+    assert set(data["drivers"]) == {f"{n}/{r}" for n in DRIVER_SETS for r in ("clear", "fog")}
+    cl = data["drivers"]
+    assert cl["camera+lidar/clear"]["reach_m"] > cl["camera+lidar/fog"]["reach_m"]  # fog shortens the reach
+    assert cl["radar/clear"]["reach_m"] == pytest.approx(cl["radar/fog"]["reach_m"], rel=0.05)  # but not the radar's
     assert (tmp_path / "bank_study.png").stat().st_size > 10_000
