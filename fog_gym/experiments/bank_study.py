@@ -22,7 +22,8 @@ drives the same episodes twice: with the reach its sensors have in clear air (it
 their reach in 50 m fog (it drives slowly throughout) — the bounds an agent on this observation lies between.
 
 Units (the study runner, :mod:`fog_gym.experiments.runner`: resume, seeds, ``--jobs``): ``train/<condition>_s<seed>``
-(the model, ``models/<name>.zip``; a unit cut short trains again from the start), ``eval/<condition>_s<seed>`` and
+(the model, ``models/<name>.zip``; a unit cut short continues from its last checkpoint, every ``--checkpoint``
+steps), ``eval/<condition>_s<seed>`` and
 ``driver/<reach>`` (the agents' camera+lidar set) and ``driver/<sensors>-<reach>`` (the others). The report: ``bank_study.md``, ``bank_study.json`` and ``bank_study.png`` (speed against the
 distance to the bank's face, per condition, and the collision rates).
 """
@@ -106,14 +107,16 @@ class BankStudy(Study):
     smoke_help = "2 000 training steps and 2 episodes per agent: checks the pipeline, measures nothing"
 
     def __init__(self, steps: int = 150_000, envs: int = 8, episodes: int = 32,
-                 conditions: Sequence[str] = CONDITIONS) -> None:  # fmt: skip
-        for name, value, low in (("steps", steps, 256), ("envs", envs, 1), ("episodes", episodes, 1)):
+                 conditions: Sequence[str] = CONDITIONS, checkpoint: int = 25_000) -> None:  # fmt: skip
+        for name, value, low in (("steps", steps, 256), ("envs", envs, 1), ("episodes", episodes, 1),
+                                 ("checkpoint", checkpoint, 1)):  # fmt: skip
             if isinstance(value, bool) or not isinstance(value, int) or value < low:
                 raise ValueError(f"{name} must be an integer >= {low}, got {value!r}")
         bad = [c for c in conditions if c not in CONDITIONS]
         if bad or not conditions or len(set(conditions)) < len(conditions):
             raise ValueError(f"conditions must be distinct names of {CONDITIONS}, got {list(conditions)}")
         self.steps, self.envs, self.episodes, self.conditions = steps, envs, episodes, tuple(conditions)
+        self.checkpoint = checkpoint  # (not a setting: how often a training unit saves what it has)
 
     def settings(self) -> dict[str, Any]:
         return {"steps": self.steps, "envs": self.envs, "episodes": self.episodes, "algo": "PPO",
@@ -142,44 +145,65 @@ class BankStudy(Study):
 
     # -- units ------------------------------------------------------------------------------------------------
     def _train(self, unit: Unit, out: Path, progress: bool) -> dict[str, Any]:
+        import os
+        import pickle
         import time
 
         import gymnasium as gym
         import torch
+        from stable_baselines3 import PPO
         from stable_baselines3.common.callbacks import BaseCallback
         from stable_baselines3.common.vec_env import VecMonitor
 
         import fog_gym  # noqa: F401
         from fog_gym.experiments.rl_bench.train import new_model
+        from fog_gym.experiments.runner import write_atomic
         from fog_gym.fog.schedules import MixedSampler
         from fog_gym.rl.sb3 import VecFogCurriculum, VectorEnvAdapter
 
         torch.set_num_threads(1)
         condition = unit.params["condition"]
+        ckpt = out / "checkpoints" / unit.key  # a unit cut short continues from its last checkpoint
+        ckpt.mkdir(parents=True, exist_ok=True)
+        model_path, state_path = ckpt / "model.zip", ckpt / "state.pkl"
+        state = pickle.loads(state_path.read_bytes()) if model_path.exists() and state_path.exists() else {}
         env_id = "FogDriveRLHazard-v0" if condition == "homogeneous" else "FogDriveRLFogBank-v0"
         kwargs = dict(OBJECTS) if condition != "bank-curriculum" else {**OBJECTS, "banks": curriculum_banks(0.0)}
         base = gym.make_vec(env_id, num_envs=self.envs, vectorization_mode="vector_entry_point", info_detections=False,
                             **kwargs)  # fmt: skip
         venv = VectorEnvAdapter(base)
-        venv.seed(1000 * unit.seed)
+        venv.seed(1000 * unit.seed + state.get("checkpoints", 0))  # (a resumed run: fresh episodes)
+        curriculum = None
         if condition == "homogeneous":
-            venv = VecFogCurriculum(venv, MixedSampler(seed=unit.seed))
+            venv = curriculum = VecFogCurriculum(venv, state.get("curriculum") or MixedSampler(seed=unit.seed))
         venv = VecMonitor(venv)
-        worlds, steps = base.unwrapped.worlds, self.steps
+        worlds, steps, every = base.unwrapped.worlds, self.steps, self.checkpoint
+        if state:
+            model = PPO.load(str(model_path), env=venv, device="cpu")
+        else:
+            model = new_model("PPO", "MlpPolicy", venv, steps, self.envs, unit.seed, "cpu", None)
 
-        class Curriculum(BaseCallback):
+        class Progress(BaseCallback):
             def _on_step(self) -> bool:
                 if condition == "bank-curriculum":
                     worlds.banks = curriculum_banks(self.num_timesteps / steps)
+                if self.num_timesteps % every < self.training_env.num_envs:
+                    self.model.save(str(ckpt / ".model.tmp.zip"))
+                    os.replace(ckpt / ".model.tmp.zip", model_path)
+                    write_atomic(state_path, pickle.dumps({"checkpoints": state.get("checkpoints", 0) + 1,
+                                                           "curriculum": curriculum and curriculum.curriculum}))
                 return True
 
-        model = new_model("PPO", "MlpPolicy", venv, steps, self.envs, unit.seed, "cpu", None)
+        remaining = steps - model.num_timesteps
         t0 = time.perf_counter()
-        model.learn(steps, callback=Curriculum(), progress_bar=progress)
+        if remaining > 0:
+            model.learn(remaining, callback=Progress(), reset_num_timesteps=False, progress_bar=progress)
         (out / "models").mkdir(parents=True, exist_ok=True)
-        model.save(str(out / "models" / f"{unit.key}.zip"))
+        model.save(str(out / "models" / f".{unit.key}.tmp.zip"))
+        os.replace(out / "models" / f".{unit.key}.tmp.zip", out / "models" / f"{unit.key}.zip")
         venv.close()
-        return {"steps": steps, "steps_per_s": steps / (time.perf_counter() - t0)}
+        return {"steps": steps, "trained": max(remaining, 0),
+                "steps_per_s": max(remaining, 0) / max(time.perf_counter() - t0, 1e-9)}  # fmt: skip
 
     def _episodes(self, act, progress: bool, make_kwargs: dict[str, Any] | None = None) -> list[dict[str, Any]]:
         import gymnasium as gym
@@ -318,12 +342,15 @@ class BankStudy(Study):
         parser.add_argument("--episodes", type=int, default=32, help="test episodes per agent (default 32)")
         parser.add_argument("--conditions", nargs="+", default=list(CONDITIONS), choices=CONDITIONS,
                             help="training conditions (default all)")  # fmt: skip
+        parser.add_argument("--checkpoint", type=int, default=25_000,
+                            help="a training unit saves its model every this many steps; a unit cut short continues "
+                            "from there (default 25000)")  # fmt: skip
 
     @classmethod
     def from_args(cls, args: argparse.Namespace) -> BankStudy:
         if args.smoke:
-            return cls(steps=2_000, envs=2, episodes=2, conditions=tuple(args.conditions))
-        return cls(args.steps, args.envs, args.episodes, tuple(args.conditions))
+            return cls(steps=2_000, envs=2, episodes=2, conditions=tuple(args.conditions), checkpoint=1_000)
+        return cls(args.steps, args.envs, args.episodes, tuple(args.conditions), args.checkpoint)
 
 
 def main(argv: Sequence[str] | None = None) -> int:

@@ -62,3 +62,14 @@ def test_the_smoke_study_runs_end_to_end_and_reports(tmp_path):
     assert cl["camera+lidar/clear"]["reach_m"] > cl["camera+lidar/fog"]["reach_m"]  # fog shortens the reach
     assert cl["radar/clear"]["reach_m"] == pytest.approx(cl["radar/fog"]["reach_m"], rel=0.05)  # but not the radar's
     assert (tmp_path / "bank_study.png").stat().st_size > 10_000
+
+
+def test_a_training_unit_cut_short_continues_from_its_last_checkpoint(tmp_path):
+    from fog_gym.experiments.runner import Unit
+
+    unit = Unit("train", "banks_s0", 0, {"condition": "banks"})
+    first = BankStudy(steps=512, envs=2, episodes=1, checkpoint=256)._train(unit, tmp_path, progress=False)
+    assert first["trained"] == 512 and (tmp_path / "checkpoints" / "banks_s0" / "model.zip").exists()
+    # the same unit asked for more steps (as if the first run had stopped at its checkpoint) trains only the rest
+    more = BankStudy(steps=1024, envs=2, episodes=1, checkpoint=256)._train(unit, tmp_path, progress=False)
+    assert more["trained"] == 512 and (tmp_path / "models" / "banks_s0.zip").exists()
