@@ -27,7 +27,7 @@ from gymnasium import spaces
 from gymnasium.utils import seeding
 
 from fog_gym.fog.banks import BankConfig, bank_rng
-from fog_gym.fog.fields import field_info
+from fog_gym.fog.fields import along_axis, field_info
 from fog_gym.fog.lidar import BETA_PER_MOR, GAMMA, soft_response_table
 from fog_gym.fog.lidar_field import FIELD_COARSE, FIELD_STEP, field_pulse_weights, peak_extinction
 from fog_gym.fog.physics import FogField, FogLevel, parse_fog
@@ -105,7 +105,8 @@ class ObjectWorlds:
         self.frows = np.zeros(num_worlds, np.int64)
         self.fframes = np.zeros((num_worlds, 3))
         self.fbeta = np.zeros(num_worlds)
-        self._pulse = tuple(np.zeros((1, 1)) if k % 2 == 0 else np.zeros(1) for k in range(4))  # (set with a field)
+        self.fdrift = np.zeros(num_worlds, np.bool_)  # a drifting bank: its terms are packed anew every step
+        self._pulse = (np.zeros((1, 1)), np.zeros(1), np.zeros((1, 1)), np.zeros(1))  # (the weights, with a field)
         static = town_static_world(NativeTrafficWorld("highway", core=self.core), "highway",
                                    self.core.lanes, surface_resolution, 1050.0)  # fmt: skip
         s = static.surface
@@ -131,10 +132,12 @@ class ObjectWorlds:
     def _set_level(self, w: int, level: FogField) -> None:
         self.levels[w] = level
         self.frows[w] = 0
+        self.fdrift[w] = False
         if not level.is_homogeneous:  # a fog field: closed-form τ on every ray, the soft return beam by beam
             terms = level.pack(0.0)
             self.fterms[w, : len(terms)] = terms
             self.frows[w] = len(terms)
+            self.fdrift[w] = any(getattr(t, "velocity", 0.0) for t in getattr(level, "terms", (level,)))
             self.fbeta[w] = peak_extinction(terms)
             if self._pulse[0].shape[0] == 1:
                 self._pulse = (*field_pulse_weights(), *field_pulse_weights(FIELD_STEP * FIELD_COARSE))
@@ -198,10 +201,8 @@ class ObjectWorlds:
     def step(self, actions: np.ndarray, active: np.ndarray) -> None:
         self.core.step(actions, active)
         self.steps[active] += 1
-        for w in np.flatnonzero(active & (self.frows > 0)):  # a drifting bank moves with the episode's time
-            level = self.levels[w]
-            if any(getattr(t, "velocity", 0.0) for t in getattr(level, "terms", (level,))):
-                self.fterms[w, : self.frows[w]] = level.pack(self.steps[w] / self.keyframe_frequency)
+        for w in np.flatnonzero(active & self.fdrift):  # a drifting bank moves with the episode's time
+            self.fterms[w, : self.frows[w]] = self.levels[w].pack(self.steps[w] / self.keyframe_frequency)
         self._perceive(active)
 
     def _perceive(self, active: np.ndarray) -> None:
@@ -228,9 +229,7 @@ class ObjectWorlds:
                                 "fog": level.info() if isinstance(level, FogLevel) else field_info(level),
                                 "step": int(self.steps[w])}  # fmt: skip
         if self.frows[w] > 0:  # where the ego stands in its fog field: the distance along the field's axis [m]
-            x0, y0, heading = self.fframes[w]
-            info["fog_u"] = float((c.floats[w, 0, K.FX] - x0) * math.cos(heading)
-                                  + (c.floats[w, 0, K.FY] - y0) * math.sin(heading))  # fmt: skip
+            info["fog_u"] = along_axis(self.fframes[w], c.floats[w, 0, K.FX], c.floats[w, 0, K.FY])
         if c.hazards is not None:
             info.update(hazard_info(c.hazards_ego(w), c.hazards))
         if detections:

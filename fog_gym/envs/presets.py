@@ -183,9 +183,10 @@ def make_fogdrive_rl_objects(fog: Any = "clear", **kwargs: Any) -> gym.Env:
     return make_fogdrive_rl_hazard(fog=fog, **{**OBJECTS_PRESET, **kwargs})
 
 
-def check_banks(banks: Any, kwargs: dict[str, Any]) -> Any:
-    """``FogDriveRLFogBank-v0``'s bank settings (a :class:`~fog_gym.fog.banks.BankConfig`, default when None); a
-    ``fog`` among ``kwargs`` or another ``banks`` is a ValueError before any world is built."""
+def check_banks(banks: Any, kwargs: dict[str, Any]) -> tuple[Any, Any]:
+    """``FogDriveRLFogBank-v0``'s bank settings (a :class:`~fog_gym.fog.banks.BankConfig`, default when None) and
+    the bank its env is built with (every reset replaces it); a ``fog`` among ``kwargs`` or another ``banks`` is a
+    ValueError before any world is built."""
     from fog_gym.fog.banks import BankConfig
 
     if "fog" in kwargs:
@@ -194,7 +195,7 @@ def check_banks(banks: Any, kwargs: dict[str, Any]) -> Any:
     banks = BankConfig() if banks is None else banks
     if not isinstance(banks, BankConfig):
         raise ValueError(f"banks must be a fog_gym.fog.banks.BankConfig, got {banks!r}")
-    return banks
+    return banks, banks.draw(np.random.default_rng(0))
 
 
 def make_fogdrive_rl_fog_bank(banks: Any = None, observation: str = "pixels", **kwargs: Any) -> gym.Env:
@@ -216,8 +217,7 @@ def make_fogdrive_rl_fog_bank(banks: Any = None, observation: str = "pixels", **
     """
     from fog_gym.wrappers import FogBankEpisodes
 
-    banks = check_banks(banks, kwargs)
-    first = banks.draw(np.random.default_rng(0))  # (replaced at every reset)
+    banks, first = check_banks(banks, kwargs)
     if check_observation(observation) == "objects":  # the worlds draw the bank themselves (as the vector env's do)
         return make_fogdrive_rl_hazard(fog=first, observation="objects", banks=banks, **kwargs)
     return FogBankEpisodes(make_fogdrive_rl_hazard(fog=first, **kwargs), banks)

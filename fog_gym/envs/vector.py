@@ -127,10 +127,10 @@ class FogDriveVectorEnv(gym.vector.VectorEnv):
             hazards = HazardConfig()
         banks = kwargs.pop("banks", None)
         if env_id == "FogDriveRLFogBank-v0":  # a bank per episode and world (drawn as the single env draws it)
-            banks = check_banks(banks, kwargs)
+            banks, kwargs["fog"] = check_banks(banks, kwargs)
         elif banks is not None:
             raise ValueError(f"banks configures FogDriveRLFogBank-v0, not {env_id}")
-        fog = kwargs.pop("fog", "clear" if banks is None else banks.draw(np.random.default_rng(0)))
+        fog = kwargs.pop("fog", "clear")
         if isinstance(fog, (list, tuple)):
             raise ValueError("fog: the RL presets take one level (in place), not a paired list")
         parse_objects_fog(fog) if observation == "objects" else parse_fog(fog)

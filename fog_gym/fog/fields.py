@@ -219,10 +219,21 @@ def world_optical_depth(field: FogField, frame, time: float, start, ends) -> np.
     ray = ends - start
     length = np.linalg.norm(ray, axis=1)
     unit = ray / np.maximum(length, 1e-9)[:, None]
-    x0, y0, heading = (float(v) for v in frame)
+    heading = float(frame[2])
     h = np.array([math.cos(heading), math.sin(heading)])
-    u0 = (start[0] - x0) * h[0] + (start[1] - y0) * h[1]
-    return field.optical_depth(u0, start[2], unit[:, :2] @ h, unit[:, 2], length, time)
+    return field.optical_depth(along_axis(frame, start[0], start[1]), start[2], unit[:, :2] @ h, unit[:, 2], length,
+                               time)  # fmt: skip
+
+
+def along_axis(frame, x: float, y: float) -> float:
+    """The distance ``u`` of the world point ``(x, y)`` along the axis of a field laid at ``frame = (x0, y0,
+    heading)``.
+
+    >>> along_axis((10.0, 5.0, math.pi / 2), 10.0, 105.0)
+    100.0
+    """
+    x0, y0, heading = (float(v) for v in frame)
+    return (float(x) - x0) * math.cos(heading) + (float(y) - y0) * math.sin(heading)
 
 
 def field_json(field: FogField) -> str:

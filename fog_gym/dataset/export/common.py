@@ -61,6 +61,7 @@ class Source:
         self.scene_number = {sc["token"]: k for k, sc in enumerate(self.ds.scene)}  # stable across split exports
         self._split_of = {n: s for s, names in (self.ds.splits or {}).items() for n in names}
         self.boxes_from_cameras = bool(self.all_cameras)
+        self._fog_fields: dict[str, dict[str, Any] | None] = {}
 
     def select_cameras(self, cameras: tuple[str, ...]) -> None:
         """Export these cameras; ``ExportError`` if the set lacks one of them (at the fog level) or the LiDAR."""
@@ -152,10 +153,11 @@ class Source:
         data and for a set of homogeneous fog (the manifest's visibilities say all)."""
         if self.fog == "clear":
             return None
-        record = self.ds.get_fog_field(token)
-        if record is None:
-            return None
-        return {"frame": record.frame.tolist(), "time": record.time, "field": record.fields[self.fog]}
+        if token not in self._fog_fields:  # (read once: the writers and fog_fields.json both ask)
+            record = self.ds.get_fog_field(token)
+            self._fog_fields[token] = None if record is None else {"frame": record.frame.tolist(), "time": record.time,
+                                                                   "field": record.fields[self.fog]}  # fmt: skip
+        return self._fog_fields[token]
 
     def fog_fields(self) -> dict[str, dict[str, Any]]:
         """:meth:`fog_field` of every exported sample that has one, by FogDrive sample token."""
