@@ -75,3 +75,23 @@ def test_bad_settings_fail_before_any_world_is_built(kwargs, match):
 def test_a_bad_bank_range_names_itself(name, value):
     with pytest.raises(ValueError, match=name):
         BankConfig(**{name: value})
+
+
+def test_the_bank_wrapper_and_the_objects_worlds_refuse_what_they_cannot_use():
+    from fog_gym.envs.fogdrive import FogDriveEnv
+    from fog_gym.envs.objects import FogDriveObjectsEnv, parse_objects_fog
+    from fog_gym.fog.fields import HeightFog
+    from fog_gym.wrappers import FogBankEpisodes, FogWrapper
+
+    base = FogDriveEnv(resolution=(32, 24), cameras=["CAM_FRONT"])
+    with pytest.raises(ValueError, match="in-place FogWrapper"):
+        FogBankEpisodes(base)
+    with pytest.raises(ValueError, match="BankConfig"):
+        FogBankEpisodes(FogWrapper(base, "dense"), banks={"start": (1.0, 2.0)})
+    with pytest.raises(ValueError, match="BankConfig"):
+        FogDriveObjectsEnv(banks=(140.0, 340.0))
+    five = HeightFog(50.0, 5.0) + HeightFog(80.0, 9.0) + FogBank(50.0, 1.0, 2.0) + FogBank(60.0, 9.0, 2.0) \
+        + HeightFog(90.0, 2.0)  # fmt: skip
+    with pytest.raises(ValueError, match="at most 4 terms"):
+        parse_objects_fog(five)
+    base.close()

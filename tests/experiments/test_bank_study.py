@@ -35,7 +35,8 @@ def test_episode_measures_read_the_speed_before_and_at_the_face_and_place_the_cr
 
 @pytest.mark.parametrize("kwargs, match", [({"steps": 10}, "steps"), ({"envs": 0}, "envs"), ({"episodes": 1.5}, "episodes"),
                                            ({"conditions": ("fog",)}, "conditions"),
-                                           ({"conditions": ("banks", "banks")}, "conditions")])  # fmt: skip
+                                           ({"conditions": ("banks", "banks")}, "conditions"),
+                                           ({"checkpoint": 0}, "checkpoint")])  # fmt: skip
 def test_bad_settings_are_refused_naming_them(kwargs, match):
     with pytest.raises(ValueError, match=match):
         BankStudy(**kwargs)
