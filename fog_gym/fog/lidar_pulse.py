@@ -1,0 +1,229 @@
+"""The LiDAR fog field paths' shared parts (:mod:`fog_gym.fog.lidar_field`): the soft return's kernel on a range grid
+(:func:`field_pulse_weights`), its running maximum along beam directions (``_curves``: the curves every point of a
+direction reads), and Hahner et al.'s rule given each point's τ and soft return (``_field_rules``).
+
+Example:
+    >>> W, V = field_pulse_weights(); W.shape[1], round(float(KAPPA), 5)
+    (61, 0.01536)
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+
+import numpy as np
+from numba import njit, prange
+
+import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
+from fog_gym.fog.depth import BANK, point_extinction, segment_depth
+from fog_gym.fog.lidar import BETA_PER_MOR, GAMMA, REFERENCE_REFLECTIVITY, SPEED_OF_LIGHT, TAU_H, XI_R1, XI_R2
+
+
+#: The field path's range grid [m]: returns are decided on ranges kΔ, the pulse integral on the same step.
+FIELD_STEP = 0.1
+#: The soft return's maximum is looked for every FIELD_COARSE nodes (with their own weights), then on every node within
+#: two coarse steps of the coarse maximum and of the coarse maximum within NEAR_FIELD_NODES of the sensor.
+FIELD_COARSE, NEAR_FIELD_NODES = 5, 100
+#: Fine nodes per range step in the pulse integral's kernel (the transmittance is interpolated between range nodes).
+FIELD_SUBSTEPS = 20
+#: Backscatter per extinction: Hahner et al.'s β = 0.046 / MOR with MOR = ln 20 / α, so β(r) = KAPPA · β_ext(r).
+KAPPA = BETA_PER_MOR / math.log(20.0)
+
+
+@functools.lru_cache(maxsize=4)
+def field_pulse_weights(step: float = FIELD_STEP, max_range: float = 200.0) -> tuple[np.ndarray, np.ndarray]:
+    """Weights of the soft return on the range grid ``R_k = k·step``: ``W (K, N + 1)`` and ``V (K,)`` with
+    ``F(R_k) = Σ_n W[k, n]·E_{k−n} + V[k]·β₁·E_{j₁}``, ``E_j = e^{−2τ(j·step)}`` the two-way transmittance on the ray,
+    ``β₁`` the extinction 1 m out and ``j₁`` its node (``N`` nodes over the pulse's 6 m: 60).
+
+    From the LiDAR equation with the local backscatter ``κ·β``: ``F(R) = ∫ P(t)·κβ(R′)·E(R′)·g(R′) dt``, ``R′ = R − ct/2``,
+    ``g = ξ/R′²``, ``P = sin²(πt / 2τ_H)``. Where the overlap ξ is full (``R′ ≥ 1 m``), ``βE = −½ dE/dR′ = (1/c) dE/dt``
+    and integration by parts gives ``−(κ/c) ∫ E·d/dt[P·g] dt`` plus ``(κ/c)·P·g·E`` where the window reaches 1 m (P
+    vanishes at the pulse's ends): a field-independent kernel applied to the transmittance, which stays continuous
+    where β jumps (a bank with ``edge = 0``); Simpson's rule over the nodes. The overlap's ramp (0.9–1 m, ξ linear)
+    adds ``κ·β·E·∫ P·ξ/R′² dt`` with β and E taken halfway up the ramp (``β₁``, ``E₁·e^{0.1·β₁}``).
+
+    >>> W, V = field_pulse_weights(); W.shape, V.shape
+    ((2001, 61), (2001,))
+    """
+    n_nodes = int(round(SPEED_OF_LIGHT * TAU_H / step))  # 2τ_H·c/2 = 6 m of range
+    n_nodes += n_nodes % 2
+    fine = FIELD_SUBSTEPS * n_nodes  # the kernel varies fast near the sensor (1/R′³): Simpson on a finer grid, E
+    ds = step / FIELD_SUBSTEPS  # interpolated linearly between its nodes
+    s_f = np.arange(fine + 1) * ds  # range behind R of each fine node
+    t_f = 2.0 * s_f / SPEED_OF_LIGHT
+    phase = np.pi * t_f / (2.0 * TAU_H)
+    pulse, d_pulse = np.sin(phase) ** 2, np.pi / (2.0 * TAU_H) * np.sin(2.0 * phase)
+    full = int(round(XI_R2 / step))  # the node of R′ = 1 m
+    ramp_dt = 2.0 * (XI_R2 - XI_R1) / SPEED_OF_LIGHT
+    k_max = int(round(max_range / step))
+    W = np.zeros((k_max + 1, n_nodes + 1))
+    V = np.zeros(k_max + 1)
+    node, frac = np.arange(fine + 1) // FIELD_SUBSTEPS, (np.arange(fine + 1) % FIELD_SUBSTEPS) / FIELD_SUBSTEPS
+    for k in range(full, k_max + 1):
+        m = min(fine, (k - full) * FIELD_SUBSTEPS)  # fine nodes 0 … m lie where ξ = 1
+        r = k * step - s_f[:m + 1]
+        d_pg = d_pulse[:m + 1] / r**2 + pulse[:m + 1] * (-2.0 / r**3) * (-SPEED_OF_LIGHT / 2.0)  # d/dt[P·g]
+        wf = -(KAPPA / SPEED_OF_LIGHT) * d_pg * _composite_weights(m, 2.0 * ds / SPEED_OF_LIGHT)
+        np.add.at(W[k], node[:m + 1], wf * (1.0 - frac[:m + 1]))
+        np.add.at(W[k], np.minimum(node[:m + 1] + 1, n_nodes), wf * frac[:m + 1])
+        if m < fine:  # the window reaches 1 m: the boundary term and the overlap's ramp
+            W[k, m // FIELD_SUBSTEPS] += (KAPPA / SPEED_OF_LIGHT) * pulse[m] / (XI_R2 * XI_R2)
+            ramp = np.linspace(0.0, ramp_dt, 41)  # ∫ P·ξ/R′² dt over the ramp (β and E taken 5 cm in)
+            r_ramp = XI_R2 - SPEED_OF_LIGHT * ramp / 2.0
+            p_ramp = np.sin(np.pi * (t_f[m] + ramp) / (2.0 * TAU_H)) ** 2
+            V[k] = KAPPA * float(_composite_weights(40, ramp[1]) @ (p_ramp * (r_ramp - XI_R1) / (XI_R2 - XI_R1) / r_ramp**2))
+    return W, V
+
+
+def _composite_weights(m: int, h: float) -> np.ndarray:
+    """Quadrature weights of m + 1 equally spaced nodes: Simpson, with Simpson's 3/8 on the last three intervals
+    when m is odd (the trapezoid for m = 1, nothing for m = 0)."""
+    w = np.zeros(m + 1)
+    if m == 0:
+        return w
+    if m == 1:
+        return np.array([h / 2, h / 2])
+    even = m if m % 2 == 0 else m - 3
+    if even > 0:
+        w[:even + 1] += np.r_[1.0, np.tile([4.0, 2.0], even // 2)[:-1], 1.0] * h / 3.0
+    if m % 2:
+        w[even:even + 4] += np.array([1.0, 3.0, 3.0, 1.0]) * 3.0 * h / 8.0
+    return w
+
+
+#: ``∫ P(t) dt`` over the pulse (sin² averages ½ over 2τ_H).
+PULSE_INTEGRAL = TAU_H
+
+
+@njit(cache=True, inline="always")
+def _soft_bound(r, beta_max, window_far):
+    # An upper bound of the soft return F at range r ≥ 7 m: κ·β_max·E(r − 6 m)·∫P dt / (r − 6 m)² (the pulse's window
+    # reaches back 6 m, where ξ ≤ 1, R′ ≥ r − 6 m and E(R′) ≤ E(r − 6 m) = window_far, as E falls along the ray);
+    # infinite nearer.
+    near = r - SPEED_OF_LIGHT * TAU_H
+    return KAPPA * beta_max * window_far * PULSE_INTEGRAL / (near * near) if near >= XI_R2 else np.inf
+
+
+@njit(cache=True, inline="always")
+def _field_rule(pts, n, out, r0, i_orig, i_hard, best, r_tmp, log_noise, u, attenuation):
+    # Hahner et al.'s rule for point n given its soft return's maximum `best` (s/m², with the backscatter) at range
+    # r_tmp: the fog's return replaces the point when stronger, on the same ray with the range noise; as _hahner.
+    ratio = math.pi / GAMMA
+    if attenuation >= 0.0:  # reflectance intensities: the point's own reflectivity stands in for Γ
+        rho = min(max(np.float64(pts[n, 3]) / np.exp(-attenuation * r0), 1e-3), 1.0)
+        ratio = ratio * REFERENCE_REFLECTIVITY / rho
+    i_soft = min(255.0, best * i_orig * r0 * r0 * ratio)
+    if i_soft > i_hard:  # the fog's own return is stronger: a fog point on the same ray
+        scale = r_tmp / max(r0, 1e-12) * np.exp(log_noise * u[n])
+        for c in range(3):
+            out[n, c] = np.float32(np.float64(pts[n, c]) * scale)
+        out[n, 3] = np.float32(i_soft / 255.0)
+    else:
+        for c in range(3):
+            out[n, c] = pts[n, c]
+        out[n, 3] = np.float32(i_hard / 255.0)
+    for c in range(4, pts.shape[1]):
+        out[n, c] = pts[n, c]
+
+
+@njit(cache=True, parallel=True)
+def _field_rules(pts, tau, soft, r_tmp, log_noise, u, out, attenuation):
+    # Hahner et al.'s rule per point given τ to it and its soft return's maximum (s/m², with the backscatter) at range
+    # r_tmp (the field paths' first pass): its hard return round(i·e^{−2τ}), then _field_rule; a point without fog on
+    # its ray (τ = 0) is kept as in clear air. (A pass of its own: this loop runs as fast as fog_lidar's.)
+    for n in prange(pts.shape[0]):
+        tau0 = tau[n]
+        if tau0 == 0.0:
+            for c in range(pts.shape[1]):
+                out[n, c] = pts[n, c]
+            continue
+        x, y, z = np.float64(pts[n, 0]), np.float64(pts[n, 1]), np.float64(pts[n, 2])
+        i_orig = np.round(np.float64(pts[n, 3]) * 255.0)
+        i_hard = np.round(i_orig * np.exp(-2.0 * tau0))
+        _field_rule(pts, n, out, np.sqrt(x * x + y * y + z * z), i_orig, i_hard, soft[n], r_tmp[n], log_noise, u,
+                    attenuation)  # fmt: skip
+
+
+@njit(cache=True, parallel=True)
+def _soft_curves(terms, u0, z0, dus, dzs, tops, weights, ramp, step, best, where, stops, beta_max):
+    # For beam directions (dus[i], dzs[i]): the running maximum of the soft return F over ranges k·step, k ≤ tops[i],
+    # into best[i, k], and the range node where it lies into where[i, k] (every node from the first with fog on the
+    # ray, as _hahner_field's refinement does near its maximum, until _soft_bound shows that no farther range can beat
+    # the maximum so far: stops[i] is the last node written, and the curve is constant beyond it).
+    n_nodes = weights.shape[1]
+    one = int(np.round(XI_R2 / step))
+    for i in prange(dus.shape[0]):
+        du, dz, top = dus[i], dzs[i], tops[i]
+        trans = np.empty(top + 1)
+        beta1 = point_extinction(terms, u0 + du * XI_R2, z0 + dz * XI_R2)
+        lift = 0.0 if one > top else beta1 * np.exp(-2.0 * segment_depth(terms, u0, z0, du, dz, one * step)) * \
+            np.exp(beta1 * (XI_R2 - XI_R1))  # fmt: skip
+        start = max(one, _clear_node(terms, u0, z0, du, dz, step, top))
+        for j in range(max(start - n_nodes + 1, 0), min(start, top + 1)):  # the first window's transmittance
+            trans[j] = np.exp(-2.0 * segment_depth(terms, u0, z0, du, dz, j * step))
+        top_f, top_k, k = 0.0, 0, 0
+        while k <= top:
+            if k >= start:
+                if top_f > 0.0 and top_f >= _soft_bound(k * step, beta_max, trans[max(k - n_nodes + 1, 0)]):
+                    break
+                trans[k] = np.exp(-2.0 * segment_depth(terms, u0, z0, du, dz, k * step))
+                f = ramp[k] * lift + _window(weights, k, trans, min(n_nodes, k + 1))
+                if f > top_f:
+                    top_f, top_k = f, k
+            best[i, k], where[i, k] = top_f, top_k
+            k += 1
+        stops[i] = k - 1
+
+
+@njit(cache=True, inline="always")
+def _window(weights, k, trans, count):
+    # Σ_{m < count} weights[k, m]·trans[k − m] on four accumulators (a sum's chain of additions is the loop's cost)
+    s0, s1, s2, s3 = 0.0, 0.0, 0.0, 0.0
+    m = 0
+    while m + 3 < count:
+        s0 += weights[k, m] * trans[k - m]
+        s1 += weights[k, m + 1] * trans[k - m - 1]
+        s2 += weights[k, m + 2] * trans[k - m - 2]
+        s3 += weights[k, m + 3] * trans[k - m - 3]
+        m += 4
+    while m < count:
+        s0 += weights[k, m] * trans[k - m]
+        m += 1
+    return (s0 + s1) + (s2 + s3)
+
+
+@njit(cache=True, inline="always")
+def _clear_node(terms, u0, z0, du, dz, step, top):
+    # The last node before the fog starts on the ray (a window in clear air returns nothing): τ only grows along the
+    # ray, so a bisection finds it (0 where the fog starts at the sensor, top where the ray stays clear).
+    clear, fog = 0, top
+    if segment_depth(terms, u0, z0, du, dz, step) > 0.0:
+        fog = 1
+    while fog - clear > 1:
+        mid = (clear + fog) // 2
+        if segment_depth(terms, u0, z0, du, dz, mid * step) == 0.0:
+            clear = mid
+        else:
+            fog = mid
+    return clear
+
+
+def peak_extinction(terms: np.ndarray) -> float:
+    """An upper bound of a packed field's extinction anywhere [1/m]: the sum of its terms' peaks."""
+    peak = 0.0
+    for row in np.asarray(terms, np.float64):
+        peak += row[1] if row[0] != BANK else row[7] + max(row[1], 0.0) * row[6]
+    return float(peak)
+
+
+def _curves(terms: np.ndarray, pose: np.ndarray, dus: np.ndarray, dzs: np.ndarray, tops: np.ndarray):
+    """:func:`_soft_curves` of these beam directions: ``best``, ``where`` (each row written up to its ``stops``)."""
+    weights, ramp = field_pulse_weights()
+    best = np.empty((len(dus), int(tops.max(initial=0)) + 1))
+    where = np.empty(best.shape, np.int64)
+    stops = np.zeros(len(dus), np.int64)
+    _soft_curves(terms, pose[0], pose[1], dus, dzs, tops, weights, ramp, FIELD_STEP, best, where, stops,
+                 peak_extinction(terms))
+    return best, where, stops
