@@ -11,7 +11,7 @@ from numba import njit, prange
 
 import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
 from fog_gym.fog.depth import BANK, _ramp
-from fog_gym.fog.lidar_pulse import FIELD_STEP, _curves, _field_rules
+from fog_gym.fog.lidar_pulse import FIELD_STEP, _curves, _field_rule
 
 
 #: A single fog bank's curves: beam runs along u (the bank's axis) on a geometric grid of this ratio, face-aligned (a
@@ -97,13 +97,13 @@ def _bank_integral(u, depth):
 
 
 @njit(cache=True, inline="always")
-def _bank_depth(depth, u0, du, length):
-    # τ from the sensor (at u0) along a beam of run du, `length` metres: (β_hom + β_bg)·L + Δβ·∫w du / du (segment_depth
-    # of one bank and homogeneous terms, with the constants of the frame: depth[9] = ∫w up to u0)
-    span = du * length
-    if abs(span) < 1e-6:
-        return (depth[0] + depth[1] * _ramp(u0 + 0.5 * span, depth[2], depth[3], depth[4], depth[5], depth[6])) * length
-    return depth[0] * length + depth[1] * (_bank_integral(u0 + span, depth) - depth[9]) / du
+def _bank_depth(depth, u0, run, length):
+    # τ from the sensor (at u0) along a beam `length` metres long that runs `run` metres along u: (β_hom + β_bg)·L +
+    # Δβ·L·∫w du / run (segment_depth of one bank and homogeneous terms, with the constants of the frame: depth[9] = ∫w up
+    # to u0)
+    if abs(run) < 1e-6:
+        return (depth[0] + depth[1] * _ramp(u0 + 0.5 * run, depth[2], depth[3], depth[4], depth[5], depth[6])) * length
+    return (depth[0] + depth[1] * (_bank_integral(u0 + run, depth) - depth[9]) / run) * length
 
 
 @njit(cache=True, inline="always")
@@ -126,7 +126,7 @@ def _bank_read(r0, du, side, dist, nodes, lut, inv_width, inv_gap, faces, step, 
     # on the point's ray, s_j the node's; a point whose ray meets no face before it reads the background's curve at its
     # range. Inside (side 0) the signed runs around du.
     n_nodes = nodes.shape[0]
-    k0 = min(int(np.round(min(r0, 200.0) / step)), last)
+    k0 = min(int(np.round(min(r0, 200.0) * (1.0 / step))), last)
     if side == 0:
         half = n_nodes // 2  # nodes: −runs reversed, then runs
         low = nodes[half]
@@ -140,39 +140,47 @@ def _bank_read(r0, du, side, dist, nodes, lut, inv_width, inv_gap, faces, step, 
         return n_nodes, 0.0, k0, k0, 0.0
     j = _run_node(g, nodes, 0, n_nodes, lut, inv_width)
     face = dist / g
-    k_j = min(max(int(np.round((r0 - face + faces[j]) / step)), 0), last)
-    k_j1 = min(max(int(np.round((r0 - face + faces[j + 1]) / step)), 0), last)
+    k_j = min(max(int(np.round((r0 - face + faces[j]) * (1.0 / step))), 0), last)
+    k_j1 = min(max(int(np.round((r0 - face + faces[j + 1]) * (1.0 / step))), 0), last)
     return j, min(max((g - nodes[j]) * inv_gap[j], 0.0), 1.0), k_j, k_j1, face
 
 
 @njit(cache=True, parallel=True)
-def _bank_soft(pts, pose, side, dist, nodes, lut, inv_width, inv_gap, faces, depth, row, uniform, clear_outside, best,
-               where, stops, step, tau, soft, r_tmp):  # fmt: skip
-    # One bank: per point τ in closed form (_bank_depth) and the soft return's maximum and its range (_field_rules'
-    # inputs), interpolated between the curves of the two runs around its own (_bank_read; row: each node's curve;
-    # uniform: all nodes read row 0). A point whose ray meets no face before it sees the homogeneous background only:
-    # it reads the background's curve (the last), or has no fog on its ray when there is no background (clear_outside).
+def _hahner_bank(pts, pose, side, dist, nodes, lut, inv_width, inv_gap, faces, depth, row, uniform, clear_outside, best,
+                 where, stops, step, log_noise, u, out, attenuation):  # fmt: skip
+    # Hahner et al. with one bank: per point τ in closed form (_bank_depth), the soft return's maximum interpolated
+    # between the curves of the two runs around its own (_bank_read; row: each node's curve; uniform: all nodes read
+    # row 0), then the rule (_field_rule). A point whose ray meets no face before it sees the homogeneous background
+    # only: it reads the background's curve (the last), or is kept as in clear air when there is no background
+    # (clear_outside).
     n_nodes = nodes.shape[0]
     last = best.shape[1] - 1
     for n in prange(pts.shape[0]):
         x, y, z = np.float64(pts[n, 0]), np.float64(pts[n, 1]), np.float64(pts[n, 2])
         r0 = np.sqrt(x * x + y * y + z * z)
-        du = (pose[2] * x + pose[3] * y + pose[4] * z) * (1.0 / max(r0, 1e-12))
+        run = pose[2] * x + pose[3] * y + pose[4] * z  # (along u)
         if uniform:  # every node reads one curve
-            k0 = min(int(np.round(min(r0, 200.0) / step)), last)
+            k0 = min(int(np.round(min(r0, 200.0) * (1.0 / step))), last)
             j, t, k_j, k_j1, face = 0, 0.0, k0, k0, 0.0
         else:
-            j, t, k_j, k_j1, face = _bank_read(r0, du, side, dist, nodes, lut, inv_width, inv_gap, faces, step, last)
-        tau[n] = 0.0 if j == n_nodes and clear_outside else _bank_depth(depth, pose[0], du, r0)
+            j, t, k_j, k_j1, face = _bank_read(r0, run * (1.0 / max(r0, 1e-12)), side, dist, nodes, lut, inv_width,
+                                               inv_gap, faces, step, last)  # fmt: skip
+        tau0 = 0.0 if j == n_nodes and clear_outside else _bank_depth(depth, pose[0], run, r0)
+        if tau0 == 0.0:  # no fog on the ray: kept as in clear air
+            for c in range(pts.shape[1]):
+                out[n, c] = pts[n, c]
+            continue
+        i_orig = np.round(np.float64(pts[n, 3]) * 255.0)
+        i_hard = np.round(i_orig * np.exp(-2.0 * tau0))
         j1 = min(j + 1, n_nodes)  # (the background's curve alone: weight 0)
         rj, rj1 = row[j], row[j1]
         k_j, k_j1 = min(k_j, stops[rj]), min(k_j1, stops[rj1])
-        soft[n] = (1.0 - t) * best[rj, k_j] + t * best[rj1, k_j1]
+        f = (1.0 - t) * best[rj, k_j] + t * best[rj1, k_j1]
         near, kn = (j1, k_j1) if t >= 0.5 else (j, k_j)
-        r = where[row[near], kn] * step
-        if side != 0 and near < n_nodes and r >= faces[near]:  # the maximum's range moves with the face (unless it
-            r += face - faces[near]  # lies before it)
-        r_tmp[n] = r
+        r_tmp = where[row[near], kn] * step
+        if side != 0 and near < n_nodes and r_tmp >= faces[near]:  # the maximum's range moves with the face (unless
+            r_tmp += face - faces[near]  # it lies before it)
+        _field_rule(pts, n, out, r0, i_orig, i_hard, f, r_tmp, log_noise, u, attenuation)
 
 
 def _bank_curves(terms: np.ndarray, pose: np.ndarray, plan: _BankPlan):
@@ -209,9 +217,7 @@ def fog_lidar_bank(pts: np.ndarray, terms: np.ndarray, pose: np.ndarray, log_noi
     if plan is None:
         return False
     best, where, stops, row = _bank_curves(terms, pose, plan)
-    tau, soft, r_tmp = np.empty((3, len(pts)))
-    _bank_soft(pts, pose, plan.side, abs(plan.align - float(pose[0])), plan.nodes, plan.lut, plan.inv_width,
-               plan.inv_gap, plan.faces, plan.depth, row, not row.any(), plan.background == 0.0, best, where, stops,
-               FIELD_STEP, tau, soft, r_tmp)  # fmt: skip
-    _field_rules(pts, tau, soft, r_tmp, log_noise, u, out, attenuation)
+    _hahner_bank(pts, pose, plan.side, abs(plan.align - float(pose[0])), plan.nodes, plan.lut, plan.inv_width,
+                 plan.inv_gap, plan.faces, plan.depth, row, not row.any(), plan.background == 0.0, best, where, stops,
+                 FIELD_STEP, log_noise, u, out, attenuation)  # fmt: skip
     return True

@@ -11,7 +11,7 @@ from numba import njit, prange
 
 import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
 from fog_gym.fog.depth import segment_depth
-from fog_gym.fog.lidar_pulse import FIELD_STEP, _curves, _field_rules
+from fog_gym.fog.lidar_pulse import FIELD_STEP, _curves, _field_rule
 
 
 @njit(cache=True, inline="always")
@@ -69,8 +69,8 @@ def _beam_elevations(pts, pose, terms, height, step, last, dzs, ks, keys, tau, s
             x, y, z = np.float64(pts[i, 0]), np.float64(pts[i, 1]), np.float64(pts[i, 2])
             r0 = np.sqrt(x * x + y * y + z * z)
             dz = (pose[5] * x + pose[6] * y + pose[7] * z) * (1.0 / max(r0, 1e-12))
-            key = min(max(int(np.round(dz / ELEVATION_ROUND)), -ELEVATION_KEYS), ELEVATION_KEYS)
-            k = min(int(np.round(min(r0, 200.0) / step)), last)
+            key = min(max(int(np.round(dz * ELEVATION_KEYS)), -ELEVATION_KEYS), ELEVATION_KEYS)  # (· 1/ELEVATION_ROUND)
+            k = min(int(np.round(min(r0, 200.0) * (1.0 / step))), last)
             dzs[i], ks[i], keys[i] = dz, k, key
             present[c, key + ELEVATION_KEYS] = 1
             tau[i] = _height_depth(terms, height, pose[1], dz, r0) if height.shape[0] else \
@@ -120,13 +120,19 @@ def _first_at_or_above(nodes, lo_key, keys, rounding):
 
 
 @njit(cache=True, parallel=True)
-def _height_soft(dzs, ks, keys, node_dz, first, lo_key, inv_spacing, best, where, stops, step, soft, r_tmp):
-    # A field whose β depends on height only: per point (its elevation, range node and elevation key from
-    # _beam_elevations) the soft return's maximum and its range (_field_rules' inputs), from the curves of the two beam
-    # elevations around its own (node_dz ascending, a uniform grid where inv_spacing > 0; linear in dz, the range of the
-    # nearer).
+def _hahner_height(pts, tau, dzs, ks, keys, node_dz, first, lo_key, inv_spacing, best, where, stops, step, log_noise, u,
+                   out, attenuation):  # fmt: skip
+    # Hahner et al. with a field whose β depends on height only, given each point's τ, elevation, range node and
+    # elevation key (_beam_elevations): its soft return's maximum from the curves of the two beam elevations around
+    # its own (node_dz ascending, a uniform grid where inv_spacing > 0; linear in dz, the range of the nearer), then the
+    # rule (_field_rule); a point without fog on its ray (τ = 0) is kept as in clear air.
     n_nodes = node_dz.shape[0]
-    for n in prange(dzs.shape[0]):
+    for n in prange(pts.shape[0]):
+        tau0 = tau[n]
+        if tau0 == 0.0:
+            for c in range(pts.shape[1]):
+                out[n, c] = pts[n, c]
+            continue
         dz, k = dzs[n], ks[n]
         if inv_spacing > 0.0:  # a uniform grid
             cell = (dz - node_dz[0]) * inv_spacing
@@ -140,9 +146,13 @@ def _height_soft(dzs, ks, keys, node_dz, first, lo_key, inv_spacing, best, where
             lo = max(hi - 1, 0)
             span = node_dz[hi] - node_dz[lo]
             t = min(max((dz - node_dz[lo]) / span, 0.0), 1.0) if span > 0.0 else 0.0
-        soft[n] = (1.0 - t) * best[lo, min(k, stops[lo])] + t * best[hi, min(k, stops[hi])]
+        soft = (1.0 - t) * best[lo, min(k, stops[lo])] + t * best[hi, min(k, stops[hi])]
         near = hi if t >= 0.5 else lo
-        r_tmp[n] = where[near, min(k, stops[near])] * step
+        x, y, z = np.float64(pts[n, 0]), np.float64(pts[n, 1]), np.float64(pts[n, 2])
+        i_orig = np.round(np.float64(pts[n, 3]) * 255.0)
+        i_hard = np.round(i_orig * np.exp(-2.0 * tau0))
+        _field_rule(pts, n, out, np.sqrt(x * x + y * y + z * z), i_orig, i_hard, soft,
+                    where[near, min(k, stops[near])] * step, log_noise, u, attenuation)  # fmt: skip
 
 
 def fog_lidar_height(pts: np.ndarray, terms: np.ndarray, pose: np.ndarray, log_noise: float, u: np.ndarray,
@@ -151,7 +161,7 @@ def fog_lidar_height(pts: np.ndarray, terms: np.ndarray, pose: np.ndarray, log_n
     point in closed form, its soft return's maximum from the curves of the two beam elevations around its own, the
     rule (``fog_gym.fog.lidar_field.fog_lidar_field``'s arguments)."""
     n, chunks = len(pts), numba.get_num_threads()
-    dzs, tau, soft, r_tmp = np.empty((4, n))
+    dzs, tau = np.empty((2, n))
     ks, keys = np.empty(n, np.int64), np.empty(n, np.int64)
     spans, present = np.empty((chunks, 5)), np.zeros((chunks, 2 * ELEVATION_KEYS + 1), np.uint8)
     _beam_elevations(pts, pose, terms, _height_constants(terms, float(pose[1])), FIELD_STEP,
@@ -159,5 +169,5 @@ def fog_lidar_height(pts: np.ndarray, terms: np.ndarray, pose: np.ndarray, log_n
     node_dz, tops, first, lo_key, inv_spacing = _elevation_nodes(spans, present, ELEVATION_NODES)
     horizontal = np.sqrt(np.maximum(1.0 - node_dz**2, 0.0))  # (a height-only field ignores the run along u)
     best, where, stops = _curves(terms, pose, horizontal, node_dz, tops)
-    _height_soft(dzs, ks, keys, node_dz, first, lo_key, inv_spacing, best, where, stops, FIELD_STEP, soft, r_tmp)
-    _field_rules(pts, tau, soft, r_tmp, log_noise, u, out, attenuation)
+    _hahner_height(pts, tau, dzs, ks, keys, node_dz, first, lo_key, inv_spacing, best, where, stops, FIELD_STEP,
+                   log_noise, u, out, attenuation)  # fmt: skip

@@ -1,6 +1,6 @@
 """The LiDAR fog field paths' shared parts (:mod:`fog_gym.fog.lidar_field`): the soft return's kernel on a range grid
 (:func:`field_pulse_weights`), its running maximum along beam directions (``_curves``: the curves every point of a
-direction reads), and Hahner et al.'s rule given each point's τ and soft return (``_field_rules``).
+direction reads), and Hahner et al.'s rule given a point's hard and soft returns (``_field_rule``).
 
 Example:
     >>> W, V = field_pulse_weights(); W.shape[1], round(float(KAPPA), 5)
@@ -126,24 +126,6 @@ def _field_rule(pts, n, out, r0, i_orig, i_hard, best, r_tmp, log_noise, u, atte
         out[n, 3] = np.float32(i_hard / 255.0)
     for c in range(4, pts.shape[1]):
         out[n, c] = pts[n, c]
-
-
-@njit(cache=True, parallel=True)
-def _field_rules(pts, tau, soft, r_tmp, log_noise, u, out, attenuation):
-    # Hahner et al.'s rule per point given τ to it and its soft return's maximum (s/m², with the backscatter) at range
-    # r_tmp (the field paths' first pass): its hard return round(i·e^{−2τ}), then _field_rule; a point without fog on
-    # its ray (τ = 0) is kept as in clear air. (A pass of its own: this loop runs as fast as fog_lidar's.)
-    for n in prange(pts.shape[0]):
-        tau0 = tau[n]
-        if tau0 == 0.0:
-            for c in range(pts.shape[1]):
-                out[n, c] = pts[n, c]
-            continue
-        x, y, z = np.float64(pts[n, 0]), np.float64(pts[n, 1]), np.float64(pts[n, 2])
-        i_orig = np.round(np.float64(pts[n, 3]) * 255.0)
-        i_hard = np.round(i_orig * np.exp(-2.0 * tau0))
-        _field_rule(pts, n, out, np.sqrt(x * x + y * y + z * z), i_orig, i_hard, soft[n], r_tmp[n], log_noise, u,
-                    attenuation)  # fmt: skip
 
 
 @njit(cache=True, parallel=True)

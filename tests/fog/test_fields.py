@@ -256,7 +256,8 @@ def test_ground_fog_reads_one_curve_per_beam_elevation_and_decides_as_each_beam_
 @pytest.mark.parametrize("field, ego_u", [
     (FogBank(50.0, 60.0, 100.0), 0.0),  # ahead (the bench's)
     (FogBank(20.0, 30.0, 30.0, edge=0.0), 0.0),  # a wall
-    (FogBank(50.0, -50.0, 100.0), 0.0),  # inside
+    (FogBank(50.0, -50.0, 100.0), 0.0),  # inside (its plateau: one curve serves every run)
+    (FogBank(50.0, -50.0, 100.0), 38.0),  # inside, 2 m short of its far ramp (steep runs read their own curves)
     (FogBank(50.0, 0.5, 100.0), 0.0),  # at its face
     (FogBank(50.0, -120.0, 100.0), 0.0),  # past it
     (FogBank(60.0, 20.0, 200.0, edge=10.0, background=300.0), 0.0),  # in thinner fog
