@@ -87,7 +87,13 @@ class Primitives:
 
     def take(self, keep: np.ndarray | slice) -> Primitives:
         """The boxes selected by a boolean mask, an index array or a slice."""
-        return Primitives(**{k: np.ascontiguousarray(getattr(self, k)[keep]) for k in LAYOUT})
+        if isinstance(keep, slice):
+            return Primitives(**{k: np.ascontiguousarray(getattr(self, k)[keep]) for k in LAYOUT})
+        keep = np.asarray(keep)  # (a mask's rows found once, not once per array: np.take copies them fastest)
+        if keep.dtype == np.bool_ and keep.shape != (len(self),):
+            raise IndexError(f"a mask of {len(self)} boxes must have shape ({len(self)},), got {keep.shape}")
+        rows = np.flatnonzero(keep) if keep.dtype == np.bool_ else keep
+        return Primitives(**{k: np.take(getattr(self, k), rows, axis=0) for k in LAYOUT})
 
     def near(self, center_xy: np.ndarray, radius: float) -> Primitives:
         """Boxes whose centre lies within ``radius`` (plus their own size) of ``center_xy`` in the ground plane."""

@@ -38,6 +38,19 @@ def test_concat_take_and_near_keep_rows_together():
     assert len(near) == int((d <= 20.0).sum()) and set(near.yaws.tolist()) <= set(both.yaws.tolist())
 
 
+def test_take_by_mask_index_or_slice_equals_numpy_indexing_and_refuses_a_mask_of_another_length():
+    b = _boxes(7, 3)
+    mask = np.array([True, False, True, True, False, False, True])
+    for keep in (mask, np.flatnonzero(mask), np.array([6, 0, 6]), slice(1, 5), np.zeros(7, bool)):
+        got = b.take(keep)
+        for k in LAYOUT:
+            want = getattr(b, k)[keep]
+            assert getattr(got, k).dtype == want.dtype and getattr(got, k).flags["C_CONTIGUOUS"]
+            np.testing.assert_array_equal(getattr(got, k), want)
+    with pytest.raises(IndexError, match="mask of 7 boxes"):
+        b.take(mask[:5])
+
+
 @pytest.mark.parametrize(
     "value, message",
     [({"centers": [[0, 0, 0]], "halves": [[1, 1, 1]]}, "need centers, halves and yaws"),
