@@ -79,7 +79,9 @@ def beam_soft_maximum(terms, u0, z0, du, dz, r0, weights, ramp, weights5, ramp5,
     lift = beta1 * near * np.exp(beta1 * (XI_R2 - XI_R1))
     best5, best5_k, near5, near5_k = -1.0, -1, -1.0, -1  # the coarse maximum, and the one near the sensor
     for k5 in range((max(one, clear) + coarse - 1) // coarse, top // coarse + 1):
-        if best5 > 0.0 and _soft_bound(k5 * coarse * step, beta_max, 1.0) < 0.95 * best5:
+        back = k5 * coarse - (n_nodes - 1)  # where the pulse's window begins (the bound takes E there)
+        if best5 > 0.0 and back >= 0 and _soft_bound(k5 * coarse * step, beta_max, _transmittance(
+                trans, back, terms, u0, z0, du, dz, step)) < 0.95 * best5:  # fmt: skip
             break  # no farther range can beat the maximum so far (a margin for the coarse weights)
         f = ramp5[k5] * lift
         for m in range(min(weights5.shape[1], k5 + 1)):
