@@ -297,3 +297,23 @@ def test_a_bank_reads_curves_per_run_along_its_axis_and_decides_as_each_beam_alo
 def test_bad_inputs_of_the_field_physics_fail_before_any_work(call, word):
     with pytest.raises(ValueError, match=word):
         call()
+
+
+@settings(max_examples=60, deadline=None)
+@given(low=st.floats(0.02, 0.5), side=st.sampled_from([-1, 0, 1]), dist=st.floats(0.0, 200.0),
+       fractions=st.lists(st.floats(0.0, 1.0), min_size=1, max_size=20))  # fmt: skip
+def test_a_banks_run_table_finds_the_node_below_each_run_as_a_sorted_search_does(low, side, dist, fractions):
+    from fog_gym.fog.lidar_bank import BANK_RATIO, _run_node, _run_tables
+
+    nodes, lut, inv_width, inv_gap, faces = _run_tables(low, side, dist, BANK_RATIO)
+    off = len(nodes) // 2 if side == 0 else 0  # inside: −runs reversed, then runs
+    runs = nodes[off:]
+    assert runs[0] == pytest.approx(low) and runs[-1] == 1.0 and np.all(np.diff(runs) > 0)
+    np.testing.assert_allclose(inv_gap, 1.0 / np.diff(nodes))
+    if side:
+        np.testing.assert_allclose(faces, np.r_[dist / runs, 0.0])
+    for g in low + np.array(fractions) * (1.0 - low):
+        want = min(int(np.searchsorted(runs, g, side="right")) - 1, len(runs) - 2)
+        got = _run_node(g, nodes, off, len(runs), lut, inv_width)
+        # (at a bin's edge the table may pick the node just above g, where g lies within rounding of it)
+        assert got == want or (got == want + 1 and runs[got] == pytest.approx(g, rel=1e-12))
