@@ -24,7 +24,7 @@ class _BankPlan(NamedTuple):
     """How the points of a field of one bank (and homogeneous terms) read their soft-return curves (:func:`_bank_plan`)."""
 
     side: int  #: +1 before the bank, −1 past it, 0 inside
-    align: float  #: where the beams meet the bank's face (u; the sensor's own u inside)
+    dist: float  #: the distance along u from the sensor to the face its beams meet (0 inside)
     nodes: np.ndarray  #: the runs of the curves (side·du > 0), signed inside
     background: float  #: the extinction outside the bank [1/m]
     lut: np.ndarray  #: per bin of width 1/`inv_width` above the shallowest positive run, the run node at or below it
@@ -35,10 +35,10 @@ class _BankPlan(NamedTuple):
 
 
 def _bank_plan(terms: np.ndarray, pose: np.ndarray) -> _BankPlan | None:
-    """The plan of a field of one bank and homogeneous terms (None for any other field): ``side``
-    +1 where the sensor lies before the bank (the beams that reach it run along +u and meet its face at ``u = align``),
-    −1 past it, 0 inside it (every beam starts in fog; ``nodes`` the signed runs); else ``nodes`` the runs
-    ``side·du`` > 0 of the curves, from the shallowest whose ray meets the face within the points' range."""
+    """The plan of a field of one bank and homogeneous terms (None for any other field): ``side`` +1 where the sensor
+    lies before the bank (the beams that reach it run along +u and meet its face ``dist`` metres along u), −1 past it,
+    0 inside it (every beam starts in fog; ``nodes`` the signed runs); else ``nodes`` the runs ``side·du`` > 0 of the
+    curves, from the shallowest whose ray meets the face within the points' range."""
     kinds = terms[:, 0]
     if (kinds == BANK).sum() != 1 or not np.all((kinds == BANK) | (kinds == 0.0)):
         return None
@@ -46,18 +46,17 @@ def _bank_plan(terms: np.ndarray, pose: np.ndarray) -> _BankPlan | None:
     a, d = bank[[2, 5]]
     u0, r_max = float(pose[0]), 201.0  # (ranges are cut at 200 m)
     if a < u0 < d or (u0 == a == d):
-        side, align, low = 0, u0, BANK_MIN_RUN
+        side, dist, low = 0, 0.0, BANK_MIN_RUN
     else:
-        side, align = (1, a) if u0 <= a else (-1, d)
-        low = min(max(abs(align - u0) / r_max, BANK_MIN_RUN), 0.5)  # (a bank out of range: every point reads the background)
-    dist = abs(float(align) - u0)
+        side, dist = (1, float(a) - u0) if u0 <= a else (-1, u0 - float(d))
+        low = min(max(dist / r_max, BANK_MIN_RUN), 0.5)  # (a bank out of range: every point reads the background)
     nodes, lut, inv_width, inv_gap, faces = _run_tables(low, side, dist, BANK_RATIO)
     homogeneous = float(terms[kinds == 0.0, 1].sum())
     db, a, b, c, d, p, bg = bank[1:8]
     h_ab, h_dc = (0.5 / (b - a) if b > a else 0.0), (0.5 / (d - c) if d > c else 0.0)
     depth = np.array([homogeneous + bg, db, a, b, c, d, p, h_ab, h_dc, 0.0])
     depth[9] = _bank_integral(u0, depth)
-    return _BankPlan(side, float(align), nodes, homogeneous + float(bg), lut, inv_width, inv_gap, faces, depth)
+    return _BankPlan(side, dist, nodes, homogeneous + float(bg), lut, inv_width, inv_gap, faces, depth)
 
 
 @njit(cache=True)
@@ -217,7 +216,7 @@ def fog_lidar_bank(pts: np.ndarray, terms: np.ndarray, pose: np.ndarray, log_noi
     if plan is None:
         return False
     best, where, stops, row = _bank_curves(terms, pose, plan)
-    _hahner_bank(pts, pose, plan.side, abs(plan.align - float(pose[0])), plan.nodes, plan.lut, plan.inv_width,
+    _hahner_bank(pts, pose, plan.side, plan.dist, plan.nodes, plan.lut, plan.inv_width,
                  plan.inv_gap, plan.faces, plan.depth, row, not row.any(), plan.background == 0.0, best, where, stops,
                  FIELD_STEP, log_noise, u, out, attenuation)  # fmt: skip
     return True

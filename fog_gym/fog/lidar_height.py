@@ -109,7 +109,7 @@ def _elevation_nodes(spans, present, most):
 @njit(cache=True)
 def _first_at_or_above(nodes, lo_key, keys, rounding):
     # per rounded elevation key (lo_key + c), the first node at or above (key − ½)·rounding: a point's searchsorted in
-    # one read and at most one step (_hahner_curves)
+    # one read and at most one step (_hahner_height)
     first = np.empty(keys, np.int64)
     j = 0
     for c in range(keys):
