@@ -15,6 +15,11 @@ kernel pays a launch per parallel region (tens of µs with workqueue), more than
 :func:`serial_twin` compiles a parallel kernel a second time without ``parallel``; :func:`pick` chooses it below a work
 size (:data:`SERIAL_BELOW`). Both give the same bits (tests compare them).
 
+**Kernels release the GIL** (``nogil=True``, every kernel; a test checks it), so Python threads can step several
+worlds at once (the pixel vector env's :func:`worker_pool`). The workqueue layer is not thread safe: in a worker thread
+:func:`pick` always takes the serial twin, and a parallel kernel without one is called through :func:`launch`, which
+holds the process's launch lock there (a test checks every call site).
+
 Example:
     >>> parse_signature(("float64", "int64"))
     (float64, int64)
@@ -24,6 +29,7 @@ from __future__ import annotations
 
 import os
 import sys
+import threading
 from pathlib import Path
 from typing import NamedTuple
 
@@ -53,13 +59,53 @@ def serial_twin(kernel):
     copy = types.FunctionType(f.__code__, f.__globals__, f.__name__ + "_serial", f.__defaults__, f.__closure__)
     copy.__qualname__ = f.__qualname__ + "_serial"
     copy.__doc__ = f"{f.__name__} on one thread (:func:`fog_gym._numba.serial_twin`)."
-    options = {k: v for k, v in kernel.targetoptions.items() if k in ("fastmath", "error_model", "boundscheck")}
+    options = {k: v for k, v in kernel.targetoptions.items() if k in ("fastmath", "error_model", "boundscheck", "nogil")}
     return njit(cache=True, **options)(copy)
 
 
 def pick(kernel, twin, work: int):
-    """``kernel`` for ``work`` pixels, rays or points of at least :data:`SERIAL_BELOW`, else its serial ``twin``."""
-    return kernel if work >= SERIAL_BELOW else twin
+    """``kernel`` for ``work`` pixels, rays or points of at least :data:`SERIAL_BELOW`, else its serial ``twin`` (and
+    always the twin in a :func:`worker_pool`'s thread)."""
+    return kernel if work >= SERIAL_BELOW and not _THREAD.worker else twin
+
+
+class _ThreadState(threading.local):
+    worker = False  # a worker_pool thread: serial kernels only, parallel launches under _LAUNCH
+
+
+_THREAD = _ThreadState()
+_LAUNCH = threading.Lock()
+
+
+def launch(kernel):
+    """``kernel`` (a parallel kernel without a serial twin), to call: in a :func:`worker_pool` thread, a function that
+    calls it holding the process's launch lock, since numba's workqueue layer must not launch from two threads at
+    once; elsewhere the kernel itself.
+
+    >>> f = njit(lambda x: x + 1)
+    >>> launch(f) is f, worker_pool(1).submit(lambda: launch(f)(1)).result()
+    (True, 2)
+    """
+    if not _THREAD.worker:
+        return kernel
+
+    def locked(*args):
+        with _LAUNCH:
+            return kernel(*args)
+
+    return locked
+
+
+def _mark_worker() -> None:
+    _THREAD.worker = True
+
+
+def worker_pool(threads: int):
+    """A ``ThreadPoolExecutor`` of ``threads`` threads marked as workers (:func:`pick` and :func:`launch` keep
+    numba's threading layer to one launch at a time)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    return ThreadPoolExecutor(max_workers=threads, thread_name_prefix="fog-gym-world", initializer=_mark_worker)
 
 
 def readonly(a):

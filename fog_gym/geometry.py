@@ -192,7 +192,7 @@ def sensor_to_world(pose: Pose, ego_pose: tuple[float, float, float] = (0.0, 0.0
     return yaw_transform(*ego_pose) @ transform_matrix(pose.location, pose.rotation)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def polygon_area(poly, n):
     """Area of the first ``n`` vertices of ``poly`` (shoelace; either orientation)."""
     s = 0.0

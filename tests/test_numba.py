@@ -39,3 +39,60 @@ def test_serial_twin_is_a_separate_single_thread_kernel():
     assert raycast._cast_serial is not raycast._cast
     assert raycast._cast_serial.py_func.__qualname__ == "_cast_serial"
     assert raycast._cast.targetoptions.get("parallel") and not raycast._cast_serial.targetoptions.get("parallel")
+
+
+def _kernels():
+    """Every numba kernel of the package: (module, name, dispatcher)."""
+    import importlib
+    import pkgutil
+
+    from numba.core.registry import CPUDispatcher
+
+    out = []
+    for info in pkgutil.walk_packages(fog_gym.__path__, "fog_gym."):
+        if ".experiments." in info.name or info.name.endswith("__main__"):
+            continue
+        module = importlib.import_module(info.name)
+        for name, obj in vars(module).items():
+            if isinstance(obj, CPUDispatcher) and obj.py_func.__module__ == info.name:
+                out.append((info.name, name, obj))
+    return out
+
+
+def test_every_kernel_called_from_python_releases_the_gil():
+    """The pixel vector env steps its worlds on threads; a kernel holding the GIL would serialise them."""
+    kernels = _kernels()
+    assert len(kernels) > 60
+    held = [f"{m}.{n}" for m, n, d in kernels if d.targetoptions.get("inline") != "always" and not d.targetoptions.get("nogil")]
+    assert held == []
+
+
+def test_every_parallel_kernel_is_called_through_pick_or_launch():
+    """The workqueue layer aborts the process when two threads launch at once: a worker thread must take a serial
+    twin (``pick``) or the launch lock (``launch``). Scans every call of a parallel kernel in the package's source."""
+    import re
+    from pathlib import Path
+
+    parallel = {n for _, n, d in _kernels() if d.targetoptions.get("parallel")}
+    assert {"_cast", "_raster_bands", "_shade_pass", "_glow_rows"} <= parallel
+    root = Path(fog_gym.__file__).parent
+    bad = []
+    for path in root.rglob("*.py"):
+        for lineno, line in enumerate(path.read_text().splitlines(), 1):
+            code = line.split("#")[0]
+            for name in parallel:  # a direct call: ``name(`` (``launch(name)(`` and ``pick(name, twin, n)(`` are not)
+                for m in re.finditer(rf"(?<![\w]){re.escape(name)}\(", code):
+                    if not re.search(r"def\s+$", code[: m.start()]):
+                        bad.append(f"{path.name}:{lineno}: {line.strip()}")
+    assert bad == []
+
+
+def test_a_worker_thread_takes_the_serial_twin_and_the_main_thread_the_parallel_kernel():
+    pool = fog_gym._numba.worker_pool(1)
+    try:
+        assert fog_gym._numba.pick(raycast._cast, raycast._cast_serial, 10**9) is raycast._cast
+        assert pool.submit(fog_gym._numba.pick, raycast._cast, raycast._cast_serial, 10**9).result() is raycast._cast_serial
+        assert fog_gym._numba.launch(raycast._cast) is raycast._cast
+        assert pool.submit(fog_gym._numba.launch, raycast._cast).result() is not raycast._cast
+    finally:
+        pool.shutdown()

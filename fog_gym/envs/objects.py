@@ -26,6 +26,7 @@ import numpy as np
 from gymnasium import spaces
 from gymnasium.utils import seeding
 
+from fog_gym._numba import launch
 from fog_gym.fog.banks import BankConfig, bank_rng
 from fog_gym.fog.fields import along_axis, field_info
 from fog_gym.fog.lidar import BETA_PER_MOR, GAMMA, soft_response_table
@@ -207,7 +208,7 @@ class ObjectWorlds:
 
     def _perceive(self, active: np.ndarray) -> None:
         c = self.core
-        PO.perceive_worlds(active, c.floats, c.counts, c.classes, c.colors, c.heights, self.keys, c.ticks,
+        launch(PO.perceive_worlds)(active, c.floats, c.counts, c.classes, c.colors, c.heights, self.keys, c.ticks,
                            self.alphas, self.beta_ratios, self.tables_i, self.tables_r, self.suns, self.shades,
                            float(_luma(SKY_HORIZON)), self._grid, *self._ground, self._surf_luma, self._elev,
                            self._az_cos, self._az_sin, self.objects.lidar_range, self.objects.lidar_height, self._drop,

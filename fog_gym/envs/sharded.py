@@ -3,8 +3,9 @@
 
 :class:`ShardedVectorEnv` runs K worker processes, each with its own :class:`~fog_gym.envs.vector.FogDriveVectorEnv`
 of about N/K worlds (shard k holds sub-envs ``[start_k, start_k + n_k)``), steps them at once and concatenates their
-results, so the worlds' Python and kernels use K cores. Every worker's numba kernels get ``cores // K`` threads;
-``context`` picks the multiprocessing start method (``"fork"``, ``"spawn"``, ``"forkserver"``; default: the platform's).
+results, so the worlds' Python and kernels use K cores. Every worker's numba kernels get ``cores // K`` threads, and
+its worlds render on ``threads`` threads (:class:`~fog_gym.envs.vector.FogDriveVectorEnv`'s; default: ``cores // K``,
+at most its default); ``context`` picks the multiprocessing start method (``"fork"``, ``"spawn"``, ``"forkserver"``; default: the platform's).
 
 It is the same vector env as ``shards=1`` sub-env for sub-env: ``reset(seed=s)`` gives sub-env i the episode of a
 single env reset with ``seed=s + i``; autoresets (``NEXT_STEP``, ``SAME_STEP``, ``DISABLED``), ``reset_mask`` and infos
@@ -36,7 +37,7 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
-from fog_gym.envs.vector import check_vector_arguments, sub_env_seeds
+from fog_gym.envs.vector import DEFAULT_THREADS, check_vector_arguments, sub_env_seeds, world_threads
 
 
 def shard_sizes(num_envs: int, shards: int) -> tuple[int, ...]:
@@ -48,15 +49,16 @@ def shard_sizes(num_envs: int, shards: int) -> tuple[int, ...]:
     return tuple(num_envs // shards + (k < num_envs % shards) for k in range(shards))
 
 
-def _worker(conn: Any, env_id: str, size: int, threads: int, autoreset_mode: str, info_detections: bool,
-            kwargs: dict) -> None:  # fmt: skip
+def _worker(conn: Any, env_id: str, size: int, threads: int, world_threads: int, autoreset_mode: str,
+            info_detections: bool, kwargs: dict) -> None:  # fmt: skip
     try:
         import numba
 
         numba.set_num_threads(min(threads, numba.config.NUMBA_NUM_THREADS))
         from fog_gym.envs.vector import FogDriveVectorEnv
 
-        envs = FogDriveVectorEnv(env_id, size, autoreset_mode=autoreset_mode, info_detections=info_detections, **kwargs)
+        envs = FogDriveVectorEnv(env_id, size, autoreset_mode=autoreset_mode, info_detections=info_detections,
+                                 threads=min(world_threads, size), **kwargs)  # fmt: skip
         conn.send(("ok", (envs.single_observation_space, envs.single_action_space)))
     except Exception as e:  # noqa: BLE001 - sent to the main process, which raises it
         conn.send(("error", (e, traceback.format_exc())))
@@ -87,8 +89,10 @@ class ShardedVectorEnv(gym.vector.VectorEnv):
     """N worlds of an RL preset over ``shards`` worker processes (see the module docstring)."""
 
     def __init__(self, env_id: str, num_envs: int, shards: int, autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
-                 info_detections: bool = True, context: str | None = None, **kwargs: Any) -> None:  # fmt: skip
+                 info_detections: bool = True, context: str | None = None, threads: int | None = None,
+                 **kwargs: Any) -> None:  # fmt: skip
         mode = check_vector_arguments(env_id, num_envs, autoreset_mode, kwargs)
+        threads_arg = None if threads is None else world_threads(threads, 1)
         if isinstance(shards, bool) or not isinstance(shards, (int, np.integer)) or not 1 <= shards <= num_envs:
             raise ValueError(f"shards must be an integer from 1 to num_envs ({num_envs}), got {shards!r}")
         self.env_id, self.num_envs = env_id, int(num_envs)
@@ -98,11 +102,12 @@ class ShardedVectorEnv(gym.vector.VectorEnv):
         self._mode = mode
         ctx = mp.get_context(context)
         threads = max(1, (os.cpu_count() or 1) // len(self.shard_sizes))
+        per_shard = min(threads, DEFAULT_THREADS) if threads_arg is None else threads_arg
         self._conns, self._procs = [], []
         for size in self.shard_sizes:
             parent, child = ctx.Pipe()
-            proc = ctx.Process(target=_worker, args=(child, env_id, size, threads, mode.value, info_detections, kwargs),
-                               daemon=True)  # fmt: skip
+            proc = ctx.Process(target=_worker, args=(child, env_id, size, threads, per_shard, mode.value,
+                                                     info_detections, kwargs), daemon=True)  # fmt: skip
             proc.start()
             child.close()
             self._conns.append(parent)

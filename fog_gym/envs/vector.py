@@ -6,7 +6,10 @@ shared :class:`~fog_gym.world.traffic.native.NativeTraffic`:
 * ``observation="objects"``: everything batched (:class:`~fog_gym.envs.objects.ObjectWorlds`: traffic, detection and
   fusion in one call per step; no Python per world except the resets and ``info``);
 * ``observation="pixels"``: the traffic batched, then each world's own env (the preset's ``FogDriveEnv`` and its
-  wrappers, on a view of the shared traffic) renders its camera, LiDAR, fog and bird's-eye image.
+  wrappers, on a view of the shared traffic) renders its camera, LiDAR, fog and bird's-eye image. The worlds render
+  on ``threads`` Python threads (default: 2, or fewer cores or worlds): every kernel releases the GIL, so one world's
+  ray casting and rasterising overlap another's Python. The worlds share nothing they write, so the result is the
+  same bits for any ``threads`` (tested); ``threads=1`` renders them one after the other in the calling thread.
 
 **Seeded identity**: ``reset(seed=s)`` gives sub-env i exactly the episode of ``gym.make(id, **kwargs)`` reset with
 ``seed=s + i`` (a list of seeds: one per sub-env); a later reset without a seed continues each sub-env's own
@@ -107,12 +110,14 @@ class FogDriveVectorEnv(gym.vector.VectorEnv):
     worlds for perceived objects)."""
 
     def __init__(self, env_id: str, num_envs: int, autoreset_mode: AutoresetMode | str = AutoresetMode.NEXT_STEP,
-                 info_detections: bool = True, **kwargs: Any) -> None:  # fmt: skip
+                 info_detections: bool = True, threads: int | None = None, **kwargs: Any) -> None:  # fmt: skip
         spec_kwargs = dict(kwargs)  # what the caller passed, as gym.make records it in each sub-env's spec
         kwargs = {**PRESET_DEFAULTS.get(env_id, {}), **kwargs}
         mode = check_vector_arguments(env_id, num_envs, autoreset_mode, kwargs)
         if not isinstance(info_detections, bool):
             raise ValueError(f"info_detections must be True or False, got {info_detections!r}")
+        self.threads = world_threads(threads, int(num_envs))
+        self._pool: Any = None
         self.env_id = env_id
         self.num_envs = int(num_envs)
         self.metadata = {"autoreset_mode": mode, "render_modes": []}
@@ -198,8 +203,8 @@ class FogDriveVectorEnv(gym.vector.VectorEnv):
                 self.envs[i]._started = True
                 infos = self._add_info(infos, self.envs[i].info(), i)
             return self.worlds.observation(), infos
-        for i in which:
-            self._obs[i], info = self.envs[i].reset(seed=seeds[i], options=options)
+        results = self._map(lambda i: self.envs[i].reset(seed=seeds[i], options=options), which)
+        for i, (self._obs[i], info) in zip(which, results):
             infos = self._add_info(infos, info, i)
         return self._batch(self._obs), infos
 
@@ -250,18 +255,41 @@ class FogDriveVectorEnv(gym.vector.VectorEnv):
 
     def _step_pixels(self, actions, resetting, same_step, rewards, terminated, truncated) -> dict:
         self.core.step(actions, ~resetting)
-        infos: dict[str, Any] = {}
-        for i, env in enumerate(self.envs):
+
+        def world(i: int) -> tuple:
+            """World ``i``'s part of the step (on a worker thread): its reset, or its step and, in SAME_STEP mode when
+            it ended, its final observation and info before the reset."""
+            env = self.envs[i]
             if resetting[i]:
-                self._obs[i], info = env.reset()
+                return env.reset(), None
+            env.unwrapped.world.pre_stepped(int(actions[i]))
+            out = env.step(int(actions[i]))
+            if same_step and (out[2] or out[3]):
+                return out, env.reset()
+            return out, None
+
+        infos: dict[str, Any] = {}
+        for i, (out, after) in enumerate(self._map(world, range(self.num_envs))):
+            if resetting[i]:
+                self._obs[i], info = out
             else:
-                env.unwrapped.world.pre_stepped(int(actions[i]))
-                self._obs[i], rewards[i], terminated[i], truncated[i], info = env.step(int(actions[i]))
-                if same_step and (terminated[i] or truncated[i]):
+                self._obs[i], rewards[i], terminated[i], truncated[i], info = out
+                if after is not None:
                     infos = self._add_info(infos, {"final_obs": self._obs[i], "final_info": info}, i)
-                    self._obs[i], info = env.reset()
+                    self._obs[i], info = after
             infos = self._add_info(infos, info, i)
         return infos
+
+    def _map(self, f: Any, worlds: Any) -> list:
+        """``[f(i) for i in worlds]``, on the worker threads when there are several."""
+        worlds = list(worlds)
+        if self.threads == 1 or len(worlds) < 2:
+            return [f(i) for i in worlds]
+        if self._pool is None:
+            from fog_gym._numba import worker_pool
+
+            self._pool = worker_pool(self.threads)
+        return list(self._pool.map(f, worlds))
 
     # -- sub-env access (as SyncVectorEnv) ------------------------------------------------------------
     def get_attr(self, name: str) -> tuple[Any, ...]:
@@ -299,6 +327,9 @@ class FogDriveVectorEnv(gym.vector.VectorEnv):
         return obs, info
 
     def close_extras(self, **kwargs: Any) -> None:
+        if self._pool is not None:
+            self._pool.shutdown()
+            self._pool = None
         for env in self.envs:
             env.close()
 
@@ -310,6 +341,28 @@ class FogDriveVectorEnv(gym.vector.VectorEnv):
         if isinstance(self.single_observation_space, gym.spaces.Dict):
             return {k: np.stack([o[k] for o in obs]) for k in self.single_observation_space.spaces}
         return np.stack(obs)
+
+
+#: Worker threads of the pixel path by default (at most; fewer with fewer cores or worlds). A world's step spends
+#: about half its time in Python under the GIL, so more threads gain little (measured: docs/performance.md).
+DEFAULT_THREADS = 2
+
+
+def world_threads(threads: Any, num_envs: int) -> int:
+    """The pixel path's worker threads: ``threads`` (an int >= 1) or, for None, :data:`DEFAULT_THREADS` bounded by the
+    cores and the worlds.
+
+    >>> world_threads(1, 8), world_threads(None, 1), world_threads(3, 8)
+    (1, 1, 3)
+    """
+    if threads is None:
+        import os
+
+        cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+        return max(1, min(DEFAULT_THREADS, cores, num_envs))
+    if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or threads < 1:
+        raise ValueError(f"threads must be an integer >= 1 or None, got {threads!r}")
+    return int(threads)
 
 
 def reset_mask(options: dict[str, Any] | None, num_envs: int) -> np.ndarray:

@@ -23,7 +23,7 @@ import numpy as np
 from numba import njit, prange
 
 import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
-from fog_gym._numba import FASTMATH, pick, serial_twin
+from fog_gym._numba import FASTMATH, launch, pick, serial_twin
 from fog_gym.fog.depth import optical_depths
 from fog_gym.fog.glow import _NO_GLOW, _blend_glow, _glow_rows_of
 
@@ -121,7 +121,7 @@ def _fog_row(o, t, t3, diff, airlight_row):
         o[k] = np.uint8(airlight_row[k] + diff[k] * t3[k] + np.float32(0.5))
 
 
-@njit(cache=True, parallel=True, fastmath=FASTMATH)
+@njit(cache=True, nogil=True, parallel=True, fastmath=FASTMATH)
 def _koschmieder(rgb, depth, col_sq, row_sq, alphas, airlight_row, out, y0s, wys, firsts, fofs, wide, rofs, span_lo,
                  span_hi):  # fmt: skip
     # rgb (H, 3W) and out (L, H, 3W) are viewed flat per row so every inner loop is contiguous (SIMD);
@@ -225,7 +225,7 @@ def fog_image(rgb: np.ndarray, depth: np.ndarray, K: np.ndarray, alpha: float, a
 # -- fog fields (fog_gym.fog.fields): per-pixel optical depth instead of α·ℓ ------------------------------------------
 
 
-@njit(cache=True, parallel=True, fastmath=FASTMATH)
+@njit(cache=True, nogil=True, parallel=True, fastmath=FASTMATH)
 def _koschmieder_field(rgb, depth, xs, ys, pose, terms, starts, airlight_row, out, y0s, wys, firsts, fofs, wide, rofs,
                        span_lo, span_hi):  # fmt: skip
     # rgb (H, 3W), out (L, H, 3W) flat per row; xs (W) / ys (H) the pixel centres' ray slopes; pose (field_pose);
@@ -344,7 +344,7 @@ def fog_field_images(rgb: np.ndarray, depth: np.ndarray, K: np.ndarray, fields: 
 
         rows = _glow_rows_of(rgb, depth, K, [f.alpha for f in fields], depths)
     out = np.empty((len(packed), h, w, 3), np.uint8)
-    _koschmieder_field(np.ascontiguousarray(rgb).reshape(h, 3 * w), np.ascontiguousarray(depth, np.float32), xs, ys,
+    launch(_koschmieder_field)(np.ascontiguousarray(rgb).reshape(h, 3 * w), np.ascontiguousarray(depth, np.float32), xs, ys,
                        pose, np.concatenate(packed), starts, np.tile(np.asarray(airlight, np.float32), w),
                        out.reshape(len(packed), h, 3 * w), *(rows or _NO_GLOW))  # fmt: skip
     return out

@@ -55,7 +55,7 @@ def _ramp(u, a, b, c, d, p):
     return p * (d - u) / (d - c)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def segment_depth(terms, u0, z0, du, dz, length):
     """Optical depth ``τ`` of the packed field ``terms`` along the segment from ``(u0, z0)`` with unit direction
     components ``du`` (along ``u``) and ``dz`` (up), ``length`` metres long, in closed form."""
@@ -86,7 +86,7 @@ def segment_depth(terms, u0, z0, du, dz, length):
     return tau
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def point_extinction(terms, u, z):
     """``β`` of the packed field at ``(u, z)`` [1/m]."""
     beta = 0.0
@@ -101,13 +101,13 @@ def point_extinction(terms, u, z):
     return beta
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _depths(terms, u0, z0, du, dz, length, out):
     for n in range(out.shape[0]):
         out[n] = segment_depth(terms, u0[n], z0[n], du[n], dz[n], length[n])
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _betas(terms, u, z, out):
     for n in range(out.shape[0]):
         out[n] = point_extinction(terms, u[n], z[n])

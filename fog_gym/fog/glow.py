@@ -25,7 +25,7 @@ import numpy as np
 from numba import njit, prange
 
 import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
-from fog_gym._numba import FASTMATH, pick, serial_twin
+from fog_gym._numba import FASTMATH, launch, pick, serial_twin
 
 #: Glow: sources are pixels at or above ``GLOW_THRESHOLD`` (any channel, 0–255), taken at ``GLOW_SOURCE_GAIN`` ×
 #: their 8-bit value (a clipped lamp is far brighter than white); ``GLOW_FORWARD`` of the light they lose to fog
@@ -53,7 +53,7 @@ def glow_factor(sigma: float) -> int:
     return max(1, int(sigma // GLOW_CELLS_PER_SIGMA))
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, nogil=True, parallel=True)
 def _find_sources(clean):
     # clean (H, 3W) uint8: the source pixels (a channel ≥ GLOW_THRESHOLD) in raster order, as rows and columns (int32).
     # Rows are scanned in parallel; a row's maximum (a vectorised loop, kept uint8) rules most rows out, the others
@@ -86,7 +86,7 @@ def _find_sources(clean):
     return src_i, src_j
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _splat_sources(clean, depth, u2, v2, alphas, fs, widths, offsets, grids, src_i, src_j, taus):
     # clean (H, 3W) uint8, depth (H, W) float32, u2 (W) / v2 (H) the squared ray slopes of the pixel centres; per level
     # its extinction, grid factor f, grid width Wc (cells) and offset into grids (float32, zeroed: level lv's grid is
@@ -237,7 +237,7 @@ def _span(mask):
     return lo, hi
 
 
-@njit(cache=True, parallel={"fusion": False}, fastmath=FASTMATH)  # (its loops read their neighbours' rows: unfused)
+@njit(cache=True, nogil=True, parallel={"fusion": False}, fastmath=FASTMATH)  # (its loops read their neighbours' rows: unfused)
 def _glow_rows(grids, gofs, hcs, wcs, x0s, wxs, firsts, fofs, wide):
     # Stages 1 and 2 of the glow's addition (stage 3: _blend_glow); returns each grid row's span of active intervals
     # (span_lo, span_hi, in the order of the levels' rows; row r of level lv is rofs[lv] + cy). Level lv's grid is grids[gofs[lv]:…] as (hcs[lv], 3 wcs[lv]) float32 (a margin of
@@ -325,7 +325,7 @@ def _blend_glow(o, i, lv, y0s, wys, firsts, fofs, wide, rofs, span_lo, span_hi):
         ob[k] = np.uint8(min(max(v, 0), 255))  # (the cubic's small lobes may be < 0)
 
 
-@njit(cache=True, parallel=True, fastmath=FASTMATH)
+@njit(cache=True, nogil=True, parallel=True, fastmath=FASTMATH)
 def _add_glow_rows(out, y0s, wys, firsts, fofs, wide, rofs, span_lo, span_hi):
     # Stage 3 on fogged images out (L, H, 3W) uint8, in place (_glow_rows made wide and the spans).
     for i in prange(out.shape[1]):
@@ -366,7 +366,7 @@ def add_glows(images: np.ndarray, clean: np.ndarray, depth: np.ndarray, K: np.nd
         return images
     n, h, w = images.shape[:3]
     work = images if images.flags.c_contiguous else np.ascontiguousarray(images)
-    _add_glow_rows(work.reshape(n, h, 3 * w), *rows)
+    launch(_add_glow_rows)(work.reshape(n, h, 3 * w), *rows)
     if work is not images:
         images[...] = work
     return images
@@ -383,7 +383,7 @@ def _glow_rows_of(clean: np.ndarray, depth: np.ndarray, K: np.ndarray, alphas: S
     h, w = depth.shape
     x0s, wxs, firsts, fofs, y0s, wys, rofs = _tables(h, w, tuple(fs.tolist()))
     wide = _scratch(int(hcs.sum()), 3 * w)
-    span_lo, span_hi = _glow_rows(flat, gofs, hcs, wcs, x0s, wxs, firsts, fofs, wide)
+    span_lo, span_hi = launch(_glow_rows)(flat, gofs, hcs, wcs, x0s, wxs, firsts, fofs, wide)
     return y0s, wys, firsts, fofs, wide, rofs, span_lo, span_hi
 
 

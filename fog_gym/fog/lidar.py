@@ -93,7 +93,7 @@ def hahner_intensities(r0, intensity, table_i, alpha, beta_ratio):
     return i_hard, i_soft, key
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def hahner_keeps(r0, intensity, table_i, table_r, alpha, beta_ratio):
     """Whether a return at range ``r0`` with intensity ``intensity`` survives the fog (``i_soft <= i_hard``); the
     same decision :func:`fog_lidar` makes per point, for the perception kernels."""
@@ -101,7 +101,7 @@ def hahner_keeps(r0, intensity, table_i, table_r, alpha, beta_ratio):
     return not i_soft > i_hard
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, nogil=True, parallel=True)
 def _hahner(pts, table_i, table_r, alpha, beta_ratio, log_noise, u, out, attenuation):
     for n in prange(pts.shape[0]):
         x, y, z = np.float64(pts[n, 0]), np.float64(pts[n, 1]), np.float64(pts[n, 2])

@@ -10,6 +10,7 @@ import numpy as np
 from numba import njit, prange
 
 import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
+from fog_gym._numba import launch
 from fog_gym.fog.depth import BANK, _ramp
 from fog_gym.fog.lidar_pulse import FIELD_STEP, _curves, _field_rule
 
@@ -59,7 +60,7 @@ def _bank_plan(terms: np.ndarray, pose: np.ndarray) -> _BankPlan | None:
     return _BankPlan(side, dist, nodes, homogeneous + float(bg), lut, inv_width, inv_gap, faces, depth)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _run_tables(low, side, dist, ratio):
     # A bank plan's runs from `low` to 1 (geometric, of this ratio; the last cut at 1) and their lookup: the nodes
     # (signed inside: −runs reversed, then runs), per bin of the narrowest gap above `low` the run at or below the
@@ -144,7 +145,7 @@ def _bank_read(r0, du, side, dist, nodes, lut, inv_width, inv_gap, faces, step, 
     return j, min(max((g - nodes[j]) * inv_gap[j], 0.0), 1.0), k_j, k_j1, face
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, nogil=True, parallel=True)
 def _hahner_bank(pts, pose, side, dist, nodes, lut, inv_width, inv_gap, faces, depth, row, uniform, clear_outside, best,
                  where, stops, step, log_noise, u, out, attenuation):  # fmt: skip
     # Hahner et al. with one bank: per point τ in closed form (_bank_depth), the soft return's maximum interpolated
@@ -216,7 +217,7 @@ def fog_lidar_bank(pts: np.ndarray, terms: np.ndarray, pose: np.ndarray, log_noi
     if plan is None:
         return False
     best, where, stops, row = _bank_curves(terms, pose, plan)
-    _hahner_bank(pts, pose, plan.side, plan.dist, plan.nodes, plan.lut, plan.inv_width,
+    launch(_hahner_bank)(pts, pose, plan.side, plan.dist, plan.nodes, plan.lut, plan.inv_width,
                  plan.inv_gap, plan.faces, plan.depth, row, not row.any(), plan.background == 0.0, best, where, stops,
                  FIELD_STEP, log_noise, u, out, attenuation)  # fmt: skip
     return True

@@ -26,6 +26,7 @@ import numpy as np
 from numba import njit, prange
 
 import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
+from fog_gym._numba import launch
 from fog_gym.fog.depth import BANK, point_extinction, segment_depth
 from fog_gym.fog.lidar import GAMMA, XI_R1, XI_R2, _checked_points, fog_lidar
 from fog_gym.fog.lidar_bank import fog_lidar_bank
@@ -105,7 +106,7 @@ def beam_soft_maximum(terms, u0, z0, du, dz, r0, weights, ramp, weights5, ramp5,
     return best, best_k
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def field_keeps(r0, intensity, terms, u0, z0, du, dz, weights, ramp, weights5, ramp5, beta_max):
     """Whether a return at range ``r0`` with CARLA intensity ``intensity`` ∈ [0, 1] on the beam ``(u0, z0, du, dz)``
     survives the fog field ``terms`` (``i_soft <= i_hard``): the decision :func:`fog_lidar_field` makes per point (CARLA
@@ -120,7 +121,7 @@ def field_keeps(r0, intensity, terms, u0, z0, du, dz, weights, ramp, weights5, r
     return not min(255.0, best * i_orig * r0 * r0 * math.pi / GAMMA) > i_hard
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, nogil=True, parallel=True)
 def _hahner_field(pts, pose, terms, weights, ramp, weights5, ramp5, coarse, step, log_noise, u, out, attenuation,
                   beta_max):
     # pts (N, C) in the sensor frame; pose (8,): the sensor origin (u0, z0) in the field frame and the rows a_u, a_z
@@ -169,6 +170,6 @@ def fog_lidar_field(points: np.ndarray, field, rng: np.random.Generator, pose: n
         return out
     if fog_lidar_bank(pts, terms, pose, log_noise, u, out, attenuation):  # one bank: curves per run, face-aligned
         return out
-    _hahner_field(pts, pose, terms, *field_pulse_weights(), *field_pulse_weights(FIELD_STEP * FIELD_COARSE),
+    launch(_hahner_field)(pts, pose, terms, *field_pulse_weights(), *field_pulse_weights(FIELD_STEP * FIELD_COARSE),
                   FIELD_COARSE, FIELD_STEP, log_noise, u, out, attenuation, peak_extinction(terms))  # fmt: skip
     return out

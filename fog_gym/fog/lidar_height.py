@@ -10,6 +10,7 @@ import numpy as np
 from numba import njit, prange
 
 import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
+from fog_gym._numba import launch
 from fog_gym.fog.depth import segment_depth
 from fog_gym.fog.lidar_pulse import FIELD_STEP, _curves, _field_rule
 
@@ -56,7 +57,7 @@ ELEVATION_ROUND, ELEVATION_NODES = 1e-4, 64
 ELEVATION_KEYS = int(round(1.0 / ELEVATION_ROUND))
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, nogil=True, parallel=True)
 def _beam_elevations(pts, pose, terms, height, step, last, dzs, ks, keys, tau, spans, present):
     # Per point: its beam's elevation (run up per metre), its range node, the elevation rounded to ELEVATION_ROUND (its
     # key) and τ to it in closed form (_height_depth, or segment_depth where height is empty). Per chunk c of the
@@ -79,7 +80,7 @@ def _beam_elevations(pts, pose, terms, height, step, last, dzs, ks, keys, tau, s
         spans[c, 0], spans[c, 1], spans[c, 2], spans[c, 3], spans[c, 4] = lo_key, hi_key, low, high, top
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _elevation_nodes(spans, present, most):
     # The beam elevations of the points (_beam_elevations), rounded to ELEVATION_ROUND, when there are at most `most`
     # of them; else a uniform grid of `most` over their span (and 1 / its spacing, 0 for the elevations). Every node's
@@ -106,7 +107,7 @@ def _elevation_nodes(spans, present, most):
         _first_at_or_above(nodes, lo_key, keys.shape[0], ELEVATION_ROUND), lo_key, spacing  # fmt: skip
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _first_at_or_above(nodes, lo_key, keys, rounding):
     # per rounded elevation key (lo_key + c), the first node at or above (key − ½)·rounding: a point's searchsorted in
     # one read and at most one step (_hahner_height)
@@ -119,7 +120,7 @@ def _first_at_or_above(nodes, lo_key, keys, rounding):
     return first
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, nogil=True, parallel=True)
 def _hahner_height(pts, tau, dzs, ks, keys, node_dz, first, lo_key, inv_spacing, best, where, stops, step, log_noise, u,
                    out, attenuation):  # fmt: skip
     # Hahner et al. with a field whose β depends on height only, given each point's τ, elevation, range node and
@@ -164,10 +165,10 @@ def fog_lidar_height(pts: np.ndarray, terms: np.ndarray, pose: np.ndarray, log_n
     dzs, tau = np.empty((2, n))
     ks, keys = np.empty(n, np.int64), np.empty(n, np.int64)
     spans, present = np.empty((chunks, 5)), np.zeros((chunks, 2 * ELEVATION_KEYS + 1), np.uint8)
-    _beam_elevations(pts, pose, terms, _height_constants(terms, float(pose[1])), FIELD_STEP,
+    launch(_beam_elevations)(pts, pose, terms, _height_constants(terms, float(pose[1])), FIELD_STEP,
                      int(round(200.0 / FIELD_STEP)), dzs, ks, keys, tau, spans, present)  # fmt: skip
     node_dz, tops, first, lo_key, inv_spacing = _elevation_nodes(spans, present, ELEVATION_NODES)
     horizontal = np.sqrt(np.maximum(1.0 - node_dz**2, 0.0))  # (a height-only field ignores the run along u)
     best, where, stops = _curves(terms, pose, horizontal, node_dz, tops)
-    _hahner_height(pts, tau, dzs, ks, keys, node_dz, first, lo_key, inv_spacing, best, where, stops, FIELD_STEP,
+    launch(_hahner_height)(pts, tau, dzs, ks, keys, node_dz, first, lo_key, inv_spacing, best, where, stops, FIELD_STEP,
                    log_noise, u, out, attenuation)  # fmt: skip

@@ -16,6 +16,7 @@ import numpy as np
 from numba import njit, prange
 
 import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
+from fog_gym._numba import launch
 from fog_gym.fog.depth import BANK, point_extinction, segment_depth
 from fog_gym.fog.lidar import BETA_PER_MOR, GAMMA, REFERENCE_REFLECTIVITY, SPEED_OF_LIGHT, TAU_H, XI_R1, XI_R2
 
@@ -128,7 +129,7 @@ def _field_rule(pts, n, out, r0, i_orig, i_hard, best, r_tmp, log_noise, u, atte
         out[n, c] = pts[n, c]
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, nogil=True, parallel=True)
 def _soft_curves(terms, u0, z0, dus, dzs, tops, weights, ramp, step, best, where, stops, beta_max):
     # For beam directions (dus[i], dzs[i]): the running maximum of the soft return F over ranges k·step, k ≤ tops[i],
     # into best[i, k], and the range node where it lies into where[i, k] (every node from the first with fog on the
@@ -206,6 +207,6 @@ def _curves(terms: np.ndarray, pose: np.ndarray, dus: np.ndarray, dzs: np.ndarra
     best = np.empty((len(dus), int(tops.max(initial=0)) + 1))
     where = np.empty(best.shape, np.int64)
     stops = np.zeros(len(dus), np.int64)
-    _soft_curves(terms, pose[0], pose[1], dus, dzs, tops, weights, ramp, FIELD_STEP, best, where, stops,
+    launch(_soft_curves)(terms, pose[0], pose[1], dus, dzs, tops, weights, ramp, FIELD_STEP, best, where, stops,
                  peak_extinction(terms))
     return best, where, stops

@@ -110,7 +110,7 @@ class LabelConfig:
             raise ValueError(f"min_box_fill must lie in [0, 1], got {self.min_box_fill!r}")
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _clip_polygon(poly, n, x0, y0, x1, y1):
     """Sutherland–Hodgman of a polygon (n points) against the rectangle [x0, x1] × [y0, y1]."""
     for side in range(4):
@@ -142,7 +142,7 @@ def _clip_polygon(poly, n, x0, y0, x1, y1):
     return poly, n
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _hull(pts, n):
     """Convex hull (monotone chain) of n 2D points, counter-clockwise."""
     order = np.argsort(pts[:n, 0] + 1e-9 * pts[:n, 1])
@@ -163,7 +163,7 @@ def _hull(pts, n):
     return hull, max(m - 1, 1)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _project_boxes(corners_cam, fx, fy, cx, cy, width, height, near, edges):
     """Per box: (u0, v0, u1, v1) of (projection of the near-clipped box) ∩ image, its area and the full hull area."""
     n_box = corners_cam.shape[0]
@@ -206,7 +206,7 @@ def _project_boxes(corners_cam, fx, fy, cx, cy, width, height, near, edges):
     return rect, inside, total
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _pixel_counts(instance, rects, ids):
     """Per box: pixels of its own id and pixels of any vehicle (id > 0) inside its integer rectangle."""
     n = rects.shape[0]

@@ -57,7 +57,7 @@ def as_boxes(boxes: Any, name: str = "boxes") -> np.ndarray:
     return b
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _corners_bev(b):
     """Counter-clockwise BEV corners (4, 2) of one box (x, y, z, l, w, h, yaw)."""
     c, s = math.cos(b[6]), math.sin(b[6])
@@ -71,7 +71,7 @@ def _corners_bev(b):
     return out
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _clip_convex(subject, n, clip):
     """Sutherland–Hodgman: polygon ``subject`` (n points) clipped by the convex CCW quadrilateral ``clip``."""
     poly = subject
@@ -98,7 +98,7 @@ def _clip_convex(subject, n, clip):
     return poly, n
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _iou3d(a, b):
     out = np.zeros((a.shape[0], b.shape[0]))
     for i in range(a.shape[0]):
@@ -169,7 +169,7 @@ def _concat(parts: list[tuple[np.ndarray, np.ndarray]]) -> tuple[np.ndarray, np.
     return np.ascontiguousarray(boxes, np.float64).reshape(-1, 7), np.asarray(scores, np.float64), offsets
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _match(pb, ps, po, gb, go, thr):
     """Greedy matching per frame: predictions in descending score take the free ground truth of highest IoU."""
     match = np.full(pb.shape[0], -1, np.int64)

@@ -47,7 +47,7 @@ def _splitmix(x):
     return x ^ (x >> np.uint64(31))
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def uniform(key, a, b, c, d):
     """A uniform draw in [0, 1) from the hash of (key, a, b, c, d) (non-negative integers)."""
     h = _splitmix(np.uint64(key))
@@ -58,7 +58,7 @@ def uniform(key, a, b, c, d):
     return (h >> np.uint64(11)) * (1.0 / 9007199254740992.0)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def normal(key, a, b, c, d):
     """A standard normal draw (Box–Muller on two hashed uniforms)."""
     u1 = max(uniform(key, a, b, c, 2 * d), 1e-300)
@@ -66,7 +66,7 @@ def normal(key, a, b, c, d):
     return math.sqrt(-2.0 * math.log(u1)) * math.cos(2.0 * math.pi * u2)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def ray_box(ox, oy, oz, dx, dy, dz, cx, cy, yaw, hl, hw, h):
     """Entry distance of a ray into an upright box (centre (cx, cy), yaw, half length/width, height h from z = 0) and
     the entry face's normal axis (0: x, 1: y, 2: z) and sign; (inf, -1, 0) when missed or when the origin is inside."""
@@ -108,7 +108,7 @@ def ray_box(ox, oy, oz, dx, dy, dz, cx, cy, yaw, hl, hw, h):
     return t0, axis, sign
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def nearest(ox, oy, oz, dx, dy, dz, n, bx, by, byaw, bl, bw, bh, amin, amax, emin, emax, rmin, order, az, el,
             max_t):  # fmt: skip
     """Nearest hit along a ray among boxes 1..n-1 (slot 0, the ego, is skipped) and the ground: (t, box or −1 ground
@@ -139,7 +139,7 @@ def nearest(ox, oy, oz, dx, dy, dz, n, bx, by, byaw, bl, bw, bh, amin, amax, emi
     return best_t, best, best_axis, best_sign
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def angular_extents(n, bx, by, byaw, bl, bw, bh, sx, sy, sz, syaw, amin, amax, emin, emax, rmin):
     """Per box seen from a sensor at (sx, sy, sz) with yaw ``syaw``: azimuth interval (radians, positive to the right
     = +y; from its footprint's corners), elevation interval (conservative: from the footprint's nearest and
@@ -181,7 +181,7 @@ def angular_extents(n, bx, by, byaw, bl, bw, bh, sx, sy, sz, syaw, amin, amax, e
     return np.argsort(rmin[1:n]) + 1
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def lidar_detect(n, bx, by, byaw, bl, bw, bh, ex, ey, eyaw, sz, elev, az_cos, az_sin, rng_max, key, tick, alpha,
                  beta_ratio, table_i, table_r, drop_general, drop_limit, drop_zero, max_rays, count, centroid, terms,
                  frame, weights, ramp, weights5, ramp5, beta_max):  # fmt: skip
@@ -259,7 +259,7 @@ def _luma(r, g, b):
     return 0.2126 * r + 0.7152 * g + 0.0722 * b
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _pixel_luminance(t, hit, axis, sign, dx, dy, dz, ox, oy, oz, byaw, colors, sun, ambient, sun_int, grid, gx0,
                      gy0, res, surf_luma, ground_shade, sky_luma, alpha, terms, u_o, du):  # fmt: skip
     """Fogged luminance (0–255) seen along one ray and whether it hit anything but the sky; the transmittance is
@@ -288,7 +288,7 @@ def _pixel_luminance(t, hit, axis, sign, dx, dy, dz, ox, oy, oz, byaw, colors, s
     return j_l * tr + sky_luma * (1.0 - tr), True
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def camera_detect(n, bx, by, byaw, bl, bw, bh, colors, ex, ey, eyaw, cam_x, cam_z, fx_, width, height, alpha, sun,
                   ambient, sun_int, ground_shade, sky_luma, grid, gx0, gy0, res, surf_luma, max_rays, rng_max,
                   pixels, contrast, bearing, size_px, terms, frame):  # fmt: skip
@@ -378,7 +378,7 @@ def camera_detect(n, bx, by, byaw, bl, bw, bh, colors, ex, ey, eyaw, cam_x, cam_
             size_px[j] = rows_hi - rows_lo + stride
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def radar_detect(n, bx, by, byaw, bl, bw, bh, vx, vy, ex, ey, eyaw, evx, evy, rad_x, rad_z, rng_max, hfov, vfov,
                  rays, key, tick, hits, rng_sum, az_sum, vr_sum):  # fmt: skip
     """CARLA radar rays (``rays`` per tick, hashed directions in the elliptic FOV cone) from ``rad_x`` ahead of the ego

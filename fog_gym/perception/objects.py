@@ -160,7 +160,7 @@ class ObjectsConfig:
 CAM, LID, RAD, FUSED = 0, 1, 2, 3
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _fuse_world(n, f, classes, present, pos, vel, prev_present, prev_pos, prev_vel, lid_count, lid_cen, cam_pix, cam_con,
                 cam_bear, cam_size, rad_hits, rad_rng, rad_az, rad_vr, mask, min_points, min_pixels, min_contrast,
                 focal, cam_x, rad_x, lidar_h, key, tick, dt, lanes, layout, obs):  # fmt: skip
@@ -235,7 +235,7 @@ def _fuse_world(n, f, classes, present, pos, vel, prev_present, prev_pos, prev_v
         _list_rows(n, f, present, pos, vel, mask, lanes, obs)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _list_rows(n, f, present, pos, vel, mask, lanes, obs):
     """The ``"list"`` observation: ego row, then the fused objects nearest first."""
     ey, eh = f[0, 1], f[0, 2]
@@ -283,7 +283,7 @@ def _list_rows(n, f, present, pos, vel, mask, lanes, obs):
                 col += 1
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _lane_rows(n, f, present, pos, vel, lanes, obs):
     """The ``"lanes"`` observation: ego row, then per lane (left, own, right) the nearest fused object ahead and
     behind along the road, from the same fused list as the ``"list"`` layout (see the module docstring)."""
@@ -323,7 +323,7 @@ def _lane_rows(n, f, present, pos, vel, lanes, obs):
                 obs[row, 4] = min(max(dv / MAX_SPEED, -1.0), 1.0)
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, nogil=True, parallel=True)
 def perceive_worlds(active, floats, counts, classes, colors, heights, keys, ticks, alphas, beta_ratios, tables_i, tables_r,
                     suns, shades, sky_luma, grid, gx0, gy0, res, surf_luma, elev, az_cos, az_sin, lidar_range, lidar_h,
                     drop, cam, rad, mask, rules, dt, lanes, present, pos, vel, prev_present, prev_pos, prev_vel,

@@ -107,7 +107,7 @@ def lidar_bev(points: np.ndarray, size: int, metres: float, ahead: float = 0.0, 
     return img
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _bev(pts, img, scale, half, ahead, sensor_height):
     size = img.shape[1]
     lo, hi, four, full = np.float32(0.3), np.float32(4.0), np.float32(4.0), np.float32(255.0)

@@ -16,6 +16,7 @@ import numpy as np
 from numba import njit, prange
 
 import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
+from fog_gym._numba import launch
 
 #: Histogram span (log2 luminance) and bins; the percentile window the mean is taken over; the key value; the gain's
 #: limits.
@@ -25,7 +26,7 @@ KEY = 0.18
 GAIN_MIN, GAIN_MAX = 1.0, 16.0
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, nogil=True, parallel=True)
 def _log_histograms(lin, log_min, log_max, n_bins):
     n_cam, height, width, _ = lin.shape
     hist = np.zeros((n_cam, height, n_bins), np.int64)
@@ -51,7 +52,7 @@ def exposure_gains(lin: np.ndarray) -> np.ndarray:
     >>> bool(abs(g * 0.05 - KEY) / KEY < 0.1)
     True
     """
-    return gains_from_histograms(_log_histograms(np.ascontiguousarray(lin, np.float32), LOG_MIN, LOG_MAX, N_BINS))
+    return gains_from_histograms(launch(_log_histograms)(np.ascontiguousarray(lin, np.float32), LOG_MIN, LOG_MAX, N_BINS))
 
 
 def gains_from_histograms(hist: np.ndarray) -> np.ndarray:

@@ -47,6 +47,7 @@ import numpy as np
 from numba import njit, prange
 
 import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
+from fog_gym._numba import launch
 from fog_gym.render.exposure import (GAIN_MAX, GAIN_MIN, HIGH_PERCENT, KEY, LOG_MAX, LOG_MIN, LOW_PERCENT, N_BINS,
                                      exposure_gains, gains_from_histograms)  # noqa: F401  (part of this module's API)
 from fog_gym.world.meshlib import LIBRARY
@@ -197,7 +198,7 @@ def irradiance(point: np.ndarray, normal: np.ndarray, lights: Lights) -> np.ndar
     return e
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, nogil=True, parallel=True)
 def _splat_ground(out, origin_x, origin_y, res, lpos, laxis, lcol, lint, lrad, lkind, lheight, add):
     """Ground (z = 0, normal up) irradiance of each light, splatted over its footprint into ``out`` (rows, cols, 3)."""
     rows, cols, _ = out.shape
@@ -235,7 +236,7 @@ def _splat_ground(out, origin_x, origin_y, res, lpos, laxis, lcol, lint, lrad, l
                         out[i, j, 2] += w * lcol[k, 2]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _prim_lights(centers, halves, lpos, lrad, max_per):
     """For each primitive, the lights whose sphere of influence touches its bounding sphere (at most ``max_per``)."""
     n_p = centers.shape[0]
@@ -259,7 +260,7 @@ def _placed(v, center, sx, sy, sz, c, s):
     return center[0] + v[0] * sx * c - v[1] * sy * s, center[1] + v[0] * sx * s + v[1] * sy * c, center[2] + v[2] * sz
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, nogil=True, parallel=True)
 def _triangle_irradiance(centers, halves, yaws, meshes, emissive, prim_l, prim_n, lib_v, lib_t, tri_start, tri_base,
                          total, lpos, laxis, lcol, lint, lrad, lkind, lheight):  # fmt: skip
     """Irradiance (RGB, float32) at the centroid of every triangle of every lit mesh primitive, on its normal: row
@@ -307,7 +308,7 @@ _FACE_AXES = FACE_AXES
 _FACE_SIGN = np.array([1.0, -1.0, 1.0, -1.0, 1.0, -1.0])
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, nogil=True, parallel=True)
 def _face_grids(centers, halves, yaws, emissive, prim_l, prim_n, lpos, laxis, lcol, lint, lrad, lkind, lheight,
                 cell, max_cells):  # fmt: skip
     """Irradiance on a grid of points over each lit box face (bilinear between cell centres when shading).
@@ -372,7 +373,7 @@ def _face_grids(centers, halves, yaws, emissive, prim_l, prim_n, lpos, laxis, lc
     return offsets, dims, data
 
 
-@njit(cache=True, parallel=True, fastmath=False)
+@njit(cache=True, nogil=True, parallel=True, fastmath=False)
 def _shade_pass(
     cam_rot, cam_trans, cam_k, far, rgb, depth, face, face_emis, face_prim, face_side,
     centers, halves, yaws, g_off, g_dims, g_data, tri_base, tri_irr,
@@ -460,7 +461,7 @@ def lamp_light_map(lamps: Lights, extent: tuple[float, float, float, float], res
     rows, cols = max(1, int(math.ceil((y1 - y0) / resolution))), max(1, int(math.ceil((x1 - x0) / resolution)))
     out = np.zeros((rows, cols, 3), np.float32)
     if len(lamps):
-        _splat_ground(out, float(x0), float(y0), float(resolution), *_light_args(lamps), True)
+        launch(_splat_ground)(out, float(x0), float(y0), float(resolution), *_light_args(lamps), True)
     return GroundLightMap(out, (float(x0), float(y0)), float(resolution))
 
 
@@ -478,7 +479,7 @@ def beam_window(static: GroundLightMap, beams: Lights, center: np.ndarray, half:
         out[si0 - i0 : si1 - i0, sj0 - j0 : sj1 - j0] = static.irradiance[si0:si1, sj0:sj1]
     origin = (ox + j0 * res, oy + i0 * res)
     if len(beams):
-        _splat_ground(out, origin[0], origin[1], res, *_light_args(beams), True)
+        launch(_splat_ground)(out, origin[0], origin[1], res, *_light_args(beams), True)
     return GroundLightMap(out, origin, res)
 
 
@@ -529,13 +530,13 @@ def render_night(
     n_cam = len(cam_rot)
     prims = Primitives.coerce(prims)
     prim_l, prim_n = _prim_lights(prims.centers, prims.halves, lights.pos, lights.radius, MAX_PRIM_LIGHTS)
-    g_off, g_dims, g_data = _face_grids(prims.centers, prims.halves, prims.yaws, prims.emissive, prim_l,
+    g_off, g_dims, g_data = launch(_face_grids)(prims.centers, prims.halves, prims.yaws, prims.emissive, prim_l,
                                         prim_n, *_light_args(lights), FACE_CELL, FACE_MAX_CELLS)  # fmt: skip
     cossin = np.ascontiguousarray(np.c_[np.cos(prims.yaws), np.sin(prims.yaws)])
     lib = LIBRARY.arrays()
     counts = np.where(prims.meshes > 0, lib.tri_start[prims.meshes + 1] - lib.tri_start[prims.meshes], 0)
     tri_base = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64) if len(counts) else np.zeros(1, np.int64)
-    tri_irr = _triangle_irradiance(prims.centers, prims.halves, prims.yaws, prims.meshes, prims.emissive, prim_l, prim_n,
+    tri_irr = launch(_triangle_irradiance)(prims.centers, prims.halves, prims.yaws, prims.meshes, prims.emissive, prim_l, prim_n,
                                    lib.vertices, lib.triangles, lib.tri_start, tri_base, int(counts.sum()),
                                    *_light_args(lights))  # fmt: skip
     smap, wmap = ground
@@ -548,7 +549,7 @@ def render_night(
     low = render(cam_rot, cam_trans, k_low, lw, lh, far, prims, surface, albedo_lut, surface_tag, sky_horizon,
                  sky_zenith, sun, 1.0, 0.0, face_ids=True)  # fmt: skip
     hist = np.zeros((n_cam, lh, N_BINS), np.int64)
-    _shade_pass(
+    launch(_shade_pass)(
         np.ascontiguousarray(cam_rot, np.float64), np.ascontiguousarray(cam_trans, np.float64), k_low, float(far),
         low["rgb"], low["depth"], low["face"], low["face_emissive"], low["face_prim"], low["face_side"],
         prims.centers, prims.halves, cossin, g_off, g_dims, g_data, tri_base, tri_irr,

@@ -30,7 +30,7 @@ from fog_gym._numba import pick, serial_twin
 from fog_gym.render.shading import (FACE_AXES, FACE_STEP, TONE_STEPS, encode_tone, face_sample, fix_irradiance, grid_axis,
                                     grid_bilinear, light_ground, night_ground_row, night_tone_table, tone_at)  # fmt: skip
 from fog_gym.render.surface import TiledSurface, surface_cell
-from fog_gym.render.setup import setup_faces
+from fog_gym.render.setup import setup_faces, setup_faces_serial
 from fog_gym.render.shadows import ShadowMap
 from fog_gym.world.mesh import MATERIAL_ALBEDO, MATERIAL_EMISSIVE, MATERIAL_PAINT, MATERIAL_TAG
 from fog_gym.world.meshlib import LIBRARY
@@ -56,7 +56,7 @@ def _ground_pixel(out_rgb, out_sem, c, i, j, fxw, fyw, surface, s_rows, s_cols, 
     out_sem[c, i, j] = surf_tag[cls]
 
 
-@njit(cache=True, parallel=True, fastmath=False)
+@njit(cache=True, nogil=True, parallel=True, fastmath=False)
 def _raster_bands(
     cam_rot, cam_trans, cam_k, width, height, far,
     surface, s_rows, s_cols, tiles_x, surf_x0, surf_y0, surf_res, surf_lut, surf_tag,
@@ -390,10 +390,10 @@ def render(
     cam_k = np.ascontiguousarray(cam_k, np.float64)
     sm = ShadowMap.empty() if shadows is None else shadows
     lib = LIBRARY.arrays()
-    faces = setup_faces(
+    faces = pick(setup_faces, setup_faces_serial, n_cam * int(width) * int(height) if n_cam > 1 else 0)(
         cam_rot, cam_trans, cam_k, int(width), int(height), float(far),
         prims.centers, prims.halves, prims.yaws, prims.colors, prims.tags, prims.insts, prims.emissive, prims.meshes,
-        lib.vertices, lib.triangles, lib.materials, lib.tri_start, MATERIAL_ALBEDO, MATERIAL_PAINT, MATERIAL_TAG,
+        lib.vertices, lib.triangles, lib.materials, lib.tri_start, lib.tri_geom, MATERIAL_ALBEDO, MATERIAL_PAINT, MATERIAL_TAG,
         MATERIAL_EMISSIVE, np.asarray(sun_dir, np.float64), float(ambient), float(sun_intensity),
     )  # fmt: skip
     face = np.empty((n_cam, height, width), np.int32) if face_ids else np.empty((1, 1, 1), np.int32)

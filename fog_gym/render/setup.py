@@ -10,9 +10,10 @@ world normal and night emission — what :mod:`fog_gym.render.raster`'s band pas
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, prange
 
 import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
+from fog_gym._numba import serial_twin
 from fog_gym.geometry import BOX_CORNER_SIGNS as _CORNER_SIGNS
 
 # Box faces: corner indices (geometry.BOX_CORNER_SIGNS order) and local outward normals.
@@ -26,9 +27,12 @@ MAX_VERTS = 8
 NEAR = 0.05
 #: A mesh whose bounding sphere spans fewer pixels than this is drawn as its box (far trees on a 64×64 camera).
 LOD_PIXELS = 3.0
+#: A mesh triangle whose normal and the direction to the camera make a cosine below minus this, in the mesh's
+#: normalised frame (L1 norms), is culled before it is placed: the placed triangle's exact test would cull it too.
+BACK_MARGIN = 1e-6
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _pixel_span(umin, umax, vmin, vmax, width, height):
     """The rows and columns (y0, y1, x0, x1, inclusive) whose pixel centres lie within the screen bounds, and whether
     any of them is in the image."""
@@ -39,7 +43,7 @@ def _pixel_span(umin, umax, vmin, vmax, width, height):
     return y0, y1, x0, x1, not (y1 < 0 or x1 < 0 or y0 > height - 1 or x0 > width - 1 or y1 < y0 or x1 < x0)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _emit(c, n_out, poly, k, ncx, ncy, ncz, d0, nwx, nwy, nwz, r, g, b, emis, tag, inst, prim, side, fx, fy, cx, cy,
           width, height, far, clipped, verts, nverts, planes, face_rgb, face_tag, face_inst, bounds, face_nrm,
           face_emis, face_prim, face_side):  # fmt: skip
@@ -124,7 +128,7 @@ def _emit(c, n_out, poly, k, ncx, ncy, ncz, d0, nwx, nwy, nwz, r, g, b, emis, ta
     return 1
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _covers_pixel(poly, k, fx, fy, cx, cy, width, height):
     """Whether the camera-frame polygon ``poly[:k]`` may cover a pixel centre of the image: False only when it lies
     wholly in front of the near plane and its projected bounds contain no pixel centre (exactly :func:`_emit`'s own
@@ -147,7 +151,7 @@ def _covers_pixel(poly, k, fx, fy, cx, cy, width, height):
     return _pixel_span(umin, umax, vmin, vmax, width, height)[4]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _cull(cam_rot, cam_trans, cam_k, width, height, far, centers, halves, meshes):
     """Per camera and primitive: 0 when its bounding sphere lies wholly behind the near plane, beyond ``far`` or
     outside a side of the view; 2 for a mesh at least :data:`LOD_PIXELS` across; else 1 (its box)."""
@@ -179,13 +183,17 @@ def _cull(cam_rot, cam_trans, cam_k, width, height, far, centers, halves, meshes
     return mode
 
 
-@njit(cache=True, fastmath=False)  # one thread: parallel over cameras lost to its launch costs at every size
+@njit(cache=True, nogil=True, parallel=True, fastmath=False)  # cameras in parallel (a serial twin for small frames)
 def setup_faces(
     cam_rot, cam_trans, cam_k, width, height, far,
     centers, halves, yaws, colors, tags, insts, emissive, meshes,
-    lib_v, lib_t, lib_m, tri_start, mat_albedo, mat_paint, mat_tag, mat_emis,
+    lib_v, lib_t, lib_m, tri_start, tri_geom, mat_albedo, mat_paint, mat_tag, mat_emis,
     sun_dir, ambient, sun_intensity,
 ):  # fmt: skip
+    """Every camera's faces (see the module docstring), the cameras in parallel. A mesh's triangle that faces away
+    from the camera is culled in the mesh's normalised frame first (the camera centre taken there once per
+    primitive; ``tri_geom``'s first vertex and normal), before its vertices are placed; only a clear back face
+    (:data:`BACK_MARGIN`) is, so what is drawn is what the test on the placed triangle alone draws."""
     n_cam = cam_rot.shape[0]
     n_prim = centers.shape[0]
     # first pass: what each camera draws of each primitive (0 nothing, 1 its box, 2 its triangles), so the face
@@ -213,11 +221,11 @@ def setup_faces(
     face_prim = np.empty((n_cam, max_faces), dtype=np.int32)
     face_side = np.empty((n_cam, max_faces), dtype=np.int32)  # a box's face 0–5; a mesh's triangle k: −1 − k
     counts = np.zeros(n_cam, dtype=np.int64)
-    corners_c = np.empty((8, 3))
-    poly = np.empty((MAX_VERTS, 3))
-    clipped = np.empty((MAX_VERTS, 3))
-    wv = np.empty((3, 3))
-    for c in range(n_cam):
+    for c in prange(n_cam):
+        corners_c = np.empty((8, 3))
+        poly = np.empty((MAX_VERTS, 3))
+        clipped = np.empty((MAX_VERTS, 3))
+        wv = np.empty((3, 3))
         R = cam_rot[c]
         T = cam_trans[c]
         fx, fy, cx, cy = cam_k[c, 0], cam_k[c, 1], cam_k[c, 2], cam_k[c, 3]
@@ -234,7 +242,17 @@ def setup_faces(
             hx, hy, hz = halves[p, 0], halves[p, 1], halves[p, 2]
             if mode[c, p] == 2:  # a mesh: each front-facing triangle is a face
                 sx, sy, sz = 2.0 * hx, 2.0 * hy, 2.0 * hz
+                # the camera centre in the mesh's normalised frame: n·(cc − v0) there has the sign of the world's
+                dcx, dcy = ccx - centers[p, 0], ccy - centers[p, 1]
+                elx = (cyaw * dcx + syaw * dcy) / sx
+                ely = (cyaw * dcy - syaw * dcx) / sy
+                elz = (ccz - centers[p, 2]) / sz
                 for t in range(tri_start[meshes[p]], tri_start[meshes[p] + 1]):
+                    gx, gy, gz = elx - tri_geom[t, 0], ely - tri_geom[t, 1], elz - tri_geom[t, 2]
+                    nlx, nly, nlz = tri_geom[t, 9], tri_geom[t, 10], tri_geom[t, 11]
+                    if nlx * gx + nly * gy + nlz * gz < -BACK_MARGIN * ((abs(nlx) + abs(nly) + abs(nlz))
+                                                                       * (abs(gx) + abs(gy) + abs(gz))):
+                        continue  # a clear back face
                     for q in range(3):
                         v = lib_t[t, q]
                         lx = lib_v[v, 0] * sx
@@ -329,3 +347,4 @@ def setup_faces(
     return verts, nverts, planes, face_rgb, face_tag, face_inst, bounds, counts, face_nrm, face_emis, face_prim, face_side
 
 
+setup_faces_serial = serial_twin(setup_faces)

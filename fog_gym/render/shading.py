@@ -120,7 +120,7 @@ def tone_at(tone, albedo, efix):
     return tone[np.int32(min(np.float32(albedo) * efix, np.float32(TONE_STEPS * TONE_MAX)))]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def night_ground_row(out_rgb, out_sem, out_depth, c, i, width, tf, fxw, fyw, kx, ky, surface, s_rows, s_cols,
                       tiles_x, surf_lut, surf_tag, surf_x0, surf_y0, surf_res, escale, ambient, wmap, w_ox, w_oy,
                       w_inv, smap, s_ox, s_oy, s_inv, tone):  # fmt: skip
@@ -278,7 +278,7 @@ def tone(x: np.ndarray | float) -> np.ndarray:
     return np.where(x <= KNEE, x, KNEE + (1 - KNEE) * (1 - np.exp(-(np.maximum(x, KNEE) - KNEE) / (1 - KNEE))))
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def draw_heads(cam_rot, cam_trans, cam_k, depth, rgb, heads, head_rad, color):
     """Lamp heads as discs (RGB only) where nothing nearer hides them; ``color`` is the encoded uint8 triple."""
     n_cam, height, width = depth.shape

@@ -46,7 +46,7 @@ class ShadowMap(NamedTuple):
         return cls(np.zeros((1, 1), np.uint8), (1e18, 1e18), 1.0)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _hull_fill(pts, n, grid, ox, oy, inv, order, hull):
     """Fill the convex hull of the first ``n`` points (x, y) into ``grid`` (cells whose centre lies inside);
     ``order`` (≥ n) and ``hull`` (≥ 2 n + 1, 2) are scratch space."""
@@ -102,7 +102,7 @@ def _hull_fill(pts, n, grid, ox, oy, inv, order, hull):
             grid[r, c] = 1
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _shadow_map(grid, centers, halves, yaws, meshes, outline, outline_start, sun, ox, oy, inv, reach):
     """Fill every caster's shadow into ``grid`` (cell (0, 0)'s corner at ``ox``, ``oy``; ``1 / inv`` m cells) and
     return it; casters whose shadow cannot reach within ``reach`` of the grid's centre are skipped. A mesh casts

@@ -15,6 +15,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from numba import njit
 
+from fog_gym.world.scene import evict_oldest
 from fog_gym.world.scenery import SURFACE_RGB
 
 
@@ -70,8 +71,7 @@ def tiled_surface(static: Any) -> TiledSurface:
         return hit[1]
     s = static.surface
     tiled = tile_surface(s.grid, s.origin, s.resolution)
-    if len(_TILED) >= 8:
-        _TILED.pop(next(iter(_TILED)))
+    evict_oldest(_TILED, 8)
     _TILED[id(static)] = (static, tiled)
     return tiled
 

@@ -213,7 +213,7 @@ def split_transform(sensor_to_world: np.ndarray) -> tuple[np.ndarray, np.ndarray
 INTENSITY_MODELS: tuple[str, ...] = ("carla", "reflectance")
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _lidar_points(dirs, dist, index, noise, uniform, attenuation, limit, alpha, beta, reflect):
     """Kept returns as (N, 4) float32 x, y, z, intensity; ``noise`` / ``uniform`` empty when switched off;
     ``reflect`` (N,) float32 the reflectivity × incidence factor of each ray's hit, or empty (CARLA's model).

@@ -69,7 +69,7 @@ def _sin_elevation(z, r):
     return z / n
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _bin_boxes(ox, oy, oz, max_range, centers, halves, yaws, n_az, n_el, s_lo, s_hi):
     """Cull, sort and bin the boxes. Returns (box table (K, 8), near distance (K,), prim index (K,), cell offsets
     (n_az * n_el + 1,), cell entries) with cell = az_bin * n_el + el_bin and each cell's entries nearest first."""
@@ -228,7 +228,7 @@ def _box_entry(ox, oy, oz, ix, iy, iz, lo, hi, k, t_lo, t_hi):
     return t0 if t0 <= t1 else np.inf
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _mesh_hit(ox, oy, oz, dx, dy, dz, sx, sy, sz, m, tri_geom, node_start, node_lo, node_hi, node_skip,
               node_first, node_count, t_lo, best):  # fmt: skip
     """Nearest front-facing triangle of library mesh ``m`` (scaled by ``s`` = the box's size, in its box frame) that
@@ -291,7 +291,7 @@ def _mesh_hit(ox, oy, oz, dx, dy, dz, sx, sy, sz, m, tri_geom, node_start, node_
     return best, hit, cos_hit
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, nogil=True, parallel=True)
 def _cast(origin, rotation, directions, max_range, centers, halves, yaws, meshes, n_az, n_el,
           tri_geom, lib_t, lib_m, node_start, node_lo, node_hi, node_skip, node_first, node_count):  # fmt: skip
     n_rays = directions.shape[0]

@@ -27,7 +27,7 @@ from fog_gym.world.primitives import Primitives
 from fog_gym.world.scenery import SURFACE_TAGS, SurfaceMap
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _semantic_points(dirs, dist, index, cosine, material, rotation, origin, insts, tags, mat_tag, grid, gx0, gy0, res,
                      surface_tags):  # fmt: skip
     """Returns as (N, 6) float32 x, y, z, cos, id, tag; ground tags from the surface grid (as SurfaceMap.class_at),

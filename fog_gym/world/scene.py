@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+import threading
 from typing import Any
 
 import numpy as np
@@ -83,6 +84,21 @@ class StaticWorld:
 #: spawn (the ego starts ≈ 100–300 m down the road) plus a 20 s episode at 40 m/s and the sensors' reach.
 TOWN_WINDOWS: dict[str, tuple[tuple[float, float], float]] = {"highway": ((700.0, 6.0), 1050.0)}
 _TOWN_STATIC: dict[tuple, StaticWorld] = {}
+_TOWN_LOCK = threading.Lock()
+
+
+def evict_oldest(cache: dict, limit: int) -> None:
+    """Drop ``cache``'s oldest entry once it holds ``limit``; safe when threads share the cache (an entry another
+    thread dropped first is not dropped twice).
+
+    >>> d = {1: "a", 2: "b"}; evict_oldest(d, 2); d
+    {2: 'b'}
+    """
+    if len(cache) >= limit:
+        try:
+            cache.pop(next(iter(cache)), None)
+        except (StopIteration, RuntimeError):  # emptied or changed by another thread meanwhile
+            pass
 
 
 def town_static_world(world: Any, town: str, lanes_count: Any, surface_resolution: float, radius: float) -> StaticWorld:
@@ -90,13 +106,15 @@ def town_static_world(world: Any, town: str, lanes_count: Any, surface_resolutio
     and props over the stretch episodes can reach (:data:`TOWN_WINDOWS`; elsewhere ``radius`` around the world's
     start), props from a fixed per-town seed. Every episode of the town reuses it: resets cost milliseconds."""
     key = (town, lanes_count, surface_resolution)
-    static = _TOWN_STATIC.get(key)
-    if static is None:
-        center, half = TOWN_WINDOWS.get(town, (world.start_position, radius))
-        lanes = world.lane_geometry(np.asarray(center, np.float64), half)
-        surface = build_surface(lanes, resolution=surface_resolution)
-        props = place_props(lanes, surface, stream(TOWNS.index(town) + 1, "scenery"), STYLES[TOWN_SPECS[town].scenery])
-        static = _TOWN_STATIC[key] = StaticWorld.build(surface, props)
+    with _TOWN_LOCK:  # a vector env's worlds reset on threads: one builds it, the others wait for it
+        static = _TOWN_STATIC.get(key)
+        if static is None:
+            center, half = TOWN_WINDOWS.get(town, (world.start_position, radius))
+            lanes = world.lane_geometry(np.asarray(center, np.float64), half)
+            surface = build_surface(lanes, resolution=surface_resolution)
+            props = place_props(lanes, surface, stream(TOWNS.index(town) + 1, "scenery"),
+                                STYLES[TOWN_SPECS[town].scenery])  # fmt: skip
+            static = _TOWN_STATIC[key] = StaticWorld.build(surface, props)
     return static
 
 
@@ -199,8 +217,7 @@ def vehicle_primitives(state: VehicleState, night: bool, exclude_id: int | None 
     layout = _LAYOUTS.get(key)
     if layout is None and key not in _LAYOUTS:
         layout = _layout(state, night, exclude_id)
-        if len(_LAYOUTS) >= 256:
-            _LAYOUTS.pop(next(iter(_LAYOUTS)))
+        evict_oldest(_LAYOUTS, 256)
         _LAYOUTS[key] = layout
     if layout is None:
         return Primitives.empty()
@@ -231,8 +248,7 @@ def _mesh_primitives(state: VehicleState, night: bool, exclude_id: int | None) -
     meshes = _BODIES.get(key)
     if meshes is None:
         meshes = np.array([body_mesh_id(body_type_of(int(i), int(c))) for i, c in zip(ids, classes)], np.int32)
-        if len(_BODIES) >= 256:
-            _BODIES.pop(next(iter(_BODIES)))
+        evict_oldest(_BODIES, 256)
         _BODIES[key] = meshes
     n = len(ids)
     return Primitives(

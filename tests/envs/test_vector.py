@@ -157,3 +157,46 @@ def test_a_preset_without_a_vector_path_says_so():
         FogDriveVectorEnv("FogDrive-v0", 2)
     with pytest.raises(gym.error.Error, match="vector entry point"):
         gym.make_vec("FogDrive-v0", num_envs=2, vectorization_mode="vector_entry_point")
+
+
+def _rollout(threads, env_id, steps=12, **kw):
+    envs = FogDriveVectorEnv(env_id, 3, threads=threads, **kw)
+    out = [envs.reset(seed=4)[0]]
+    rng = np.random.default_rng(1)
+    for _ in range(steps):
+        obs, r, term, trunc, infos = envs.step(rng.integers(0, 5, 3))
+        out.append((obs, r, term, trunc, infos.get("final_obs")))
+    envs.close()
+    return out
+
+
+@pytest.mark.parametrize("env_id, kwargs", [
+    ("FogDriveRL-v0", {"fog": "dense", "geometry": "meshes", "episode_seconds": 2.0,
+                       "autoreset_mode": gym.vector.AutoresetMode.SAME_STEP}),
+    ("FogDriveRL-v0", {"fog": "moderate", "time_of_day": "night", "episode_seconds": 2.0}),
+    ("FogDriveRLFogBank-v0", {"episode_seconds": 2.0}),
+])  # fmt: skip
+def test_worlds_rendered_on_threads_give_the_same_bits_as_one_after_the_other(env_id, kwargs):
+    """Night (lights, glow: parallel kernels under the launch lock) and fog banks (the field kernels) included;
+    episodes end on the way (autoresets on both paths)."""
+    import pickle
+
+    one = _rollout(1, env_id, **kwargs)
+    three = _rollout(3, env_id, **kwargs)
+    assert any(step[2].any() or step[3].any() for step in one[1:])
+    assert pickle.dumps(one) == pickle.dumps(three)
+
+
+@given(st.one_of(st.integers(max_value=0), st.floats(), st.just(True), st.text(max_size=3)))
+@settings(max_examples=20, deadline=None)
+def test_bad_thread_counts_fail_before_any_world_is_built(threads):
+    with pytest.raises(ValueError, match="threads must be an integer >= 1"):
+        FogDriveVectorEnv("FogDriveRLHazard-v0", 2, threads=threads)
+
+
+def test_the_default_thread_count_is_bounded_by_the_worlds():
+    from fog_gym.envs.vector import DEFAULT_THREADS, world_threads
+
+    assert world_threads(None, 1) == 1
+    assert 1 <= world_threads(None, 64) <= DEFAULT_THREADS
+    assert world_threads(5, 2) == 5  # asked for: kept (extra threads idle)

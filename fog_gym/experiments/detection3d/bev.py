@@ -80,7 +80,7 @@ class BEVGrid:
         return (np.abs(b[:, 0]) < self.range_m) & (np.abs(b[:, 1]) < self.range_m)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _features(points, range_m, cell_m, z_min, z_max, n):
     out = np.zeros((N_FEATURES, n, n), np.float32)
     count = np.zeros((n, n), np.int32)

@@ -84,7 +84,7 @@ def _lane_y(i):
     return i * LANE_WIDTH
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def closest_lane(x, y, h, lanes):
     """``RoadNetwork.get_closest_lane_index``: the first lane of least ``|r| + max(s − L, 0) + max(−s, 0) + |angle|``."""
     best = 0
@@ -111,7 +111,7 @@ def _reachable(x, y, i):
     return abs(lat) <= 2 * LANE_WIDTH and 0 <= x and x < LANE_LENGTH + VEHICLE_LENGTH
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def neighbours(f, it, n, k, lane):
     """``Road.neighbour_vehicles(vehicle k, lane)``: (front, rear) slot indices, −1 for none."""
     s = f[k, FX]
@@ -134,7 +134,7 @@ def neighbours(f, it, n, k, lane):
     return front, rear
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def desired_gap(f, d0, cam, cmin, e, fr):
     """``IDMVehicle.desired_gap(ego e, front fr)`` (projected), with the caller's class constants."""
     ab = -cam * cmin
@@ -149,7 +149,7 @@ def desired_gap(f, d0, cam, cmin, e, fr):
     return d0 + spe * TIME_WANTED + spe * dv / (2 * math.sqrt(ab))
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def idm_acceleration(f, it, delta, d0, cam, cmin, e, fr):
     """``IDMVehicle.acceleration`` of a vehicle with exponent ``delta`` for ego ``e`` behind ``fr`` (−1: none)."""
     if e < 0:
@@ -163,7 +163,7 @@ def idm_acceleration(f, it, delta, d0, cam, cmin, e, fr):
     return acc
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def steering_control(f, k, target_lane):
     """``ControlledVehicle.steering_control(target_lane)`` on a straight lane of heading 0."""
     sp = f[k, FS]
@@ -178,7 +178,7 @@ def steering_control(f, k, target_lane):
     return _clip(steering, -MAX_STEERING_ANGLE, MAX_STEERING_ANGLE)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _mobil(f, it, n, k, lane, d0, cam, cmin):
     delta = f[k, FDELTA]
     new_pre, new_fol = neighbours(f, it, n, k, lane)
@@ -199,7 +199,7 @@ def _mobil(f, it, n, k, lane, d0, cam, cmin):
     return True
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _idm_act(f, it, n, k, lanes, d0, cam, cmin):
     """``IDMVehicle.act`` (follow_road never triggers on a 10 km lane)."""
     if it[k, ICRASH]:
@@ -240,7 +240,7 @@ def _idm_act(f, it, n, k, lanes, d0, cam, cmin):
     f[k, FACC] = _clip(acc, -ACC_MAX, ACC_MAX)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _ego_act(f, it, k):
     """``ControlledVehicle.act()``: heading control to the target lane, speed control to the target speed."""
     steer = steering_control(f, k, it[k, ITLANE])
@@ -248,14 +248,14 @@ def _ego_act(f, it, k):
     f[k, FACC] = KP_A * (f[k, FTS] - f[k, FS])
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def speed_to_index(speed, speeds, m):
     """``MDPVehicle.speed_to_index``: the nearest allowed speed's index (numpy's half-to-even rounding)."""
     x = (speed - speeds[0]) / (speeds[m - 1] - speeds[0])
     return int(_clip(np.round(x * (m - 1)), 0, m - 1))
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _meta(f, it, k, action, lanes, speeds, m):
     """``MDPVehicle.act(meta-action)``: the target speed index or the target lane."""
     if action == FASTER or action == SLOWER:
@@ -270,7 +270,7 @@ def _meta(f, it, k, action, lanes, speeds, m):
             it[k, ITLANE] = cand
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _kinematics(f, it, k, dt, lanes):
     """``Vehicle.step(dt)`` (``IDMVehicle.step``: the timer first)."""
     if it[k, IKIND] == IDM:
@@ -299,7 +299,7 @@ def _kinematics(f, it, k, dt, lanes):
     it[k, ILANE] = closest_lane(f[k, FX], f[k, FY], f[k, FH], lanes)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _polygon(f, k, out):
     """``RoadObject.polygon()``: the 4 corners (and the first again) of vehicle k's rectangle."""
     hl = f[k, FLEN] / 2
@@ -315,7 +315,7 @@ def _polygon(f, k, out):
     out[4, 1] = out[0, 1]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _project(poly, nx, ny):
     lo = poly[0, 0] * nx + poly[0, 1] * ny
     hi = lo
@@ -333,7 +333,7 @@ def _interval_distance(min_a, max_a, min_b, max_b):
     return min_b - max_a if min_a < min_b else min_a - max_b
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def polygons_intersecting(a, b, dax, day, dbx, dby):
     """``utils.are_polygons_intersecting``: (intersecting, will intersect, translation x, translation y)."""
     intersecting = True
@@ -376,7 +376,7 @@ def polygons_intersecting(a, b, dax, day, dbx, dby):
     return intersecting, will, 0.0, 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _collide(f, it, n, dt, pa, pb):
     """``Road.step``'s collision loop: every pair (i < j) through ``RoadObject.handle_collisions``."""
     for i in range(n):
@@ -403,7 +403,7 @@ def _collide(f, it, n, dt, pa, pb):
                 it[j, ICRASH] = 1
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def step_world(f, it, n, action, frames, dt, lanes, speeds, m, d0, cam, cmin):
     """One policy step of one world: the ego's meta-action, then ``frames`` sub-steps of act, step, collisions."""
     pa = np.empty((5, 2))
@@ -422,7 +422,7 @@ def step_world(f, it, n, action, frames, dt, lanes, speeds, m, d0, cam, cmin):
         _collide(f, it, n, dt, pa, pb)
 
 
-@njit(cache=True, parallel=True)
+@njit(cache=True, nogil=True, parallel=True)
 def step_worlds(active, floats, ints, counts, actions, frames, dt, lanes, speeds, m, d0, cam, cmin):
     """:func:`step_world` for every active world (``active[w]``), in parallel over worlds."""
     for w in prange(floats.shape[0]):
@@ -430,7 +430,7 @@ def step_worlds(active, floats, ints, counts, actions, frames, dt, lanes, speeds
             step_world(floats[w], ints[w], counts[w], actions[w], frames, dt, lanes, speeds, m, d0, cam, cmin)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def highway_rewards(f, it, lanes, out):
     """highway-env's ``HighwayEnv._rewards`` of the ego (slot 0): collision, right lane, high speed (the forward
     speed scaled by ``out``'s first two entries, the reward speed range, and clipped to [0, 1]) and on-road."""

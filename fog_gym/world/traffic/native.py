@@ -32,6 +32,7 @@ from typing import Any
 
 import numpy as np
 
+from fog_gym._numba import launch
 from fog_gym.seeds import stream
 from fog_gym.world.fleet import EGO_COLOR, EGO_SIZE, draw_vehicle
 from fog_gym.world.hazards import HazardConfig
@@ -235,7 +236,7 @@ class NativeTraffic:
         if actions.min(initial=0) < 0 or actions.max(initial=0) > 4:
             raise ValueError(f"actions must be meta-actions 0..4, got {actions.tolist()}")
         act = np.ones(self.num_worlds, np.bool_) if active is None else np.ascontiguousarray(active, np.bool_)
-        K.step_worlds(act, self.floats, self.ints, self.counts, actions, self.frames, self.dt, self.lanes,
+        launch(K.step_worlds)(act, self.floats, self.ints, self.counts, actions, self.frames, self.dt, self.lanes,
                       self.target_speeds, len(self.target_speeds), self.d0, self.cam, self.cmin)  # fmt: skip
         self.ticks[act] += self.frames
 
