@@ -41,19 +41,79 @@ BAND_ROWS = 32
 
 
 @njit(cache=True, inline="always")
-def _ground_pixel(out_rgb, out_sem, c, i, j, fxw, fyw, surface, s_rows, s_cols, tiles_x, surf_lut, surf_tag, shadow,
-                  shx, shy, shadow_lut):  # fmt: skip
-    """One ground pixel at surface-grid coordinates (fxw, fyw); in the sun's shadow (shadow-map cell (shx, shy) set)
-    it takes the ambient-only colours."""
+def _surface_pixel(out_rgb, out_sem, c, i, j, fxw, fyw, surface, s_rows, s_cols, tiles_x, lut, surf_tag):
+    """One ground pixel at surface-grid coordinates (fxw, fyw), coloured from ``lut``."""
     cls, k = surface_cell(fxw, fyw, surface, s_rows, s_cols, tiles_x)
-    lut = surf_lut
-    if shx >= 0.0 and shy >= 0.0 and shy < shadow.shape[0] and shx < shadow.shape[1]:
-        if shadow[int(shy), int(shx)]:
-            lut = shadow_lut
     out_rgb[c, i, j, 0] = lut[k, 0]
     out_rgb[c, i, j, 1] = lut[k, 1]
     out_rgb[c, i, j, 2] = lut[k, 2]
     out_sem[c, i, j] = surf_tag[cls]
+
+
+@njit(cache=True, inline="always")
+def _ground_pixel(out_rgb, out_sem, c, i, j, fxw, fyw, surface, s_rows, s_cols, tiles_x, surf_lut, surf_tag, shadow,
+                  shx, shy, shadow_lut):  # fmt: skip
+    """One ground pixel at surface-grid coordinates (fxw, fyw); in the sun's shadow (shadow-map cell (shx, shy) set)
+    it takes the ambient-only colours."""
+    lut = surf_lut
+    if shx >= 0.0 and shy >= 0.0 and shy < shadow.shape[0] and shx < shadow.shape[1]:
+        if shadow[int(shy), int(shx)]:
+            lut = shadow_lut
+    _surface_pixel(out_rgb, out_sem, c, i, j, fxw, fyw, surface, s_rows, s_cols, tiles_x, lut, surf_tag)
+
+
+@njit(cache=True, inline="always")
+def _in_cell(shx, shy, shadow, ix, iy):
+    """Whether shadow-map coordinates (shx, shy) lie in the map, in cell (ix, iy)."""
+    return (shx >= 0.0 and shy >= 0.0 and shy < shadow.shape[0] and shx < shadow.shape[1]
+            and int(shx) == ix and int(shy) == iy)  # fmt: skip
+
+
+@njit(cache=True, inline="always")
+def _ground_row(out_rgb, out_sem, out_depth, c, i, width, tf, fxw, fyw, kx, ky, surface, s_rows, s_cols, tiles_x,
+                surf_lut, surf_tag, shadow, sh_x0, sh_y0, sh_k, shadow_lut):  # fmt: skip
+    """A ground row by day: pixel j at surface-grid coordinates (fxw + kx·j, fyw + ky·j), at depth ``tf``, each as
+    :func:`_ground_pixel` colours it, but the shadow map read once per run of pixels in one of its cells. The map
+    coordinates are monotone in j (every operation of ``sh_x0 + sh_k · (fxw + kx · j)`` rounds monotonically), so
+    when a run's first and last pixels lie in the same cell, every pixel between does: a run's length is estimated
+    from the distance to the cell's edges and its last pixel checked exactly (shortened until it holds)."""
+    ax = sh_k * kx  # cells per pixel
+    ay = sh_k * ky
+    j = 0
+    while j < width:
+        shx = sh_x0 + sh_k * (fxw + kx * j)
+        shy = sh_y0 + sh_k * (fyw + ky * j)
+        if not (shx >= 0.0 and shy >= 0.0 and shy < shadow.shape[0] and shx < shadow.shape[1]):
+            _surface_pixel(out_rgb, out_sem, c, i, j, fxw + kx * j, fyw + ky * j, surface, s_rows, s_cols, tiles_x,
+                           surf_lut, surf_tag)  # fmt: skip
+            out_depth[c, i, j] = tf
+            j += 1
+            continue
+        ix = int(shx)
+        iy = int(shy)
+        lut = shadow_lut if shadow[iy, ix] else surf_lut
+        m = float(width - 1 - j)  # (a float until bounded: a near-zero slope gives no integer)
+        if ax > 0.0:
+            m = min(m, (ix + 1 - shx) / ax)
+        elif ax < 0.0:
+            m = min(m, (shx - ix) / -ax)
+        if ay > 0.0:
+            m = min(m, (iy + 1 - shy) / ay)
+        elif ay < 0.0:
+            m = min(m, (shy - iy) / -ay)
+        n = int(m)
+        tries = 0
+        while n > 0:
+            e = j + n
+            if _in_cell(sh_x0 + sh_k * (fxw + kx * e), sh_y0 + sh_k * (fyw + ky * e), shadow, ix, iy):
+                break
+            n = n - 1 if tries < 2 else n // 2
+            tries += 1
+        for jj in range(j, j + n + 1):
+            _surface_pixel(out_rgb, out_sem, c, i, jj, fxw + kx * jj, fyw + ky * jj, surface, s_rows, s_cols, tiles_x,
+                           lut, surf_tag)  # fmt: skip
+            out_depth[c, i, jj] = tf
+        j += n + 1
 
 
 @njit(cache=True, nogil=True, parallel=True, fastmath=False)
@@ -125,13 +185,8 @@ def _raster_bands(
                                           s_rows, s_cols, tiles_x, surf_lut, surf_tag, surf_x0, surf_y0, surf_res,
                                           escale, ambient, wmap, w_ox, w_oy, w_inv, smap, s_ox, s_oy, s_inv, tone)
                     else:
-                        for j in range(width):
-                            gx = fxw + kx * j
-                            gy = fyw + ky * j
-                            _ground_pixel(out_rgb, out_sem, c, i, j, gx, gy, surface, s_rows, s_cols, tiles_x,
-                                          surf_lut, surf_tag, shadow, sh_x0 + sh_k * gx, sh_y0 + sh_k * gy,
-                                          shadow_lut)  # fmt: skip
-                            out_depth[c, i, j] = tf
+                        _ground_row(out_rgb, out_sem, out_depth, c, i, width, tf, fxw, fyw, kx, ky, surface, s_rows,
+                                    s_cols, tiles_x, surf_lut, surf_tag, shadow, sh_x0, sh_y0, sh_k, shadow_lut)
                 else:
                     for j in range(width):
                         out_rgb[c, i, j, 0] = s0

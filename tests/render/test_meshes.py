@@ -4,6 +4,8 @@ LiDAR return lies outside its vehicle's box while the camera sees shapes that bo
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pytest
 from hypothesis import given, settings
@@ -215,3 +217,52 @@ def test_a_cached_shadow_window_equals_the_shadows_of_every_caster_filled_afresh
         fresh = _fill(np.zeros_like(sm.grid), Primitives.concat(static, moving), sun, *sm.origin, 0.25)
         assert sm.grid.any()
         np.testing.assert_array_equal(sm.grid, fresh)
+
+
+@functools.cache
+def _row_kernels():
+    """A ground row drawn with a shadow lookup per pixel and per run (compiled once for the test below)."""
+    from numba import njit
+
+    from fog_gym.render.raster import _ground_pixel, _ground_row
+
+    @njit
+    def per_pixel(rgb, sem, depth, width, fxw, fyw, kx, ky, flat, rows, cols, tx, lut, tags, shadow, x0, y0, k, dark):
+        for j in range(width):
+            gx = fxw + kx * j
+            gy = fyw + ky * j
+            _ground_pixel(rgb, sem, 0, 0, j, gx, gy, flat, rows, cols, tx, lut, tags, shadow, x0 + k * gx, y0 + k * gy,
+                          dark)
+            depth[0, 0, j] = np.float32(7.0)
+
+    @njit
+    def per_run(rgb, sem, depth, width, fxw, fyw, kx, ky, flat, rows, cols, tx, lut, tags, shadow, x0, y0, k, dark):
+        _ground_row(rgb, sem, depth, 0, 0, width, np.float32(7.0), fxw, fyw, kx, ky, flat, rows, cols, tx, lut, tags,
+                    shadow, x0, y0, k, dark)
+
+    return per_pixel, per_run
+
+
+@given(kx=st.floats(-3.0, 3.0), ky=st.floats(-3.0, 3.0), fxw=st.floats(-50.0, 250.0), fyw=st.floats(-50.0, 250.0),
+       sh_k=st.sampled_from([0.25, 0.5, 1.0, 2.5]), seed=st.integers(0, 2**16))  # fmt: skip
+@settings(max_examples=60, deadline=None)
+def test_a_ground_row_reads_the_shadow_map_per_run_and_colours_every_pixel_as_one_lookup_each(kx, ky, fxw, fyw, sh_k,
+                                                                                            seed):  # fmt: skip
+    """The day's ground rows read the shadow map once per run of pixels in one cell: the same colours, tags and
+    depths as a lookup per pixel, for rows in every direction, steep and flat, entering and leaving the map."""
+    rng = np.random.default_rng(seed)
+    surface = tile_surface(rng.integers(0, 4, (200, 200)).astype(np.uint8), (0.0, 0.0), 0.5)
+    shadow = (rng.random((60, 70)) < 0.3).astype(np.uint8)
+    shadow[rng.integers(0, 60, 5)] = 1  # runs of shadow, not noise alone
+    lut = rng.integers(0, 256, (4 * 16, 3)).astype(np.uint8)
+    dark = (lut // 2).astype(np.uint8)
+    tags = np.arange(4, dtype=np.uint8) + 10
+    outs = []
+    for f in _row_kernels():
+        rgb, sem = np.zeros((1, 1, 300, 3), np.uint8), np.zeros((1, 1, 300), np.uint8)
+        depth = np.zeros((1, 1, 300), np.float32)
+        f(rgb, sem, depth, 300, fxw, fyw, kx, ky, surface.flat, surface.rows, surface.cols, surface.tiles_x, lut, tags,
+          shadow, -3.0, -2.0, sh_k, dark)
+        outs.append((rgb, sem, depth))
+    for a, b in zip(*outs):
+        np.testing.assert_array_equal(a, b)
