@@ -45,6 +45,11 @@ NEAR_ALL = 0.05
 _PAD = 1e-9  # widening of every box's bin interval against rounding at cell borders
 _T_MIN = 1e-6  # hits nearer than this (origin on or inside a box) do not count
 _SPAN_SAMPLES = 2048  # rays sampled for the elevation span of the bins
+#: A mesh's bounding sphere is tested first when its radius (normalised frame) is below this (the unit box's is
+#: ≈ 0.87): round crowns. The sphere is widened by ``_SPHERE_PAD`` (relative), far more than rounding, so a ray it
+#: turns away meets no triangle.
+_SPHERE_TIGHT = 0.8
+_SPHERE_PAD = 1e-6
 
 
 @njit(cache=True, inline="always")
@@ -230,14 +235,26 @@ def _box_entry(ox, oy, oz, ix, iy, iz, lo, hi, k, t_lo, t_hi):
 
 @njit(cache=True, nogil=True)
 def _mesh_hit(ox, oy, oz, dx, dy, dz, sx, sy, sz, m, tri_geom, node_start, node_lo, node_hi, node_skip,
-              node_first, node_count, t_lo, best):  # fmt: skip
+              node_first, node_count, t_lo, best, radius):  # fmt: skip
     """Nearest front-facing triangle of library mesh ``m`` (scaled by ``s`` = the box's size, in its box frame) that
     the ray o + t·d (box frame, d unit) meets with ``t_lo < t < best``: (t, triangle, |cos incidence|), triangle −1
-    for none. Walks the mesh's hierarchy depth first without a stack, past every subtree whose bounds the ray meets
-    only beyond ``best``; each triangle's vertex, edges and normal come precomputed (``tri_geom``)."""
+    for none. A ray that misses the mesh's bounding sphere (``radius`` in the normalised frame, widened by
+    ``_SPHERE_PAD``) within that interval misses the mesh (tested where the sphere is tighter than the box: crowns).
+    Walks the mesh's hierarchy depth first without a stack, past every subtree whose bounds the ray meets only beyond
+    ``best``; each triangle's vertex, edges and normal come precomputed (``tri_geom``)."""
     # the ray in the mesh's normalised frame (v / size): same t
     nox, noy, noz = ox / sx, oy / sy, oz / sz
     ndx, ndy, ndz = dx / sx, dy / sy, dz / sz
+    if radius < _SPHERE_TIGHT:  # |no + t·nd| ≤ radius at every point of every triangle
+        r = radius * (1.0 + _SPHERE_PAD)
+        a = ndx * ndx + ndy * ndy + ndz * ndz
+        b = nox * ndx + noy * ndy + noz * ndz
+        disc = b * b - a * (nox * nox + noy * noy + noz * noz - r * r)
+        if disc < 0.0:
+            return best, -1, 0.0
+        root = np.sqrt(disc)
+        if (-b + root) / a < t_lo or (-b - root) / a > best:
+            return best, -1, 0.0
     ix = 1.0 / ndx if abs(ndx) > 1e-300 else 1e300
     iy = 1.0 / ndy if abs(ndy) > 1e-300 else 1e300
     iz = 1.0 / ndz if abs(ndz) > 1e-300 else 1e300
@@ -293,7 +310,7 @@ def _mesh_hit(ox, oy, oz, dx, dy, dz, sx, sy, sz, m, tri_geom, node_start, node_
 
 @njit(cache=True, nogil=True, parallel=True)
 def _cast(origin, rotation, directions, max_range, centers, halves, yaws, meshes, n_az, n_el,
-          tri_geom, lib_t, lib_m, node_start, node_lo, node_hi, node_skip, node_first, node_count):  # fmt: skip
+          tri_geom, lib_t, lib_m, node_start, node_lo, node_hi, node_skip, node_first, node_count, radius):  # fmt: skip
     n_rays = directions.shape[0]
     ox, oy, oz = origin[0], origin[1], origin[2]
     R = rotation
@@ -358,7 +375,7 @@ def _cast(origin, rotation, directions, max_range, centers, halves, yaws, meshes
                 tm, tri, cm = _mesh_hit(table[k, 0], table[k, 1], table[k, 2], lx, ly, dz, 2.0 * table[k, 3],
                                         2.0 * table[k, 4], 2.0 * table[k, 5], m, tri_geom, node_start, node_lo,
                                         node_hi, node_skip, node_first, node_count, max(t0 - 1e-9, _T_MIN),
-                                        min(t1 + 1e-9, best))  # fmt: skip
+                                        min(t1 + 1e-9, best), radius[m])  # fmt: skip
                 if tri >= 0:
                     best = tm
                     hit = prim[k]
@@ -441,6 +458,6 @@ def cast_rays(
         int(n_azimuth_bins),
         int(n_elevation_bins),
         lib.tri_geom, lib.triangles, lib.materials, lib.node_start, lib.node_lo, lib.node_hi, lib.node_skip,
-        lib.node_first, lib.node_count,
+        lib.node_first, lib.node_count, lib.radius,
     )
     return RayHits(dist, index, cosine, material)

@@ -44,7 +44,9 @@ class LibraryArrays(NamedTuple):
     (count 0: an inner node, whose first child is the next node; the triangles are stored leaf by leaf);
     ``tri_geom`` (T, 12) per triangle its first vertex, two edges and (unnormalised) normal, for the ray caster;
     ``outline`` (O, 3) each mesh's vertices on its convex hull (those farthest along one of 642 directions spread over
-    the sphere), from ``outline_start`` (M + 1,), whose hull is the mesh's up to slivers far below a shadow cell."""
+    the sphere), from ``outline_start`` (M + 1,), whose hull is the mesh's up to slivers far below a shadow cell;
+    ``radius`` (M,) each mesh's bounding sphere about the unit box's centre (its farthest vertex: 0.5 for a round
+    crown, ≈ 0.87 for a box), which lets the ray caster pass a mesh whose sphere a ray misses."""
 
     vertices: np.ndarray
     triangles: np.ndarray
@@ -60,6 +62,7 @@ class LibraryArrays(NamedTuple):
     tri_geom: np.ndarray
     outline: np.ndarray
     outline_start: np.ndarray
+    radius: np.ndarray
 
 
 def normalised(mesh: Mesh) -> Mesh:
@@ -190,6 +193,7 @@ class MeshLibrary:
             np.array([n[2] for n in nodes], np.int64), np.array([n[3] for n in nodes], np.int64),
             np.array([n[4] for n in nodes], np.int64), tri_geom, np.ascontiguousarray(np.concatenate(outlines)),
             np.cumsum([0] + [len(o) for o in outlines]).astype(np.int64),
+            np.array([np.sqrt((m.vertices**2).sum(axis=1).max()) for m in self._meshes], np.float64),
         )  # fmt: skip
 
 

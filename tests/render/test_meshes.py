@@ -78,6 +78,37 @@ def test_a_ray_stops_at_the_nearest_front_triangle_of_a_mesh(yaw, lateral, heigh
     assert ((hits.cos_incidence[on_mesh] > 0) & (hits.cos_incidence[on_mesh] <= 1 + 1e-6)).all()
 
 
+@settings(max_examples=25, deadline=None)
+@given(st.floats(0, 2 * np.pi), st.floats(0.3, 12.0), st.integers(0, 2**31 - 1))
+def test_a_ray_past_a_round_crown_s_bounding_sphere_misses_it_and_one_through_it_hits_the_nearest_triangle(yaw, height,
+                                                                                                        seed):
+    """Crowns are tested against their bounding sphere first: rays aimed at the sphere's rim (grazing in and out of
+    it), at the crown's box corners (outside the sphere) and through it give the brute force's hits and misses."""
+    from fog_gym.world.prop_meshes import _fixed_meshes
+
+    crown = _fixed_meshes()["crown"]
+    assert LIBRARY.arrays().radius[crown] < 0.8  # the caster tests its sphere
+    prims = _prims((15.0, 2.0, 6.0), (5.0, 4.0, 6.0), yaw, crown)
+    origin = np.array([0.0, 0.0, height])
+    rng = np.random.default_rng(seed)
+    u = rng.normal(size=(300, 3))
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    scale = rng.choice([0.98, 1.0, 1.02, 1.2, 0.5], (300, 1))  # in, on and just past the sphere, and at the corners
+    c, s = np.cos(yaw), np.sin(yaw)
+    local = u * scale * 0.5 * np.array([5.0, 4.0, 6.0])
+    local[:100] = rng.choice([-0.5, 0.5], (100, 3)) * [5.0, 4.0, 6.0] * 0.999
+    target = prims.centers[0] + np.c_[local[:, 0] * c - local[:, 1] * s, local[:, 0] * s + local[:, 1] * c, local[:, 2]]
+    dirs = target - origin
+    dirs /= np.linalg.norm(dirs, axis=1, keepdims=True)
+    hits = cast_rays(origin, dirs, 100.0, prims)
+    want, mat = _brute_force(origin, dirs, prims)
+    on_mesh = hits.index == 0
+    assert 30 < on_mesh.sum() < 290  # hits and misses both
+    ground = np.where(dirs[:, 2] < 0, -height / np.minimum(dirs[:, 2], -1e-12), np.inf)
+    np.testing.assert_array_equal(on_mesh, want < ground)
+    np.testing.assert_allclose(hits.distance[on_mesh], want[on_mesh], rtol=1e-6)  # float32 distances
+
+
 def _triangle_mesh() -> int:
     """A single triangle facing −x (towards a camera at the origin looking along +x), in the library."""
     v = np.array([[0.0, -1.0, 0.2], [0.0, 1.2, 0.6], [0.0, 0.1, 2.0]])
