@@ -59,7 +59,8 @@ def serial_twin(kernel):
     copy = types.FunctionType(f.__code__, f.__globals__, f.__name__ + "_serial", f.__defaults__, f.__closure__)
     copy.__qualname__ = f.__qualname__ + "_serial"
     copy.__doc__ = f"{f.__name__} on one thread (:func:`fog_gym._numba.serial_twin`)."
-    options = {k: v for k, v in kernel.targetoptions.items() if k in ("fastmath", "error_model", "boundscheck", "nogil")}
+    kept = ("fastmath", "error_model", "boundscheck", "nogil")
+    options = {k: v for k, v in kernel.targetoptions.items() if k in kept}
     return njit(cache=True, **options)(copy)
 
 

@@ -63,7 +63,8 @@ def test_every_kernel_called_from_python_releases_the_gil():
     """The pixel vector env steps its worlds on threads; a kernel holding the GIL would serialise them."""
     kernels = _kernels()
     assert len(kernels) > 60
-    held = [f"{m}.{n}" for m, n, d in kernels if d.targetoptions.get("inline") != "always" and not d.targetoptions.get("nogil")]
+    held = [f"{m}.{n}" for m, n, d in kernels
+            if d.targetoptions.get("inline") != "always" and not d.targetoptions.get("nogil")]  # fmt: skip
     assert held == []
 
 
@@ -91,7 +92,8 @@ def test_a_worker_thread_takes_the_serial_twin_and_the_main_thread_the_parallel_
     pool = fog_gym._numba.worker_pool(1)
     try:
         assert fog_gym._numba.pick(raycast._cast, raycast._cast_serial, 10**9) is raycast._cast
-        assert pool.submit(fog_gym._numba.pick, raycast._cast, raycast._cast_serial, 10**9).result() is raycast._cast_serial
+        picked = pool.submit(fog_gym._numba.pick, raycast._cast, raycast._cast_serial, 10**9).result()
+        assert picked is raycast._cast_serial
         assert fog_gym._numba.launch(raycast._cast) is raycast._cast
         assert pool.submit(fog_gym._numba.launch, raycast._cast).result() is not raycast._cast
     finally:

@@ -5,7 +5,8 @@
 of about N/K worlds (shard k holds sub-envs ``[start_k, start_k + n_k)``), steps them at once and concatenates their
 results, so the worlds' Python and kernels use K cores. Every worker's numba kernels get ``cores // K`` threads, and
 its worlds render on ``threads`` threads (:class:`~fog_gym.envs.vector.FogDriveVectorEnv`'s; default: ``cores // K``,
-at most its default); ``context`` picks the multiprocessing start method (``"fork"``, ``"spawn"``, ``"forkserver"``; default: the platform's).
+at most its default); ``context`` picks the multiprocessing start method (``"fork"``, ``"spawn"``, ``"forkserver"``;
+default: the platform's).
 
 It is the same vector env as ``shards=1`` sub-env for sub-env: ``reset(seed=s)`` gives sub-env i the episode of a
 single env reset with ``seed=s + i``; autoresets (``NEXT_STEP``, ``SAME_STEP``, ``DISABLED``), ``reset_mask`` and infos

@@ -344,7 +344,8 @@ def fog_field_images(rgb: np.ndarray, depth: np.ndarray, K: np.ndarray, fields: 
 
         rows = _glow_rows_of(rgb, depth, K, [f.alpha for f in fields], depths)
     out = np.empty((len(packed), h, w, 3), np.uint8)
-    launch(_koschmieder_field)(np.ascontiguousarray(rgb).reshape(h, 3 * w), np.ascontiguousarray(depth, np.float32), xs, ys,
-                       pose, np.concatenate(packed), starts, np.tile(np.asarray(airlight, np.float32), w),
-                       out.reshape(len(packed), h, 3 * w), *(rows or _NO_GLOW))  # fmt: skip
+    launch(_koschmieder_field)(np.ascontiguousarray(rgb).reshape(h, 3 * w), np.ascontiguousarray(depth, np.float32),
+                               xs, ys, pose, np.concatenate(packed), starts,
+                               np.tile(np.asarray(airlight, np.float32), w), out.reshape(len(packed), h, 3 * w),
+                               *(rows or _NO_GLOW))  # fmt: skip
     return out

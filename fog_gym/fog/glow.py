@@ -237,7 +237,8 @@ def _span(mask):
     return lo, hi
 
 
-@njit(cache=True, nogil=True, parallel={"fusion": False}, fastmath=FASTMATH)  # (its loops read their neighbours' rows: unfused)
+# (its loops read their neighbours' rows: unfused)
+@njit(cache=True, nogil=True, parallel={"fusion": False}, fastmath=FASTMATH)
 def _glow_rows(grids, gofs, hcs, wcs, x0s, wxs, firsts, fofs, wide):
     # Stages 1 and 2 of the glow's addition (stage 3: _blend_glow); returns each grid row's span of active intervals
     # (span_lo, span_hi, in the order of the levels' rows; row r of level lv is rofs[lv] + cy). Level lv's grid is grids[gofs[lv]:…] as (hcs[lv], 3 wcs[lv]) float32 (a margin of

@@ -52,7 +52,8 @@ def exposure_gains(lin: np.ndarray) -> np.ndarray:
     >>> bool(abs(g * 0.05 - KEY) / KEY < 0.1)
     True
     """
-    return gains_from_histograms(launch(_log_histograms)(np.ascontiguousarray(lin, np.float32), LOG_MIN, LOG_MAX, N_BINS))
+    hist = launch(_log_histograms)(np.ascontiguousarray(lin, np.float32), LOG_MIN, LOG_MAX, N_BINS)
+    return gains_from_histograms(hist)
 
 
 def gains_from_histograms(hist: np.ndarray) -> np.ndarray:

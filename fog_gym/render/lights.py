@@ -536,9 +536,9 @@ def render_night(
     lib = LIBRARY.arrays()
     counts = np.where(prims.meshes > 0, lib.tri_start[prims.meshes + 1] - lib.tri_start[prims.meshes], 0)
     tri_base = np.concatenate([[0], np.cumsum(counts)[:-1]]).astype(np.int64) if len(counts) else np.zeros(1, np.int64)
-    tri_irr = launch(_triangle_irradiance)(prims.centers, prims.halves, prims.yaws, prims.meshes, prims.emissive, prim_l, prim_n,
-                                   lib.vertices, lib.triangles, lib.tri_start, tri_base, int(counts.sum()),
-                                   *_light_args(lights))  # fmt: skip
+    tri_irr = launch(_triangle_irradiance)(prims.centers, prims.halves, prims.yaws, prims.meshes, prims.emissive,
+                                           prim_l, prim_n, lib.vertices, lib.triangles, lib.tri_start, tri_base,
+                                           int(counts.sum()), *_light_args(lights))  # fmt: skip
     smap, wmap = ground
     lap("light set-up")
     # 1. exposure on a small render

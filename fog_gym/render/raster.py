@@ -448,8 +448,8 @@ def render(
     faces = pick(setup_faces, setup_faces_serial, n_cam * int(width) * int(height) if n_cam > 1 else 0)(
         cam_rot, cam_trans, cam_k, int(width), int(height), float(far),
         prims.centers, prims.halves, prims.yaws, prims.colors, prims.tags, prims.insts, prims.emissive, prims.meshes,
-        lib.vertices, lib.triangles, lib.materials, lib.tri_start, lib.tri_geom, MATERIAL_ALBEDO, MATERIAL_PAINT, MATERIAL_TAG,
-        MATERIAL_EMISSIVE, np.asarray(sun_dir, np.float64), float(ambient), float(sun_intensity),
+        lib.vertices, lib.triangles, lib.materials, lib.tri_start, lib.tri_geom, MATERIAL_ALBEDO, MATERIAL_PAINT,
+        MATERIAL_TAG, MATERIAL_EMISSIVE, np.asarray(sun_dir, np.float64), float(ambient), float(sun_intensity),
     )  # fmt: skip
     face = np.empty((n_cam, height, width), np.int32) if face_ids else np.empty((1, 1, 1), np.int32)
     pick(_raster_bands, _raster_bands_serial, n_cam * int(width) * int(height))(
