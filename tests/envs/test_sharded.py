@@ -116,6 +116,13 @@ def test_bad_shards_fail_before_any_worker_starts(shards):
         _make(4, shards)
 
 
+@settings(max_examples=10, deadline=None)
+@given(st.one_of(st.integers(max_value=0), st.just(True), st.floats(), st.text(max_size=2)))
+def test_bad_thread_counts_fail_before_any_worker_starts(threads):
+    with pytest.raises(ValueError, match="threads must be an integer >= 1"):
+        ShardedVectorEnv("FogDriveRLHazard-v0", 4, 2, threads=threads)
+
+
 def test_bad_arguments_fail_in_the_main_process_and_worker_errors_come_back():
     with pytest.raises(ValueError, match=r"unknown argument\(s\) \['colour'\]"):
         ShardedVectorEnv("FogDriveRLHazard-v0", 4, 2, colour="red")
