@@ -51,12 +51,18 @@ def _surface_pixel(out_rgb, out_sem, c, i, j, fxw, fyw, surface, s_rows, s_cols,
 
 
 @njit(cache=True, inline="always")
+def _in_map(shx, shy, shadow):
+    """Whether shadow-map coordinates (shx, shy) lie in the map ``shadow`` (rows = y)."""
+    return shx >= 0.0 and shy >= 0.0 and shy < shadow.shape[0] and shx < shadow.shape[1]
+
+
+@njit(cache=True, inline="always")
 def _ground_pixel(out_rgb, out_sem, c, i, j, fxw, fyw, surface, s_rows, s_cols, tiles_x, surf_lut, surf_tag, shadow,
                   shx, shy, shadow_lut):  # fmt: skip
     """One ground pixel at surface-grid coordinates (fxw, fyw); in the sun's shadow (shadow-map cell (shx, shy) set)
     it takes the ambient-only colours."""
     lut = surf_lut
-    if shx >= 0.0 and shy >= 0.0 and shy < shadow.shape[0] and shx < shadow.shape[1]:
+    if _in_map(shx, shy, shadow):
         if shadow[int(shy), int(shx)]:
             lut = shadow_lut
     _surface_pixel(out_rgb, out_sem, c, i, j, fxw, fyw, surface, s_rows, s_cols, tiles_x, lut, surf_tag)
@@ -65,8 +71,7 @@ def _ground_pixel(out_rgb, out_sem, c, i, j, fxw, fyw, surface, s_rows, s_cols, 
 @njit(cache=True, inline="always")
 def _in_cell(shx, shy, shadow, ix, iy):
     """Whether shadow-map coordinates (shx, shy) lie in the map, in cell (ix, iy)."""
-    return (shx >= 0.0 and shy >= 0.0 and shy < shadow.shape[0] and shx < shadow.shape[1]
-            and int(shx) == ix and int(shy) == iy)  # fmt: skip
+    return _in_map(shx, shy, shadow) and int(shx) == ix and int(shy) == iy
 
 
 @njit(cache=True, inline="always")
@@ -83,7 +88,7 @@ def _ground_row(out_rgb, out_sem, out_depth, c, i, width, tf, fxw, fyw, kx, ky, 
     while j < width:
         shx = sh_x0 + sh_k * (fxw + kx * j)
         shy = sh_y0 + sh_k * (fyw + ky * j)
-        if not (shx >= 0.0 and shy >= 0.0 and shy < shadow.shape[0] and shx < shadow.shape[1]):
+        if not _in_map(shx, shy, shadow):
             _surface_pixel(out_rgb, out_sem, c, i, j, fxw + kx * j, fyw + ky * j, surface, s_rows, s_cols, tiles_x,
                            surf_lut, surf_tag)  # fmt: skip
             out_depth[c, i, j] = tf
