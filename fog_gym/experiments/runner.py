@@ -84,6 +84,8 @@ class Study:
     smoke_help = "a small budget that checks the whole pipeline"
     #: The study renders its own wall-time table (else the runner appends one per unit).
     own_wall_times = False
+    #: The run's output folder, set by :func:`run` before :meth:`prepare`.
+    output: Path = Path(".")
 
     def settings(self) -> dict[str, Any]:
         """Everything a finished unit depends on (JSON); compared with the output folder's before any work."""
@@ -326,6 +328,7 @@ def run(study: Study, out: str | Path, seeds: int = 1, ray_address: str | None =
     if note:
         say(note)
     t0 = time.perf_counter()
+    study.output = out  # where prepare may keep derived data (e.g. a cache) beside the units' files
     data = _jsonable(study.prepare(say, progress))
     check_manifest(out, study.name, settings, data)
     write_atomic(out / MANIFEST, {"study": study.name, "settings": settings, "data": data})

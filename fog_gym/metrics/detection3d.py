@@ -207,9 +207,12 @@ def _check_frames(frames: Sequence[Mapping[str, Any]], name: str, scores: bool) 
     return out
 
 
-def evaluate(gt: Sequence[Mapping[str, Any]], pred: Sequence[Mapping[str, Any]], iou_threshold: float = 0.5,
-             classes: Sequence[int] | None = None) -> dict[str, Any]:  # fmt: skip
-    """mAP@``iou_threshold`` (3D IoU), per-class AP, TP errors and scores, Mean TP and FDS (module docstring)."""
+def match_frames(gt: Sequence[Mapping[str, Any]], pred: Sequence[Mapping[str, Any]], iou_threshold: float = 0.5,
+                 classes: Sequence[int] | None = None) -> dict[str, Any]:  # fmt: skip
+    """The matching of :func:`evaluate`, kept per frame so that a metric of any multiset of the frames (a
+    bootstrap resample) follows without matching again (:func:`summarise`): per class, the predictions in
+    descending score with their frame and whether each is a true positive, the ground truth count per frame, and
+    the TP errors of every matched pair with its frame."""
     g = _check_frames(gt, "gt", scores=False)
     p = _check_frames(pred, "pred", scores=True)
     if len(g) != len(p):
@@ -218,34 +221,110 @@ def evaluate(gt: Sequence[Mapping[str, Any]], pred: Sequence[Mapping[str, Any]],
         raise ValueError(f"iou_threshold must lie in (0, 1], got {iou_threshold!r}")
     present = sorted({int(c) for _, cs, _ in g for c in cs})
     wanted = present if classes is None else [int(c) for c in classes]
-    ap: dict[int, float] = {}
-    errors = []  # (translation, scale, orientation) of every matched pair
+    per_class: dict[int, dict[str, np.ndarray]] = {}
+    errors, error_frames = [], []  # (translation, scale, orientation) of every matched pair, and its frame
     for cls in wanted:
         pb, ps, po = _concat([(b[cs == cls], sc[cs == cls]) for b, cs, sc in p])
         gb, _, go = _concat([(b[cs == cls], np.zeros(int((cs == cls).sum()))) for b, cs, _ in g])
         match = _match(pb, ps, po, gb, go, float(iou_threshold))  # matched gt row per prediction, or -1
         order = np.argsort(-ps, kind="stable")
-        tp = (match[order] >= 0).astype(np.float64)
-        if len(gb):
-            ap[cls] = average_precision(tp, len(gb))
+        frame = np.repeat(np.arange(len(po) - 1), np.diff(po))
+        per_class[cls] = {"frame": frame[order], "tp": (match[order] >= 0), "n_gt": np.diff(go)}
         hit = np.flatnonzero(match >= 0)
         if len(hit):
             a_, t_ = pb[hit], gb[match[hit]]
             errors.append(np.stack([np.hypot(a_[:, 0] - t_[:, 0], a_[:, 1] - t_[:, 1]),
                                     1.0 - scale_iou(a_[:, 3:6], t_[:, 3:6]), _wrap(a_[:, 6] - t_[:, 6])], axis=1))
-    m_ap = float(np.mean(list(ap.values()))) if ap else float("nan")
-    if errors:
-        e = np.concatenate(errors)
-        ate_m, ase_raw, aoe_rad = (float(v) for v in e.mean(axis=0))
-        scores = [float(np.clip(1.0 - v / cap, 0.0, 1.0)) for v, cap in ((ate_m, ATE_CAP_M), (ase_raw, ASE_CAP),
-                                                                        (aoe_rad, AOE_CAP_RAD))]  # fmt: skip
-    else:
-        ate_m = ase_raw = aoe_rad = float("nan")
-        scores = [0.0, 0.0, 0.0]
-    mean_tp = float(np.mean(scores))
-    return {
-        "mAP": m_ap, "AP": ap, "ATE": scores[0], "ASE": scores[1], "AOE": scores[2], "mean_TP": mean_tp,
-        "FDS": 0.5 * m_ap + 0.5 * mean_tp, "ATE_m": ate_m, "ASE_raw": ase_raw, "AOE_rad": aoe_rad,
-        "n_gt": sum(len(cs) for _, cs, _ in g), "n_pred": sum(len(cs) for _, cs, _ in p),
-        "n_tp": int(sum(len(e) for e in errors)),
-    }  # fmt: skip
+            error_frames.append(frame[hit])
+    return {"classes": per_class, "errors": np.concatenate(errors) if errors else np.zeros((0, 3)),
+            "error_frames": np.concatenate(error_frames).astype(np.int64) if error_frames else np.zeros(0, np.int64),
+            "frames": len(g), "n_pred": sum(len(cs) for _, cs, _ in p)}  # fmt: skip
+
+
+def _weighted_ap(tp: np.ndarray, w: np.ndarray, n_gt: np.ndarray) -> np.ndarray:
+    """All-point AP per row of ``w`` (R, D): detections in descending score with true-positive flags ``tp`` (D,),
+    each counted ``w`` times (a frame drawn twice counts its detections twice); ``n_gt`` (R,). NaN where
+    ``n_gt`` is 0. Equal to :func:`average_precision` of the detections repeated ``w`` times."""
+    if tp.size == 0:
+        return np.where(n_gt > 0, 0.0, np.nan)
+    ctp = np.cumsum(w * tp, axis=1)
+    cn = np.cumsum(w, axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        precision = np.where(cn > 0, ctp / np.maximum(cn, 1e-300), 0.0)
+        envelope = np.maximum.accumulate(precision[:, ::-1], axis=1)[:, ::-1]
+        steps = w * tp / np.where(n_gt > 0, n_gt, 1.0)[:, None]
+        ap = np.sum(steps * envelope, axis=1)
+    return np.where(n_gt > 0, ap, np.nan)
+
+
+def summarise(m: Mapping[str, Any], weights: np.ndarray | None = None) -> dict[str, Any]:
+    """The metrics of :func:`evaluate` from a :func:`match_frames` result, each frame counted ``weights[f]``
+    times; ``weights`` (F,) gives scalars, (R, F) one value per row (R resamples at once); default: every frame once.
+    ``AP`` per class, ``mAP`` (NaN without ground truth), TP errors and scores, ``mean_TP``, ``FDS``."""
+    single = weights is None or np.ndim(weights) == 1
+    w = np.ones((1, m["frames"])) if weights is None else np.atleast_2d(np.asarray(weights, np.float64))
+    if w.shape[1] != m["frames"]:
+        raise ValueError(f"weights must have one entry per frame ({m['frames']}), got shape {w.shape}")
+    ap: dict[int, np.ndarray] = {}
+    for cls, c in m["classes"].items():
+        n_gt = w @ c["n_gt"].astype(np.float64)
+        if n_gt.max() > 0:
+            ap[cls] = _weighted_ap(c["tp"].astype(np.float64), w[:, c["frame"]], n_gt)
+    with np.errstate(invalid="ignore"):
+        m_ap = np.nanmean(np.stack(list(ap.values())), axis=0) if ap else np.full(len(w), np.nan)
+    e, ew = m["errors"], w[:, m["error_frames"]]
+    count = ew.sum(axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        raw = (ew @ e) / count[:, None] if len(e) else np.full((len(w), 3), np.nan)
+    raw[count == 0] = np.nan
+    scores = np.stack([np.where(np.isnan(raw[:, k]), 0.0, np.clip(1.0 - raw[:, k] / cap, 0.0, 1.0))
+                       for k, cap in enumerate((ATE_CAP_M, ASE_CAP, AOE_CAP_RAD))], axis=1)  # fmt: skip
+    mean_tp = scores.mean(axis=1)
+    out = {"mAP": m_ap, "AP": ap, "ATE": scores[:, 0], "ASE": scores[:, 1], "AOE": scores[:, 2], "mean_TP": mean_tp,
+           "FDS": 0.5 * m_ap + 0.5 * mean_tp, "ATE_m": raw[:, 0], "ASE_raw": raw[:, 1], "AOE_rad": raw[:, 2]}  # fmt: skip
+    if single:
+        out = {k: ({c: float(v[0]) for c, v in x.items()} if k == "AP" else float(x[0])) for k, x in out.items()}
+    return out
+
+
+def evaluate(gt: Sequence[Mapping[str, Any]], pred: Sequence[Mapping[str, Any]], iou_threshold: float = 0.5,
+             classes: Sequence[int] | None = None) -> dict[str, Any]:  # fmt: skip
+    """mAP@``iou_threshold`` (3D IoU), per-class AP, TP errors and scores, Mean TP and FDS (module docstring)."""
+    m = match_frames(gt, pred, iou_threshold, classes)
+    r = summarise(m)
+    r["AP"] = {c: v for c, v in r["AP"].items() if not math.isnan(v)}
+    return r | {"n_gt": int(sum(c["n_gt"].sum() for c in m["classes"].values()) if classes is None else
+                            sum(len(cs) for f in gt for cs in [np.asarray(f["classes"]).reshape(-1)])),
+                "n_pred": m["n_pred"], "n_tp": len(m["errors"])}  # fmt: skip
+
+
+#: Distance bands of the bird's-eye distance from the sensor to a box's centre [m]: near, mid and far (the grid's
+#: corners reach 40 √2 ≈ 57 m).
+DISTANCE_BANDS = {"0-20 m": (0.0, 20.0), "20-40 m": (20.0, 40.0), "40+ m": (40.0, math.inf)}
+
+
+def evaluate_bands(gt: Sequence[Mapping[str, Any]], pred: Sequence[Mapping[str, Any]],
+                   bands: Mapping[str, tuple[float, float]] = DISTANCE_BANDS, **kwargs: Any) -> dict[str, dict[str, Any]]:
+    """:func:`evaluate` per distance band: ground truth and predictions whose centre lies ``lo ≤ d < hi`` from the
+    sensor (bird's-eye distance), each band on its own (a prediction just across a band's edge from its ground truth
+    counts as a miss and a false positive, as in KITTI's and nuScenes' range filters).
+
+    >>> box = np.array([[30.0, 0.0, 0.0, 4.0, 2.0, 1.5, 0.0]])
+    >>> r = evaluate_bands([{"boxes": box, "classes": [0]}], [{"boxes": box, "classes": [0], "scores": [0.9]}])
+    >>> {k: v["mAP"] for k, v in r.items()}
+    {'0-20 m': nan, '20-40 m': 1.0, '40+ m': nan}
+    """
+
+    def within(frames: Sequence[Mapping[str, Any]], lo: float, hi: float, scores: bool) -> list[dict[str, Any]]:
+        out = []
+        for f in frames:
+            b = as_boxes(f["boxes"])
+            d = np.hypot(b[:, 0], b[:, 1])
+            m = (d >= lo) & (d < hi)
+            item = {"boxes": b[m], "classes": np.asarray(f["classes"]).reshape(-1)[m]}
+            if scores:
+                item["scores"] = np.asarray(f["scores"], np.float64).reshape(-1)[m]
+            out.append(item)
+        return out
+
+    return {name: evaluate(within(gt, lo, hi, False), within(pred, lo, hi, True), **kwargs) for name, (lo, hi) in bands.items()}

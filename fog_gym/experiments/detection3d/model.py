@@ -72,28 +72,31 @@ def focal_loss(logits: torch.Tensor, target: torch.Tensor, alpha: float = 2.0, b
 
 
 def detection_loss(out: dict[str, torch.Tensor], heatmap: torch.Tensor, batch_index: torch.Tensor,
-                   cell_index: torch.Tensor, regression: torch.Tensor) -> tuple[torch.Tensor, dict[str, float]]:  # fmt: skip
-    """Focal heatmap loss + L1 regression loss at the centre cells (``batch_index``, ``cell_index``: one per box)."""
-    lh = focal_loss(out["heatmap"], heatmap)
-    b, _, h, w = out["regression"].shape
+                   cell_index: torch.Tensor, regression: torch.Tensor,
+                   reg_weight: float = 2.0) -> tuple[torch.Tensor, dict[str, float]]:  # fmt: skip
+    """Focal heatmap loss + ``reg_weight`` × L1 regression loss at the centre cells (``batch_index``,
+    ``cell_index``: one per box), in float32 whatever precision the network ran in."""
+    lh = focal_loss(out["heatmap"].float(), heatmap)
+    reg = out["regression"].float()
+    b, _, h, w = reg.shape
     if len(cell_index):
-        pred = out["regression"].permute(0, 2, 3, 1).reshape(b, h * w, 8)[batch_index, cell_index]
+        pred = reg.permute(0, 2, 3, 1).reshape(b, h * w, 8)[batch_index, cell_index]
         lr = F.l1_loss(pred, regression, reduction="mean")
     else:
-        lr = out["regression"].sum() * 0.0
-    return lh + 2.0 * lr, {"heatmap": float(lh.detach()), "regression": float(lr.detach())}
+        lr = reg.sum() * 0.0
+    return lh + reg_weight * lr, {"heatmap": float(lh.detach()), "regression": float(lr.detach())}
 
 
 @torch.no_grad()
 def decode(out: dict[str, torch.Tensor], grid: BEVGrid = BEVGrid(), threshold: float = 0.1,
            top_k: int = 100) -> list[dict[str, np.ndarray]]:  # fmt: skip
     """Per sample ``{"boxes": (N, 7), "classes": FogDrive ids, "scores"}`` from the network's output."""
-    heat = torch.sigmoid(out["heatmap"])
+    heat = torch.sigmoid(out["heatmap"].float())
     keep = heat == F.max_pool2d(heat, 3, 1, 1)  # 3 × 3 local maxima
     heat = heat * keep
     b, k, h, w = heat.shape
     scores, flat = heat.reshape(b, -1).topk(min(top_k, k * h * w))
-    reg = out["regression"].permute(0, 2, 3, 1).reshape(b, h * w, 8)
+    reg = out["regression"].float().permute(0, 2, 3, 1).reshape(b, h * w, 8)
     results = []
     for i in range(b):
         m = scores[i] >= threshold
