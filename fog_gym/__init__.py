@@ -70,10 +70,10 @@ MOVED = {
     "fog_gym.traffic.core": "fog_gym.world.traffic.core",
     "fog_gym.traffic.vehicles": "fog_gym.world.traffic.vehicles",
     "fog_gym.audit": "fog_gym.experiments.audit",
-    "fog_gym.dehaze": "fog_gym.perception.dehaze",
-    "fog_gym.dehaze.aodnet": "fog_gym.perception.aodnet",
+    "fog_gym.perception.dehaze": "fog_gym.dehaze.classical",
+    "fog_gym.perception.aodnet": "fog_gym.dehaze.aodnet",
     "fog_gym.detect3d": "fog_gym.experiments.detection3d",
-    "fog_gym.detect2d": "fog_gym.experiments.defog.model",
+    "fog_gym.detect2d": "fog_gym.experiments.defog.yolo",
 }
 
 

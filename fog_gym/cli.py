@@ -17,6 +17,7 @@ from pathlib import Path
 from fog_gym.world.towns import TIMES_OF_DAY, TOWNS
 from fog_gym.fog import FOG_PRESETS
 from fog_gym.dataset.manifest import FOG_FIELD_KINDS
+from fog_gym.dataset.layout import CAMERAS as CAMERA_NAMES
 
 
 def _fail(command: str, message: str) -> SystemExit:
@@ -100,7 +101,13 @@ def build_parser() -> argparse.ArgumentParser:
     gen.add_argument("--seed", type=int, default=0, help="base seed (default 0)")
     gen.add_argument("--towns", nargs="+", choices=TOWNS, default=list(TOWNS), help="towns to use (default all)")
     gen.add_argument("--lidar-only", action="store_true",
-                     help="write only the LiDAR, its fog variants, the semantic LiDAR and the 3D boxes (no cameras)")
+                     help="write only the LiDAR, its fog variants, the semantic LiDAR and the 3D boxes (no cameras); "
+                     "the same as --modality lidar")
+    gen.add_argument("--modality", choices=("full", "lidar", "cameras"), default=None,
+                     help="channel set: full (every FogDrive channel, the default), lidar (as --lidar-only) or cameras "
+                     "(RGB, its three fog variants, depth and 2D boxes of each camera, and the 3D boxes)")
+    gen.add_argument("--cameras", nargs="+", choices=CAMERA_NAMES, default=[], metavar="CAM",
+                     help="write only these cameras' channels (e.g. CAM_FRONT CAM_LEFT; default every camera)")
     gen.add_argument("--fog-fields", choices=FOG_FIELD_KINDS, default="levels",
                      help="how each scene's three fog levels are laid out: levels (FogDrive's homogeneous fog, the "
                      "default), banks (a fog bank on the road ahead), height (ground fog) or mixed (per scene one of "
@@ -343,9 +350,12 @@ def _generate(args: argparse.Namespace) -> int:
         raise _fail("generate", "--workers must be >= 1")
     if not args.seconds > 0:
         raise _fail("generate", "--seconds must be > 0")
+    if args.lidar_only and args.modality not in (None, "lidar"):
+        raise _fail("generate", f"--lidar-only and --modality {args.modality} exclude each other")
+    modality = args.modality or ("lidar" if args.lidar_only else "full")
     try:
-        plan = plan_scenes(args.scenes, tuple(args.towns), args.seed, args.resolution, args.seconds,
-                           "lidar" if args.lidar_only else "full", args.fog_fields)  # fmt: skip
+        plan = plan_scenes(args.scenes, tuple(args.towns), args.seed, args.resolution, args.seconds, modality,
+                           args.fog_fields, tuple(args.cameras))  # fmt: skip
         tables = generate(args.root, plan, args.workers, args.resume, args.ray)
     except (ValueError, DatasetLocked, DatasetLockError) as e:  # a second writer: one line naming root and holder
         raise _fail("generate", str(e)) from None

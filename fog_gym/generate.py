@@ -28,7 +28,7 @@ import numpy as np
 from fog_gym.world.towns import TOWNS
 from fog_gym.fog import FOG_PRESETS
 from fog_gym.fog.physics import FogField
-from fog_gym.dataset.layout import DATA_ROOT, MODALITIES, SAMPLE_PERIOD_US, scene_folder_name, scene_id
+from fog_gym.dataset.layout import DATA_ROOT, MODALITIES, SAMPLE_PERIOD_US, modality_channels, scene_folder_name, scene_id
 from fog_gym.dataset.lock import LOCK_FILE, DatasetLock
 from fog_gym.dataset.manifest import (
     FOG_FIELD_KINDS, MANIFEST_FILE, differences, make_manifest, read_manifest, write_manifest,
@@ -51,8 +51,13 @@ class SceneSpec:
     resolution: tuple[int, int]
     seconds: float
     base_seed: int = 0
-    modality: str = "full"  # a key of MODALITIES: "full" (35 channels) or "lidar"
+    modality: str = "full"  # a key of MODALITIES: "full" (35 channels), "lidar" or "cameras"
     fog_fields: str = "levels"  # one of FOG_FIELD_KINDS: how the three fog levels are laid out (scene_fog)
+    cameras: tuple[str, ...] = ()  # write only these cameras' channels (empty: every camera of the modality)
+
+    @property
+    def channels(self) -> tuple[str, ...]:
+        return modality_channels(self.modality, tuple(self.cameras))
 
     @property
     def folder(self) -> str:
@@ -65,20 +70,23 @@ class SceneSpec:
 
 
 def plan_scenes(n_scenes: int, towns: tuple[str, ...] = TOWNS, seed: int = 0, resolution: tuple[int, int] = (1280, 960),
-                seconds: float = 20.0, modality: str = "full", fog_fields: str = "levels") -> list[SceneSpec]:  # fmt: skip
+                seconds: float = 20.0, modality: str = "full", fog_fields: str = "levels",
+                cameras: tuple[str, ...] = ()) -> list[SceneSpec]:  # fmt: skip
     """``n_scenes`` (even) spread over ``towns`` in day/night pairs, as evenly as possible, in a fixed order.
 
     ``modality`` "lidar" writes only :data:`~fog_gym.dataset.layout.MODALITIES` ``["lidar"]``: the same scenes,
     LiDAR files and boxes as "full" (cameras are still rendered, at ``resolution``, because a 3D box is kept only
     for a vehicle in some camera's view), without the 24 PNGs per sample that dominate the cost.
 
+    ``modality`` "cameras" writes only the cameras' RGB, fog variants, depth and 2D boxes (and the 3D boxes);
+    ``cameras`` (names, e.g. ``("CAM_FRONT", "CAM_LEFT")``) keeps only those cameras' channels of either set.
+
     ``fog_fields`` lays each scene's three fog levels out in space (:func:`scene_fog`): ``levels`` (FogDrive's
     homogeneous fog), ``banks``, ``height`` or ``mixed``.
     """
     if fog_fields not in FOG_FIELD_KINDS:
         raise ValueError(f"fog_fields must be one of {FOG_FIELD_KINDS}, got {fog_fields!r}")
-    if modality not in MODALITIES:
-        raise ValueError(f"modality must be one of {tuple(MODALITIES)}, got {modality!r}")
+    modality_channels(modality, tuple(cameras))  # a bad modality or camera name is a ValueError naming it
     if isinstance(n_scenes, bool) or not isinstance(n_scenes, int) or n_scenes < 2 or n_scenes % 2:
         raise ValueError(f"scenes must be an even number >= 2 (day/night pairs), got {n_scenes!r}")
     for t in towns:
@@ -95,7 +103,7 @@ def plan_scenes(n_scenes: int, towns: tuple[str, ...] = TOWNS, seed: int = 0, re
                 index = len(plan)
                 scene_seed = int(np.random.SeedSequence([seed, index]).generate_state(1)[0] & 0x7FFFFFFF)
                 plan.append(SceneSpec(index, town, tod, run, scene_seed, tuple(resolution), float(seconds), seed,
-                                      modality, fog_fields))  # fmt: skip
+                                      modality, fog_fields, tuple(cameras)))  # fmt: skip
     return plan
 
 
@@ -145,7 +153,8 @@ def generate_scene(root: str | Path, spec: SceneSpec | dict[str, Any]) -> str:
     from fog_gym.envs.fogdrive import FogDriveEnv
     from fog_gym.wrappers.fog import FogWrapper
 
-    spec = spec if isinstance(spec, SceneSpec) else SceneSpec(**{**spec, "resolution": tuple(spec["resolution"])})
+    spec = spec if isinstance(spec, SceneSpec) else SceneSpec(**{**spec, "resolution": tuple(spec["resolution"]),
+                                                                 "cameras": tuple(spec.get("cameras", ()))})  # fmt: skip
     root = Path(root)
     folder_path = root / DATA_ROOT / spec.folder
     if folder_path.exists():
@@ -154,7 +163,7 @@ def generate_scene(root: str | Path, spec: SceneSpec | dict[str, Any]) -> str:
     # so a LiDAR-only scene gets exactly the boxes (and LiDAR files) of the full scene; only the writing is skipped
     env = FogWrapper(FogDriveEnv(town=spec.town, time_of_day=spec.time_of_day, resolution=spec.resolution,
                                  episode_seconds=spec.seconds), scene_fog(spec))  # fmt: skip
-    writer = SceneWriter(root, spec.folder, MODALITIES[spec.modality])
+    writer = SceneWriter(root, spec.folder, spec.channels)
     fields = spec.fog_fields != "levels"  # a set of fog fields records every scene's, homogeneous ones included
     try:
         obs, info = env.reset(seed=spec.seed)
@@ -169,7 +178,8 @@ def generate_scene(root: str | Path, spec: SceneSpec | dict[str, Any]) -> str:
             done = terminated or truncated
         writer.close()
         try:
-            marker = {k: v for k, v in asdict(spec).items() if k != "fog_fields" or v != "levels"}  # (as before fields)
+            marker = {k: v for k, v in asdict(spec).items()
+                      if (k != "fog_fields" or v != "levels") and (k != "cameras" or v)}  # (as before these fields)
             _atomic_write(root / PROGRESS_DIR / f"{spec.folder}.json", json.dumps(marker).encode())
         except WriteError as e:
             raise e.with_what(f"cannot mark scene {spec.folder} done") from None
@@ -194,7 +204,7 @@ def plan_manifest(plan: list[SceneSpec]) -> dict[str, Any]:
     towns = list(dict.fromkeys(s.town for s in plan))
     first = plan[0]
     return make_manifest(len(plan), first.resolution, first.seconds, first.base_seed, towns, fog_levels=FOG_PRESETS,
-                         channels=MODALITIES[first.modality], fog_fields=first.fog_fields)  # fmt: skip
+                         channels=first.channels, fog_fields=first.fog_fields)  # fmt: skip
 
 
 def check_manifest(root: Path, manifest: dict[str, Any], resume: bool) -> None:

@@ -148,16 +148,37 @@ def extrinsic_key(camera: str) -> str:
     return "extrinsic_" + camera.lower().removeprefix("cam_")
 
 
+def modality_channels(modality: str, cameras: tuple[str, ...] = ()) -> tuple[str, ...]:
+    """The channels of a :data:`MODALITIES` set, keeping only the named ``cameras``' channels when given.
+
+    >>> modality_channels("cameras", ("CAM_FRONT",))
+    ('CAM_FRONT', 'CAM_FRONT_FOG_LIGHT', 'CAM_FRONT_FOG_MODERATE', 'CAM_FRONT_FOG_DENSE', 'CAM_FRONT_DEPTH', 'CAM_FRONT_BBOX', 'BBOX_3D')
+    """
+    if modality not in MODALITIES:
+        raise ValueError(f"modality must be one of {tuple(MODALITIES)}, got {modality!r}")
+    bad = [c for c in cameras if c not in CAMERAS]
+    if bad:
+        raise ValueError(f"cameras must be FogDrive cameras {CAMERAS}, got {bad}")
+    if not cameras:
+        return MODALITIES[modality]
+    dropped = [c for c in CAMERAS if c not in cameras]
+    return tuple(ch for ch in MODALITIES[modality] if not any(ch == c or ch.startswith(c + "_") for c in dropped))
+
+
 def layout_cameras(layout: dict[str, ChannelSpec]) -> list[str]:
     """The cameras of a layout: each camera ``C`` stores its 2D boxes as ``C_BBOX``."""
     return [n.removesuffix("_BBOX") for n, s in layout.items() if s.encoding == "box2d"]
 
 
-#: Channel sets ``fog-gym generate`` can write: everything, or the LiDAR, its fog variants, the semantic LiDAR and
-#: the 3D boxes (no cameras, no radar) — the data of the 3D detection experiment, far faster to generate.
+#: Channel sets ``fog-gym generate`` can write: everything; the LiDAR, its fog variants, the semantic LiDAR and
+#: the 3D boxes (no cameras, no radar) — the data of the 3D detection experiment, far faster to generate; or the
+#: cameras' RGB, its three fog variants, depth and 2D boxes, with the 3D boxes (no LiDAR, no radar, no semantics) —
+#: the data of the 2D experiment.
 MODALITIES: dict[str, tuple[str, ...]] = {
     "full": tuple(FOGDRIVE_CHANNELS),
     "lidar": ("LIDAR_TOP", *(f"LIDAR_TOP_FOG_{lv}" for lv in FOG_LEVELS), "SEM_LIDAR_TOP", "BBOX_3D"),
+    "cameras": (*(f"{cam}{suffix}" for cam in CAMERAS
+                  for suffix in ("", *(f"_FOG_{lv}" for lv in FOG_LEVELS), "_DEPTH", "_BBOX")), "BBOX_3D"),
 }
 EXTRINSIC_FILE = "extrinsic_config/extrinsic_config.json"
 #: The ego pose of each sample (an extra file beside the channels; readers that only know FogDrive ignore it):

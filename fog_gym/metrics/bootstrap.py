@@ -100,3 +100,15 @@ def verdict(iv: dict[str, float], margin: float = 0.0, higher_is_better: bool = 
     if hi < 0:
         return "worse"
     return "not resolved"
+
+
+def seed_draws(seeds: int, n: int, rng: np.random.Generator) -> np.ndarray:
+    """``(n, seeds)`` seed indices drawn with replacement, one row per resample — shared by every condition when
+    their seeds are paired (e.g. pipelines that use the same seed's detector)."""
+    return rng.integers(0, seeds, (n, seeds))
+
+
+def apply_draws(values: np.ndarray, draws: np.ndarray) -> np.ndarray:
+    """Per resample, the mean over the drawn seeds of ``values`` (S, R) → (R,)."""
+    v = np.asarray(values, np.float64)
+    return np.nanmean(v[draws, np.arange(v.shape[1])[:, None]], axis=1)

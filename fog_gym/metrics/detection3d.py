@@ -252,7 +252,8 @@ def _weighted_ap(tp: np.ndarray, w: np.ndarray, n_gt: np.ndarray) -> np.ndarray:
     with np.errstate(invalid="ignore", divide="ignore"):
         precision = np.where(cn > 0, ctp / np.maximum(cn, 1e-300), 0.0)
         envelope = np.maximum.accumulate(precision[:, ::-1], axis=1)[:, ::-1]
-        steps = w * tp / np.where(n_gt > 0, n_gt, 1.0)[:, None]
+        recall = ctp / np.where(n_gt > 0, n_gt, 1.0)[:, None]
+        steps = np.diff(recall, axis=1, prepend=0.0)
         ap = np.sum(steps * envelope, axis=1)
     return np.where(n_gt > 0, ap, np.nan)
 

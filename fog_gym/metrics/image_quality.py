@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from fog_gym.perception.dehaze import check_image
+from fog_gym.dehaze.classical import check_image
 
 
 def _pair(a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -1,2 +1,2 @@
-"""Perception on fogged sensor data: dehazers (:mod:`fog_gym.perception.dehaze`: Dark Channel Prior, the
-Koschmieder oracle; :mod:`fog_gym.perception.aodnet`: AOD-Net, the ``torch`` extra)."""
+"""Perception on fogged sensor data: perceived objects (:mod:`fog_gym.perception.objects`) and the rule-based
+driver. The dehazers moved to :mod:`fog_gym.dehaze` (tools for any image)."""

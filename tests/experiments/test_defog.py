@@ -18,8 +18,9 @@ from fog_gym.experiments.defog.study import Exp2Config, run_experiment2  # noqa:
 from fog_gym.fog import parse_fog, ray_length_factor  # noqa: E402
 from fog_gym.generate import generate, plan_scenes  # noqa: E402
 
-TINY = dict(epochs=1, batch_size=8, every=2, test_every=2, input_size=(64, 48), train_fraction=1.0, val_fraction=1.0,
-            test_fraction=1.0, aod_epochs=1, aod_pairs=8, cameras=("CAM_FRONT",), device="cpu")  # fmt: skip
+TINY = dict(epochs=1, batch_size=8, every=2, test_every=2, input_size=(64, 64), train_fraction=1.0, val_fraction=1.0,
+            test_fraction=1.0, aod_epochs=1, aod_pairs=8, cameras=("CAM_FRONT",), device="cpu", width=8,
+            dehazeformer_steps=2, dehazeformer_crop=32)  # fmt: skip
 
 
 @pytest.fixture(scope="module")
@@ -73,14 +74,19 @@ def test_experiment2_runs_every_pipeline_and_a_second_run_reuses_the_models(came
     iq = r["image_quality"]
     assert set(iq) == set(LEVELS) and all(set(iq[lv]) == {"foggy", *DEHAZERS} for lv in LEVELS)
     assert iq["light"]["foggy"]["PSNR"]["mean"] > iq["dense"]["foggy"]["PSNR"]["mean"]  # denser fog departs further
-    assert {p.name for p in out.iterdir()} >= {"exp2.md", "exp2.png", "results.json", "models", "tb", "study.json"}
+    assert {p.name for p in out.iterdir()} >= {"exp2.md", "exp2.png", "exp2_quality.png", "exp2_curve.png",
+                                               "exp2_examples.png", "results.json", "models", "records", "tb", "study.json"}  # fmt: skip
     md = (out / "exp2.md").read_text()
     assert md.count("| D (fog→fog) |") == 3 and md.count("| C – ") == 3 * len(DEHAZERS) and "## Wall time" in md
+    assert "## Verdicts" in md and "(iii) PSNR does not predict detection" in md
     assert json.loads((out / "results.json").read_text())["detection"]["B"]["dense"] == det["B"]["dense"]
+    # the paired comparisons' point estimates are the tables' differences
+    comp = r["comparisons"]
+    assert comp["D − B"]["dense"]["diff"] == pytest.approx(det["D"]["dense"]["mAP50"]["mean"] - det["B"]["dense"]["mAP50"]["mean"], abs=1e-9)
     # a second run trains nothing and gives the same numbers; other settings are refused, not mixed in
     said = []
     again = run_experiment2(camera_set, out, config, progress=False, log=said.append)
-    assert sum("kept from" in s for s in said) == 6  # clean + three levels + AOD-Net, and the evaluation
+    assert sum("kept from" in s for s in said) == 7  # clean + three levels + AOD-Net + DehazeFormer, the evaluation
     assert again["detection"] == det
     with pytest.raises(ValueError, match="other settings \\(lr: 0.002 there, 0.01 here\\)"):
         run_experiment2(camera_set, out, Exp2Config(**{**TINY, "lr": 1e-2}), progress=False, log=lambda *_: None)
@@ -97,17 +103,38 @@ def test_the_report_gives_the_ci_across_seeds_in_both_tables_and_the_figure(tmp_
     iq = aggregate({lv: {m: {s: {"PSNR": 20.0 + s, "SSIM": 0.5} for s in (0, 1, 2)} for m in ("foggy", *DEHAZERS)}
                     for lv in LEVELS})  # fmt: skip
     assert iq["dense"]["DCP"]["PSNR"]["mean"] == 21.0 and iq["dense"]["DCP"]["PSNR"]["ci95"] == pytest.approx(2.484, abs=1e-3)
-    text = report.markdown(det, iq, seeds=3)
+    text = "\n".join(report.table_markdown(det, iq, seeds=3))
     assert "mean ± 95 % CI across 3 seeds" in text and "| 21.00 ± 2.48 |" in text and "| 0.500 ± 0.000 |" in text
     row = next(ln for ln in text.splitlines() if ln.startswith("| D (fog→fog) | dense"))
     assert row.count(" ± ") == 5 and row.endswith("| – | – |")  # car AP with its CI; no truck, no bigger car
-    report.figure(det, iq, tmp_path / "exp2.png")
+    report.figure(det, tmp_path / "exp2.png")
     assert (tmp_path / "exp2.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_verdicts_follow_their_rules():
+    from fog_gym.experiments.defog.report import MARGIN, verdicts
+
+    def iv(lo, hi):
+        return {"diff": (lo + hi) / 2, "lo": lo, "hi": hi}
+
+    lv = ("light", "moderate", "dense")
+    comp = {"D − A": {v: iv(-0.01, 0.02) for v in lv}, "best C − B": {v: iv(0.01, 0.05) for v in lv},
+            "D − best C": {v: iv(0.02, 0.06) for v in lv}, "gap dense − light": iv(0.01, 0.03),
+            "image_quality": {"PSNR": {"reversals": [{}], "within": iv(-0.5, 0.5)},
+                              "SSIM": {"reversals": [], "within": iv(0.2, 0.9)}}}  # fmt: skip
+    assert verdicts(comp) == {"i": "confirmed", "ii": "confirmed", "iii-PSNR": "confirmed", "iii-SSIM": "refuted"}
+    comp["D − A"]["dense"] = iv(-MARGIN - 0.05, -MARGIN - 0.01)  # worse than the margin allows
+    comp["D − best C"]["light"] = iv(-0.02, 0.01)  # not resolved
+    comp["image_quality"]["SSIM"]["within"] = iv(-0.2, 0.9)
+    assert verdicts(comp) == {"i": "refuted", "ii": "not resolved at this power", "iii-PSNR": "confirmed",
+                              "iii-SSIM": "not resolved at this power"}  # fmt: skip
+    comp["best C − B"]["dense"] = iv(-0.03, -0.01)  # defogging hurts at dense
+    assert verdicts(comp)["ii"] == "refuted"
 
 
 @pytest.mark.parametrize(
     "bad, message",
-    [({"input_size": (50, 40)}, "multiples of 16"), ({"epochs": 0}, "epochs"), ({"test_fraction": 0.0}, "test_fraction"),
+    [({"input_size": (50, 40)}, "multiples of 32"), ({"dehazeformer": "XL"}, "dehazeformer"), ({"width": 0}, "width"), ({"epochs": 0}, "epochs"), ({"test_fraction": 0.0}, "test_fraction"),
      ({"cameras": ("CAM_TOP",)}, "cameras"), ({"lr": -1.0}, "lr"), ({"min_height": -1.0}, "min_height"),
      ({"min_height": 1e9}, "min_height"), ({"hsv": (0.1, 2.0, 0.1)}, "hsv"), ({"hsv": (0.1, 0.1)}, "hsv")],
 )  # fmt: skip

@@ -102,3 +102,57 @@ def eval_set(ds: FogDrive, items: list[Frame], level: str, size: tuple[int, int]
         gts.append({"boxes": boxes, "classes": classes, "ignore": (boxes[:, 3] - boxes[:, 1]) * size[1] / h0 < min_height})
         scales.append((w0 / size[0], h0 / size[1]))
     return images, gts, scales
+
+
+class DetectionSet:
+    """A detector's training set (a ``torch`` ``Dataset``): the frames at one fog level, resized to the input size
+    ``(W, H)``, with their boxes; with ``augment``, a horizontal flip (probability ½) and Ultralytics-style colour
+    jitter (``hsv`` gains, :func:`~fog_gym.experiments.defog.train.augment_hsv`), drawn from (``seed``, epoch,
+    item) so that an epoch is reproducible. Items: ``(image (H, W, 3) uint8, boxes (N, 4) input pixels, class
+    channel indices (N,))``."""
+
+    def __init__(self, ds: FogDrive, items: Sequence[Frame], level: str, size: tuple[int, int], augment: bool = False,
+                 seed: int = 0, hsv: Sequence[float] = (0.0, 0.0, 0.0)) -> None:  # fmt: skip
+        if not items:
+            raise ValueError("the training split has no frames")
+        self.ds, self.items, self.level, self.size = ds, list(items), level, tuple(size)
+        self.augment, self.seed, self.hsv, self.epoch = augment, seed, tuple(hsv), 0
+
+    def __len__(self) -> int:
+        return len(self.items)
+
+    def __getitem__(self, i: int):
+        from fog_gym.experiments.defog.train import augment_hsv
+        from fog_gym.experiments.defog.yolo import CLASSES
+
+        f = self.items[i]
+        img = load_image(self.ds, f, self.level)
+        boxes, classes = load_boxes(self.ds, f)
+        h0, w0 = img.shape[:2]
+        w, h = self.size
+        img = resize(img, self.size)
+        boxes = boxes * np.array([w / w0, h / h0, w / w0, h / h0])
+        if self.augment:
+            rng = np.random.default_rng([self.seed, self.epoch, i])
+            if any(self.hsv):
+                img = augment_hsv(img, self.hsv, rng)
+            if rng.random() < 0.5:
+                img = np.ascontiguousarray(img[:, ::-1])
+                boxes = np.stack([w - boxes[:, 2], boxes[:, 1], w - boxes[:, 0], boxes[:, 3]], 1)
+        channel = np.array([CLASSES.index(int(c)) for c in classes], np.int64)
+        return img, boxes.astype(np.float32), channel
+
+
+def collate_detection(batch):
+    """Images ``(B, 3, H, W)`` float in [0, 1] (channels-last memory), boxes padded to ``(B, G, 4)``, class channels
+    ``(B, G)`` and the mask of real boxes."""
+    import torch
+
+    g = max(1, max(len(b[1]) for b in batch))
+    boxes = np.zeros((len(batch), g, 4), np.float32)
+    classes = np.zeros((len(batch), g), np.int64)
+    mask = np.zeros((len(batch), g), bool)
+    for k, (_, b, c) in enumerate(batch):
+        boxes[k, : len(b)], classes[k, : len(c)], mask[k, : len(c)] = b, c, True
+    imgs = torch.from_numpy(np.stack([b[0] for b in batch])).permute(0, 3, 1, 2).float().div_(255.0)
+    return imgs.contiguous(memory_format=torch.channels_last), torch.from_numpy(boxes), torch.from_numpy(classes), torch.from_numpy(mask)

@@ -1,7 +1,8 @@
-"""The dehazers of pipeline C: Dark Channel Prior (:func:`fog_gym.perception.dehaze.dcp`), AOD-Net trained from
-scratch on the train split's (clean, fog) pairs (the paper's "fine-tuned" variant; no pretrained weights can be
-downloaded here) and, beyond the paper, the Koschmieder oracle (:func:`fog_gym.perception.dehaze.oracle`, the exact
-inverse from depth, α and airlight: the upper bound of any dehazer).
+"""The dehazers of pipeline C: Dark Channel Prior (:func:`fog_gym.dehaze.dcp`), AOD-Net and DehazeFormer-T trained
+from scratch on the train split's (clean, fog) pairs (the paper fine-tunes AOD-Net from community weights and uses
+DehazeFormer-S with the authors' RESIDE weights; no weights can be downloaded here) and, beyond the paper, the
+Koschmieder oracle (:func:`fog_gym.dehaze.oracle`, the exact inverse from depth, α and airlight: the upper bound
+of any dehazer). Every dehazer works on the frame at its recorded resolution.
 
 The oracle needs the airlight the fog was made with: by day fog-gym estimates it from the first clean frame of
 the episode (:func:`fog_gym.fog.atmospheric_light`), at night from that frame and its depth
@@ -20,7 +21,7 @@ from fog_gym.dataset.access import FogDrive
 from fog_gym.dataset.decode import load_channel
 from fog_gym.experiments.defog.data import Frame, intrinsic, load_image
 
-DEHAZERS = ("DCP", "AOD-Net", "oracle")
+DEHAZERS = ("DCP", "AOD-Net", "DehazeFormer", "oracle")
 
 
 class OracleDehazer:
@@ -46,7 +47,7 @@ class OracleDehazer:
         return self._airlight[key]
 
     def __call__(self, fogged: np.ndarray, f: Frame, level: str) -> np.ndarray:
-        from fog_gym.perception.dehaze import oracle
+        from fog_gym.dehaze import oracle
         from fog_gym.fog import parse_fog
 
         depth_ch = f"{f.camera}_DEPTH"
@@ -55,10 +56,17 @@ class OracleDehazer:
         return oracle(fogged, depth, intrinsic(w, h), parse_fog(level).alpha, self.airlight(f))
 
 
-def dehazers(ds: FogDrive, aod: Any) -> dict[str, Callable[[np.ndarray, Frame, str], np.ndarray]]:
-    """Each dehazer as ``f(fogged image, frame, level) -> image``, with the trained AOD-Net ``aod``."""
-    from fog_gym.perception.aodnet import dehaze as aod_dehaze
-    from fog_gym.perception.dehaze import dcp
+def dehazers(ds: FogDrive, aod: Any, dehazeformer: Any = None,
+             precision: str = "fp32") -> dict[str, Callable[[np.ndarray, Frame, str], np.ndarray]]:  # fmt: skip
+    """Each dehazer as ``f(fogged image, frame, level) -> image``, with the trained AOD-Net ``aod`` and
+    DehazeFormer ``dehazeformer`` (left out when None; ``precision`` "bf16" runs it under bfloat16 autocast)."""
+    from fog_gym.dehaze import dcp
+    from fog_gym.dehaze.aodnet import dehaze as aod_dehaze
 
-    return {"DCP": lambda img, f, lv: dcp(img), "AOD-Net": lambda img, f, lv: aod_dehaze(aod, img),
-            "oracle": OracleDehazer(ds)}  # fmt: skip
+    out = {"DCP": lambda img, f, lv: dcp(img), "AOD-Net": lambda img, f, lv: aod_dehaze(aod, img)}
+    if dehazeformer is not None:
+        from fog_gym.dehaze.dehazeformer import dehaze as df_dehaze
+
+        out["DehazeFormer"] = lambda img, f, lv: df_dehaze(dehazeformer, img, precision)
+    out["oracle"] = OracleDehazer(ds)
+    return out

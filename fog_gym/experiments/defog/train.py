@@ -1,7 +1,7 @@
-"""Training in Experiment 2: the training set (horizontal flips and Ultralytics-style colour jitter), a CenterNet
-detector on frames at one fog level (one architecture and one set of hyper-parameters for every pipeline; each keeps
-its best-mAP@0.5 epoch on its own validation input, early stopping's selection), and AOD-Net on the train split's
-(clean, fog) pairs."""
+"""Training in Experiment 2: Ultralytics-style colour jitter, the YOLO-style detector on frames at one fog level (one
+architecture and one set of hyper-parameters for every pipeline; each keeps its best-mAP@0.5 epoch on its own
+validation input, early stopping's selection), and the learned dehazers — AOD-Net and DehazeFormer — on the train
+split's (clean, fog) pairs."""
 
 from __future__ import annotations
 
@@ -17,9 +17,8 @@ import numpy as np
 import torch
 
 from fog_gym.dataset.access import FogDrive
-from fog_gym.experiments.defog.data import LEVELS, Frame, load_boxes, load_image, resize
+from fog_gym.experiments.defog.data import LEVELS, Frame, load_image
 from fog_gym.experiments.defog.evaluate import detect
-from fog_gym.experiments.defog.model import STRIDE, CenterNet2D, loss_fn, make_targets
 from fog_gym.experiments.detection3d.model import optimizer_step
 
 
@@ -42,61 +41,53 @@ def augment_hsv(image: np.ndarray, gains: Sequence[float], rng: np.random.Genera
     return cv2.cvtColor(hsv, cv2.COLOR_HSV2RGB)
 
 
-class ImageSet(torch.utils.data.Dataset):
-    """Frames at a fog level, resized to the input size, with CenterNet targets; horizontal flips and the ``hsv``
-    colour jitter (:func:`augment_hsv`) when ``augment``."""
+class EMA:
+    """An exponential moving average of a model's weights (and buffers), as YOLO trains with: decay ramped as
+    ``decay · (1 − exp(−updates / 2000))`` so that early weights are forgotten fast."""
 
-    def __init__(self, ds: FogDrive, items: Sequence[Frame], level: str, size: tuple[int, int], augment: bool = False,
-                 seed: int = 0, hsv: Sequence[float] = (0.0, 0.0, 0.0)) -> None:  # fmt: skip
-        self.ds, self.items, self.level, self.size, self.augment = ds, list(items), level, tuple(size), augment
-        self.hsv = tuple(hsv)
-        self.rng = np.random.default_rng(seed)
+    def __init__(self, model: torch.nn.Module, decay: float = 0.9999, tau: float = 2000.0) -> None:
+        self.model = copy.deepcopy(model).eval()
+        for p in self.model.parameters():
+            p.requires_grad_(False)
+        self.decay, self.tau, self.updates = decay, tau, 0
 
-    def __len__(self) -> int:
-        return len(self.items)
-
-    def __getitem__(self, i: int):
-        f = self.items[i]
-        img = load_image(self.ds, f, self.level)
-        boxes, classes = load_boxes(self.ds, f)
-        h0, w0 = img.shape[:2]
-        w, h = self.size
-        img = resize(img, self.size)
-        boxes = boxes * np.array([w / w0, h / h0, w / w0, h / h0])
-        if self.augment and any(self.hsv):
-            img = augment_hsv(img, self.hsv, self.rng)
-        if self.augment and self.rng.random() < 0.5:
-            img = np.ascontiguousarray(img[:, ::-1])
-            boxes = np.stack([w - boxes[:, 2], boxes[:, 1], w - boxes[:, 0], boxes[:, 3]], 1)
-        return img, make_targets(boxes, classes, (h // STRIDE, w // STRIDE))
+    @torch.no_grad()
+    def update(self, model: torch.nn.Module) -> None:
+        self.updates += 1
+        d = self.decay * (1 - math.exp(-self.updates / self.tau))
+        msd = model.state_dict()
+        for k, v in self.model.state_dict().items():
+            if v.dtype.is_floating_point:
+                v.mul_(d).add_(msd[k].detach(), alpha=1 - d)
+            else:
+                v.copy_(msd[k])
 
 
-def collate(batch):
-    """Images ``(B, 3, H, W)`` in [0, 1], heatmaps, and the flat indices and regression targets of every centre."""
-    imgs = torch.from_numpy(np.stack([b[0] for b in batch]).transpose(0, 3, 1, 2).copy()).float() / 255.0
-    heat = torch.from_numpy(np.stack([b[1]["heatmap"] for b in batch]))
-    bidx = torch.cat([torch.full((len(b[1]["index"]),), i, dtype=torch.long) for i, b in enumerate(batch)])
-    cidx = torch.from_numpy(np.concatenate([b[1]["index"] for b in batch]).astype(np.int64))
-    wh = torch.from_numpy(np.concatenate([b[1]["wh"] for b in batch]).reshape(-1, 2))
-    off = torch.from_numpy(np.concatenate([b[1]["offset"] for b in batch]).reshape(-1, 2))
-    return imgs, heat, bidx, cidx, wh, off
-
-
-def train_detector(train: ImageSet, val_images: list[np.ndarray], val_gt: list[dict], val_scale: list,
-                   config: Any, seed: int, device: torch.device, name: str, tb_dir: Path | None = None,
-                   progress: bool = True) -> tuple[CenterNet2D, dict[str, Any]]:  # fmt: skip
-    """Train on ``train`` (weights and shuffling from ``seed``); keep the epoch with the best validation mAP@0.5.
-    Returns the model and a summary."""
+def train_detector(train: Any, val_images: list[np.ndarray], val_gt: list[dict], val_scale: list, config: Any,
+                   seed: int, device: torch.device, name: str, tb_dir: Path | None = None,
+                   progress: bool = True) -> tuple[torch.nn.Module, dict[str, Any]]:  # fmt: skip
+    """Train the YOLO-style detector on ``train`` (a :class:`~fog_gym.experiments.defog.data.DetectionSet`;
+    weights, shuffling and augmentation from ``seed``) with AdamW and a one-cycle learning rate, keeping an EMA of
+    the weights; evaluate the EMA on the validation set every ``eval_every`` epochs and keep the epoch with the
+    best validation mAP@0.5 (early stopping's selection). Returns the model and a summary with the validation
+    history (the learning curve)."""
     from tqdm import tqdm
 
+    from fog_gym.experiments.defog.data import collate_detection
+    from fog_gym.experiments.defog.yolo import YoloDetector
+    from fog_gym.experiments.defog.yolo_loss import detection_loss
+    from fog_gym.experiments.detection3d.train import autocast, resolve_precision
     from fog_gym.metrics.detection2d import evaluate_coco
 
+    precision = resolve_precision(config.precision, device)
     torch.manual_seed(seed)
-    model = CenterNet2D(width=config.width).to(device)
-    loader = torch.utils.data.DataLoader(train, config.batch_size, shuffle=True, collate_fn=collate,
+    model = YoloDetector(config.yolo).to(device).to(memory_format=torch.channels_last)
+    ema = EMA(model)
+    loader = torch.utils.data.DataLoader(train, config.batch_size, shuffle=True, collate_fn=collate_detection,
+                                         drop_last=len(train) > config.batch_size, num_workers=config.workers,
                                          generator=torch.Generator().manual_seed(seed))  # fmt: skip
     opt = torch.optim.AdamW(model.parameters(), lr=config.lr, weight_decay=config.weight_decay)
-    sched = torch.optim.lr_scheduler.OneCycleLR(opt, config.lr, total_steps=config.epochs * len(loader))
+    sched = torch.optim.lr_scheduler.OneCycleLR(opt, config.lr, total_steps=config.epochs * len(loader), pct_start=0.15)
     tb = None
     if tb_dir is not None:
         from torch.utils.tensorboard import SummaryWriter
@@ -107,53 +98,84 @@ def train_detector(train: ImageSet, val_images: list[np.ndarray], val_gt: list[d
                disable=not progress)  # fmt: skip
     for epoch in range(config.epochs):
         model.train()
-        for imgs, heat, bidx, cidx, wh, off in loader:
-            o = model(imgs.to(device))
-            loss, _ = loss_fn(o, heat.to(device), bidx.to(device), cidx.to(device), wh.to(device), off.to(device))
+        train.epoch = epoch
+        for imgs, boxes, classes, mask in loader:
+            with autocast(device, precision):
+                out = model(imgs.to(device))
+            loss, parts = detection_loss(out, boxes.to(device), classes.to(device), mask.to(device), config.yolo.reg_max)
             value = optimizer_step(loss, opt, sched, bar)
+            ema.update(model)
             step += 1
-            if tb is not None:
-                tb.add_scalar("loss", value, step)
+            if not math.isfinite(value):
+                raise FloatingPointError(f"{name}: the loss became {value} at step {step}")
+            if tb is not None and step % 10 == 0:
+                tb.add_scalar("loss/total", value, step)
+                for k, v in parts.items():
+                    tb.add_scalar(f"loss/{k}", v, step)
         if (epoch + 1) % config.eval_every and epoch + 1 != config.epochs:
             continue
-        r = evaluate_coco(val_gt, detect(model, val_images, val_scale, device, config.threshold))
+        with autocast(device, precision):
+            r = evaluate_coco(val_gt, detect(ema.model, val_images, val_scale, device, config.threshold))
         score = r["mAP50"] if not math.isnan(r["mAP50"]) else -1.0
-        history.append({"epoch": epoch + 1, "val_mAP50": score})
+        history.append({"epoch": epoch + 1, "images_seen": (epoch + 1) * len(loader) * config.batch_size,
+                        "val_mAP50": score, "val_mAP50_95": r["mAP50_95"]})  # fmt: skip
         if tb is not None:
             tb.add_scalar("val/mAP50", score, epoch + 1)
         if score > best:
-            best, best_state = score, copy.deepcopy(model.state_dict())
+            best, best_state = score, copy.deepcopy(ema.model.state_dict())
     bar.close()
     if tb is not None:
         tb.close()
     model.load_state_dict(best_state)
     best_epoch = max(history, key=lambda h: h["val_mAP50"])["epoch"]
-    return model, {"images": len(train), "seconds": time.perf_counter() - t0, "best_epoch": best_epoch,
-                   "val_mAP50": best, "history": history}  # fmt: skip
+    return model.eval(), {"images": len(train), "seconds": time.perf_counter() - t0, "best_epoch": best_epoch,
+                          "val_mAP50": best, "history": history, "precision": precision, "steps": step}  # fmt: skip
+
+
+def training_pairs(ds: FogDrive, train_f: list[Frame], n: int, crop: tuple[int, int], seed: int,
+                   progress: bool = True) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """``n`` random (clean, fogged) crops of ``crop`` (W, H) pixels from the train frames' pairs over every fog
+    level, each (frame, level) pair at most once: uint8 arrays ``(n, H, W, 3)``."""
+    from tqdm import tqdm
+
+    rng = np.random.default_rng([seed, 0xDE4A])
+    n_all = len(train_f) * len(LEVELS)
+    clean, foggy = [], []
+    for i in tqdm(rng.choice(n_all, min(n, n_all), replace=False), desc="dehazer pairs", disable=not progress):
+        f, lv = train_f[i % len(train_f)], LEVELS[i // len(train_f)]
+        c, g = load_image(ds, f, "clean"), load_image(ds, f, lv)
+        ch, cw = min(c.shape[0], crop[1]), min(c.shape[1], crop[0])
+        y, x = rng.integers(0, c.shape[0] - ch + 1), rng.integers(0, c.shape[1] - cw + 1)
+        clean.append(c[y : y + ch, x : x + cw])
+        foggy.append(g[y : y + ch, x : x + cw])
+    return np.stack(clean), np.stack(foggy)
 
 
 def train_aodnet_pairs(ds: FogDrive, train_f: list[Frame], config: Any, seed: int, device: torch.device,
                        progress: bool = True) -> tuple[Any, dict[str, Any]]:  # fmt: skip
-    """AOD-Net trained on ``config.aod_pairs`` random full-resolution crops (detector-input sized) of the train
-    frames' (clean, fog) pairs over every level, each (frame, level) pair once at most; returns the model and a
-    summary (pairs, losses, seconds)."""
-    from tqdm import tqdm
+    """AOD-Net trained on ``config.aod_pairs`` random 256 × 256 crops of the train frames' (clean, fog) pairs;
+    returns the model and a summary (pairs, losses, seconds)."""
+    from fog_gym.dehaze.aodnet import train_aodnet
 
-    from fog_gym.perception.aodnet import train_aodnet
-
-    size = tuple(config.input_size)
-    rng = np.random.default_rng(seed)
-    n_all = len(train_f) * len(LEVELS)
-    clean, foggy = [], []
-    for i in tqdm(rng.choice(n_all, min(config.aod_pairs, n_all), replace=False), desc="AOD-Net pairs",
-                  disable=not progress):  # fmt: skip
-        f, lv = train_f[i % len(train_f)], LEVELS[i // len(train_f)]
-        c, g = load_image(ds, f, "clean"), load_image(ds, f, lv)
-        ch, cw = min(c.shape[0], size[1]), min(c.shape[1], size[0])
-        y, x = rng.integers(0, c.shape[0] - ch + 1), rng.integers(0, c.shape[1] - cw + 1)
-        clean.append(c[y : y + ch, x : x + cw])
-        foggy.append(g[y : y + ch, x : x + cw])
+    clean, foggy = training_pairs(ds, train_f, config.aod_pairs, (256, 256), seed, progress)
     t0 = time.perf_counter()
-    aod, losses = train_aodnet(np.stack(clean), np.stack(foggy), epochs=config.aod_epochs, batch_size=config.batch_size,
-                               seed=seed, device=str(device), progress=progress)  # fmt: skip
+    aod, losses = train_aodnet(clean, foggy, epochs=config.aod_epochs, batch_size=16, seed=seed, device=str(device),
+                               progress=progress)  # fmt: skip
     return aod, {"pairs": len(clean), "losses": losses, "seconds": time.perf_counter() - t0}
+
+
+def train_dehazeformer_pairs(ds: FogDrive, train_f: list[Frame], config: Any, seed: int, device: torch.device,
+                             progress: bool = True) -> tuple[Any, dict[str, Any]]:  # fmt: skip
+    """DehazeFormer (``config.dehazeformer`` size) trained for ``config.dehazeformer_steps`` steps of random
+    ``config.dehazeformer_crop`` crops cut from ``config.aod_pairs`` (clean, fog) pairs (the same pairs AOD-Net
+    sees); returns the model and a summary."""
+    from fog_gym.dehaze.dehazeformer import train_dehazeformer
+    from fog_gym.experiments.detection3d.train import resolve_precision
+
+    clean, foggy = training_pairs(ds, train_f, config.aod_pairs, (256, 256), seed, progress)
+    t0 = time.perf_counter()
+    precision = resolve_precision(config.precision, device)
+    crop = min(config.dehazeformer_crop, *clean.shape[1:3])  # small frames (a smoke run) give small pairs
+    model, losses = train_dehazeformer(clean, foggy, config.dehazeformer, config.dehazeformer_steps, 8, crop, 4e-4,
+                                       seed, str(device), precision, progress)  # fmt: skip
+    return model, {"pairs": len(clean), "losses": losses, "seconds": time.perf_counter() - t0, "precision": precision}

@@ -6,7 +6,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from fog_gym.perception.dehaze import dcp, estimate_airlight, guided_filter, oracle
+from fog_gym.dehaze import dcp, estimate_airlight, guided_filter, oracle
 from fog_gym.fog import alpha_from_visibility, fog_image, ray_length_factor
 from fog_gym.geometry import intrinsic_matrix
 from fog_gym.metrics.image_quality import psnr, ssim
@@ -83,7 +83,7 @@ def test_bad_input_names_the_expected_shape(call, message):
 
 def test_aodnet_has_the_papers_size_and_learns_to_undo_fog():
     torch = pytest.importorskip("torch")
-    from fog_gym.perception.aodnet import AODNet, dehaze, train_aodnet
+    from fog_gym.dehaze.aodnet import AODNet, dehaze, train_aodnet
 
     assert sum(p.numel() for p in AODNet().parameters()) == 1761
     clean, depth, K = _scene(48, 64, seed=4)

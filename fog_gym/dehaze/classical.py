@@ -1,6 +1,6 @@
-"""Dehazers for Experiment 2 on uint8 ``(H, W, 3)`` RGB images: He et al.'s Dark Channel Prior and an oracle that
-inverts fog-gym's Koschmieder fog exactly (the upper bound of any dehazer). AOD-Net (torch) lives in
-:mod:`fog_gym.perception.aodnet`. Pure numpy + OpenCV (box filters and erosion, both O(1) per pixel in the window).
+"""Classical dehazers on uint8 ``(H, W, 3)`` RGB images: He et al.'s Dark Channel Prior and an oracle that
+inverts fog-gym's Koschmieder fog exactly (the upper bound of any dehazer). The learned ones live beside it
+(:mod:`fog_gym.dehaze.aodnet`, :mod:`fog_gym.dehaze.dehazeformer`). Pure numpy + OpenCV (box filters and erosion, both O(1) per pixel in the window).
 
 Dark Channel Prior (He, Sun, Tang, CVPR 2009 / TPAMI 2011), as specified:
 

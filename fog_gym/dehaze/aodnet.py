@@ -13,7 +13,7 @@ import numpy as np
 import torch
 import torch.nn as nn
 
-from fog_gym.perception.dehaze import check_image
+from fog_gym.dehaze.classical import check_image
 
 
 class AODNet(nn.Module):
