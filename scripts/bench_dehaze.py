@@ -64,8 +64,8 @@ def main(argv: list[str] | None = None) -> int:
 
     import torch
 
-    from fog_gym.perception.dehaze import dcp, oracle
-    from fog_gym.perception.aodnet import AODNet, dehaze
+    from fog_gym.dehaze import dcp, oracle
+    from fog_gym.dehaze.aodnet import AODNet, dehaze
     from fog_gym.fog import fog_images
     from fog_gym.metrics.image_quality import psnr
 

@@ -41,8 +41,8 @@ class Exp1Config:
     lr: float = 2e-3
     weight_decay: float = 0.01
     every: int = 1
-    test_every: int = 2
-    eval_every: int = 1
+    test_every: int = 4
+    eval_every: int = 2
     detectors: tuple[str, ...] = ("pillars", "bev")
     width: int = 32  # the BEV detector's
     range_m: float = 40.0
@@ -60,7 +60,7 @@ class Exp1Config:
     fraction: float = 0.2
     mixed_fraction: float = 0.08
     match_sweeps: bool = True
-    test_fraction: float = 0.5
+    test_fraction: float = 1.0
     budget_epochs: tuple[int, ...] = ()
     seed: int = 0
     device: str = "auto"
@@ -267,11 +267,13 @@ class Exp1Study(DatasetStudy):
     def add_arguments(cls, p: argparse.ArgumentParser) -> None:
         cls.add_common_arguments(p, "with train/test splits; LiDAR-only will do", "unit", 2e-3)
         for action in p._actions:  # the configuration decides these defaults (CPU or GPU)
-            if action.dest in ("epochs", "batch_size", "every"):
+            if action.dest in ("epochs", "batch_size", "every", "test_every", "eval_every"):
                 action.default = None
                 action.help = {"epochs": "training epochs per unit (CPU configuration 10, GPU 20)",
                                "batch_size": "batch size (CPU 8, GPU 16)",
-                               "every": "use every n-th training sample of a scene (default 1: 10 Hz)"}[action.dest]  # fmt: skip
+                               "every": "use every n-th training sample of a scene (default 1: 10 Hz)",
+                               "test_every": "use every n-th test sample (default 4)",
+                               "eval_every": "evaluate after every n-th epoch and the last (default 2)"}[action.dest]  # fmt: skip
         p.add_argument("--detectors", nargs="+", default=["pillars", "bev"], choices=("pillars", "bev"),
                        help="detectors to train (default both; --detector is the same option)")
         p.add_argument("--detector", dest="detectors", nargs="+", choices=("pillars", "bev"), help=argparse.SUPPRESS)
@@ -282,7 +284,8 @@ class Exp1Study(DatasetStudy):
         p.add_argument("--mixed-fraction", type=float, default=0.08, help="Mixed-S share per density (paper 0.08)")
         p.add_argument("--no-match-sweeps", action="store_true",
                        help="keep all of Mixed-S's sweeps (default: thinned to the Light row's count)")
-        p.add_argument("--test-fraction", type=float, default=0.5, help="share of test scenes evaluated (default 0.5)")
+        p.add_argument("--test-fraction", type=float, default=1.0,
+                       help="share of test scenes evaluated (default 1.0: every test scene, every 4th sample; paper 0.2)")
         p.add_argument("--rows", nargs="+", default=list(TRAIN_ROWS), help="training subsets to run (default all five)")
         p.add_argument("--budget-epochs", type=int, nargs="*", default=[],
                        help="learning curve: also train the pillar detector on Light for these epoch counts")
