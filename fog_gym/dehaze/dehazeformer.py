@@ -237,7 +237,7 @@ def train_dehazeformer(clean: np.ndarray, foggy: np.ndarray, size: str = "T", st
                          f"{batch_size}, {crop}")  # fmt: skip
     torch.manual_seed(seed)
     rng = np.random.default_rng(seed)
-    model = DehazeFormer(size).to(device)
+    model = DehazeFormer(size).to(device).to(memory_format=torch.channels_last)
     opt = torch.optim.AdamW(model.parameters(), lr=lr, weight_decay=0.01)
     sched = torch.optim.lr_scheduler.CosineAnnealingLR(opt, steps, eta_min=lr / 100)
     losses, window = [], []
@@ -249,7 +249,7 @@ def train_dehazeformer(clean: np.ndarray, foggy: np.ndarray, size: str = "T", st
         flip = rng.random(batch_size) < 0.5
         cc = np.stack([c[i, y:y + crop, x:x + crop][:, ::-1 if fl else 1] for i, y, x, fl in zip(idx, y0, x0, flip)])
         ff = np.stack([f[i, y:y + crop, x:x + crop][:, ::-1 if fl else 1] for i, y, x, fl in zip(idx, y0, x0, flip)])
-        x, y = to_tensor(ff).to(device), to_tensor(cc).to(device)
+        x, y = to_tensor(ff).to(device).contiguous(memory_format=torch.channels_last), to_tensor(cc).to(device)
         with torch.autocast(torch.device(device).type, dtype=torch.bfloat16, enabled=precision == "bf16"):
             out = model(x)
         loss = F.l1_loss(out.float(), y)

@@ -28,7 +28,7 @@ def test_rl_benchmark_smoke_resumes_and_reports_cis_across_seeds(tmp_path):
     assert {"clear", "light", "moderate", "dense"} == set(data["table"]["clear"])
     text = (tmp_path / "matrix.md").read_text()
     assert "distance driven [m]" in text and "Fog effect" in text and "Against the clear-trained agents" in text
-    assert "A smoke run" in text  # far below a study's budget, and it says so
+    assert "— a smoke run: a check of the pipeline" in text and "4 agents (2 training seeds)" in text  # its own numbers
     # wall times: every agent's training steps come from its monitor logs (finished episodes: at most the budget
     # plus the steps of one episode per env), every evaluation cell recorded its time
     times = data["wall_times"]

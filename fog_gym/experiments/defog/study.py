@@ -32,13 +32,13 @@ class Exp2Config:
     frames: AOD-Net for ``aod_epochs`` epochs, DehazeFormer (``dehazeformer`` size) for ``dehazeformer_steps``
     steps of ``dehazeformer_crop`` crops."""
 
-    epochs: int = 12
+    epochs: int = 5
     batch_size: int = 8
     lr: float = 2e-3
     weight_decay: float = 0.01
     every: int = 2
     test_every: int = 8
-    eval_every: int = 2
+    eval_every: int = 1
     input_size: tuple[int, int] = (640, 480)  # detector input (W, H)
     width: int = 16
     depth: int = 1
@@ -48,7 +48,7 @@ class Exp2Config:
     aod_epochs: int = 10
     aod_pairs: int = 800
     dehazeformer: str = "T"
-    dehazeformer_steps: int = 1200
+    dehazeformer_steps: int = 600
     dehazeformer_crop: int = 128
     cameras: tuple[str, ...] = CAMERAS
     seed: int = 0
@@ -267,11 +267,11 @@ class Exp2Study(DatasetStudy):
         for action in p._actions:  # the configuration decides these defaults (CPU or GPU)
             if action.dest in ("epochs", "batch_size", "every", "test_every", "eval_every"):
                 action.default = None
-                action.help = {"epochs": "training epochs per detector (CPU configuration 12, GPU 60)",
+                action.help = {"epochs": "training epochs per detector (CPU configuration 5, GPU 60)",
                                "batch_size": "batch size (CPU 8, GPU 16)",
                                "every": "use every n-th training / validation sample of a scene (default 2)",
                                "test_every": "use every n-th test sample (default 8)",
-                               "eval_every": "evaluate on the validation set every n-th epoch and the last (CPU 2, "
+                               "eval_every": "evaluate on the validation set every n-th epoch and the last (CPU 1, "
                                              "GPU 5)"}[action.dest]  # fmt: skip
         p.add_argument("--gpu", action="store_true",
                        help="the GPU configuration: detector width 32 and depth 2, 60 epochs, batch 16, DehazeFormer-S "
@@ -288,7 +288,7 @@ class Exp2Study(DatasetStudy):
         p.add_argument("--aod-epochs", type=int, default=10, help="AOD-Net training epochs (default 10)")
         p.add_argument("--aod-pairs", type=int, default=None, help="(clean, fog) training crops of the dehazers (CPU 800)")
         p.add_argument("--dehazeformer", choices=("T", "S"), default=None, help="DehazeFormer size (CPU T, GPU S)")
-        p.add_argument("--dehazeformer-steps", type=int, default=None, help="DehazeFormer training steps (CPU 1200)")
+        p.add_argument("--dehazeformer-steps", type=int, default=None, help="DehazeFormer training steps (CPU 600, GPU 6000)")
         p.add_argument("--cameras", nargs="+", default=list(CAMERAS), help="cameras (default front and left)")
         p.add_argument("--min-height", type=float, default=0.0,
                        help="evaluate only boxes at least this many pixels high at the detector input; lower ones are "

@@ -16,12 +16,13 @@ from fog_gym.experiments.rl_bench.evaluate import METRICS
 
 
 def _header(meta: dict[str, Any], title: str, per: str, extra: str = "") -> list[str]:
-    """A report's title, budget line and smoke warning."""
+    """A report's title, its run's setting and its budget line (what the run is, from its own numbers)."""
     lines = [f"# {title}", "",
              f"{meta['seeds']} training seed(s) × {meta['steps']} steps per {per} ({meta.get('algo', 'PPO')}), "
              f"{meta['episodes']} evaluation episodes per agent and test fog (seeds {EVAL_SEED}+). Cells: mean over "
              f"training seeds ± 95 % CI across seeds (n/a for one seed){extra}.", ""]  # fmt: skip
-    return lines + ([f"**{meta['smoke']}**", ""] if meta.get("smoke") else [])
+    note = meta.get("budget") or meta.get("smoke")  # (reports of earlier runs kept a smoke warning)
+    return lines + ([f"**{note}**", ""] if note else [])
 
 
 def render_matrix(table: dict[str, Any], meta: dict[str, Any]) -> str:

@@ -22,8 +22,34 @@ from fog_gym.experiments.rl_bench.data import (CONDITIONS, DEFAULT_CONDITIONS, E
 from fog_gym.experiments.rl_bench.train import ALGOS
 from fog_gym.experiments.runner import Report, Study, Unit, aggregate
 
-#: The budget below which a run says it is a smoke run.
-STUDY_BUDGET = {"seeds": 3, "steps": 50_000, "episodes": 32}
+#: The documented study's budget (docs/experiments/rl_benchmark.md: 5 training seeds × 2.5·10⁵ steps, 32 evaluation
+#: episodes per cell), against which a run's budget line places it.
+STUDY_BUDGET = {"seeds": 5, "steps": 250_000, "episodes": 32}
+
+
+def budget_line(seeds: int, steps: int, episodes: int, agents: int) -> str:
+    """What a run is, from its own numbers, against the documented study's budget (:data:`STUDY_BUDGET`).
+
+    >>> budget_line(1, 250_000, 32, 4)
+    'Budget: 4 agents (1 training seed) × 250,000 steps, 32 evaluation episodes per cell — a one-seed run: its cells have no interval across training seeds, so no difference between conditions is resolved (the documented study: 5 seeds × 250,000 steps × 32 episodes).'
+    >>> budget_line(5, 250_000, 32, 35).split(" — ")[1]
+    "a study at the documented study's budget (5 seeds × 250,000 steps × 32 episodes)."
+    """
+    b = STUDY_BUDGET
+    head = (f"Budget: {agents} agents ({seeds} training seed{'s' if seeds != 1 else ''}) × {steps:,} steps, {episodes} "
+            f"evaluation episodes per cell")  # fmt: skip
+    ref = f"the documented study: {b['seeds']} seeds × {b['steps']:,} steps × {b['episodes']} episodes"
+    if steps < 10_000 or episodes < 8:
+        what = f"a smoke run: a check of the pipeline, far too small for a finding ({ref})"
+    elif seeds < 2:
+        what = f"a one-seed run: its cells have no interval across training seeds, so no difference between conditions is resolved ({ref})"
+    elif seeds >= b["seeds"] and steps >= b["steps"] and episodes >= b["episodes"]:
+        what = f"a study at the documented study's budget ({b['seeds']} seeds × {b['steps']:,} steps × {b['episodes']} episodes)"
+    else:
+        short = [f"{name} {have:,} < {want:,}" for name, have, want in (("seeds", seeds, b["seeds"]), ("steps", steps, b["steps"]),
+                 ("episodes", episodes, b["episodes"])) if have < want]  # fmt: skip
+        what = f"a study below the documented budget ({', '.join(short)}; {ref})"
+    return f"{head} — {what}."
 POLICIES = ("auto", "MultiInputPolicy", "MlpPolicy", "CnnPolicy")
 
 
@@ -126,7 +152,7 @@ class RLStudy(Study):
     default_out = Path("out/rl_bench")
     own_wall_times = True
     smoke_help = ("a ≈ 2-minute check of the whole pipeline (2 conditions × 256 steps, 2 evaluation episodes, 2-s "
-                  "episodes); the default budget is itself a ≈ 20-minute smoke run, far too small for a finding")  # fmt: skip
+                  "episodes); the default budget is itself a ≈ 20-minute check, far too small for a finding")  # fmt: skip
     description = (
         "The fog RL benchmark: train an agent (PPO or DQN) per fog condition and training seed, evaluate every agent "
         "on clear / light / moderate / dense fog in parallel vector envs, and report a train × test matrix with 95 % "
@@ -139,7 +165,8 @@ class RLStudy(Study):
         "curves.png, curves/<condition>.png, eval/<agent>_<fog>_<episodes>.json, TensorBoard logs in tb/, models in "
         "models/. Run the same command again to continue where it stopped.\n\n"
         "The default budget (7 conditions × 1 seed × 2 048 steps, 8 episodes per cell) finishes in about 20 minutes "
-        "on a 2-core CPU: a smoke run, far too small for a finding. A study: --seeds 3 --steps 50000 --episodes 32.")
+        "on a 2-core CPU: a check of the pipeline, far too small for a finding. The documented study (docs/experiments/"
+        "rl_benchmark.md): --seeds 5 --steps 250000 --episodes 32. Every report's budget line says what its run is.")
 
     def __init__(self, config: RLConfig = RLConfig()) -> None:
         self.config = config
@@ -155,17 +182,13 @@ class RLStudy(Study):
             out["episode_steps"] = c.episode_steps
         return out
 
-    def smoke_note(self, seeds: Sequence[int]) -> str:
+    def budget_note(self, seeds: Sequence[int]) -> str:
         c = self.config
-        if len(seeds) >= STUDY_BUDGET["seeds"] and c.steps >= STUDY_BUDGET["steps"] and c.episodes >= STUDY_BUDGET["episodes"]:
-            return ""
-        return ("A smoke run: far too small a budget for a finding (a study: --seeds 3 --steps 50000 --episodes 32 "
-                "or more).")  # fmt: skip
+        agents = len(seeds) * len(c.conditions) * max(1, len(c.sensor_sets))
+        return budget_line(len(seeds), c.steps, c.episodes, agents)
 
     def announce(self, seeds: Sequence[int]) -> str:
-        n = len(seeds) * len(self.config.conditions) * max(1, len(self.config.sensor_sets))
-        note = self.smoke_note(seeds)
-        return f"{n} agents × {self.config.steps} steps on {self.config.env_id}. {note}".strip()
+        return f"{self.config.env_id}. {self.budget_note(seeds)}"
 
     def units(self, seeds: Sequence[int]) -> list[Unit]:
         c = self.config
@@ -238,7 +261,7 @@ class RLStudy(Study):
         meta = {"env": c.env_id, "env_kwargs": dict(c.env_kwargs), "algo": c.algo, "seeds": len(seeds),
                 "steps": c.steps, "episodes": c.episodes, "envs": c.envs, "conditions": list(c.conditions),
                 "sensor_sets": list(c.sensor_sets), "algo_kwargs": dict(c.algo_kwargs), "episode_steps": c.episode_steps,
-                "smoke": self.smoke_note(seeds)}  # fmt: skip
+                "budget": self.budget_note(seeds)}  # fmt: skip
         sets = list(c.sensor_sets) or [None]
         agents = [agent_name(cond, s, ss) for ss in sets for cond in c.conditions for s in seeds]
         times = rep.wall_times(out, agents, eval_s)
@@ -290,7 +313,8 @@ class RLStudy(Study):
                        help="SB3 policy (default auto: MultiInputPolicy for Dict observations, MlpPolicy for Box)")
         p.add_argument("--vec-env", choices=sorted(VEC_ENVS), default=d.vec_env,
                        help="vector-env factory (default subproc: SB3's SubprocVecEnv)")
-        p.add_argument("--steps", type=int, default=None, help="training steps per agent (default 2048; a study: >= 50000)")
+        p.add_argument("--steps", type=int, default=None,
+                       help="training steps per agent (default 2048; the documented study: 250000)")
         p.add_argument("--episodes", type=int, default=None,
                        help="evaluation episodes per agent and test fog (default 8; a study: >= 32)")
         p.add_argument("--envs", type=int, default=d.envs, help="envs in parallel per agent (default: the CPU count)")
