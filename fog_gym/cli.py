@@ -132,6 +132,7 @@ def build_parser() -> argparse.ArgumentParser:
     _add_view_parser(sub)
     _add_minari_parser(sub)
     _add_export_parser(sub)
+    _add_augment_parser(sub)
     bench = sub.add_parser("bench", help="per-stage milliseconds of env, sensors, fog and recording (see fog-gym bench --help)",
                            add_help=False)
     bench.add_argument("args", nargs=argparse.REMAINDER)
@@ -337,7 +338,7 @@ def main(argv: list[str] | None = None) -> int:
     from fog_gym.checks import command_line
 
     handler = {"generate": _generate, "validate": _validate, "stats": _stats, "audit": _audit, "demo": _demo,
-               "view": _view, "minari": _minari, "export": _export}  # fmt: skip
+               "view": _view, "minari": _minari, "export": _export, "augment": _augment}  # fmt: skip
     with command_line():  # error messages name flags (--overwrite), not keywords (overwrite=True)
         return handler[args.command](args)
 
@@ -380,6 +381,79 @@ EXPORT_DESCRIPTION = (
     "earlier export, --resume completes an interrupted one), which is checked first; then the set is validated. Frames, class mapping and "
     "limits: docs/exports.md."
 )
+
+
+AUGMENT_DESCRIPTION = (
+    "Fog on the data you already have: write a fogged copy of a KITTI object, nuScenes or FogDrive data set, file "
+    "for file (same names, dtypes and encodings; every other file hard-linked), with fog-gym's calibrated physics — "
+    "Hahner et al. on the LiDAR scans, Koschmieder on the camera images with depth completed from the scan (Ku et "
+    "al.). Deterministic per (seed, file); --resume completes an interrupted run to the same bytes; one writer per "
+    "output; a manifest (fog_gym_augment.json) records fog, profile, seed and every source file's hash.\n\n"
+    "fog-gym augment kitti/ kitti_dense/ --format kitti --fog dense\n"
+    "fog-gym augment nuscenes/ nuscenes_fog/ --format nuscenes --fog light moderate dense --workers 2\n"
+    "fog-gym augment kitti/ kitti_bank/ --format kitti --fog bank.json     # a fog field: {\"type\": \"FogBank\", ...}")
+
+
+def _add_augment_parser(sub) -> None:
+    ag = sub.add_parser("augment", help="fog a KITTI, nuScenes or FogDrive data set, file for file",
+                        description=AUGMENT_DESCRIPTION, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ag.add_argument("src", type=Path, help="the data set's root")
+    ag.add_argument("dst", type=Path, help="the output root (created; must be empty unless --resume)")
+    ag.add_argument("--format", required=True, choices=("kitti", "nuscenes", "fogdrive"), help="the data set's layout")
+    ag.add_argument("--fog", nargs="+", required=True, metavar="FOG",
+                    help="light, moderate, dense, clear, a visibility in metres, or a fog field as JSON (text or a "
+                         ".json file: {\"type\": \"FogBank\" | \"HeightFog\" | \"FogSum\", ...}); several fogs write "
+                         "DST/<fog name>/ each")  # fmt: skip
+    ag.add_argument("--sensors", nargs="+", default=["lidar", "cameras"], choices=("lidar", "cameras"),
+                    help="which files to fog (default both)")
+    ag.add_argument("--profile", default=None,
+                    help="LiDAR profile: fogdrive, kitti, nuscenes, or a .json / .toml file (default: the format's)")
+    ag.add_argument("--seed", type=int, default=0, help="base seed of the fog draws (default 0)")
+    mode = ag.add_mutually_exclusive_group()
+    mode.add_argument("--workers", type=int, default=1, help="worker processes (default 1)")
+    mode.add_argument("--ray", metavar="ADDRESS", default=None, help="run files as Ray tasks on this cluster")
+    ag.add_argument("--resume", action="store_true", help="complete an interrupted run in DST (same settings)")
+    ag.add_argument("--on-error", choices=("stop", "skip"), default="stop",
+                    help="a bad input file (truncated, missing calibration, undecodable): stop the run naming it "
+                         "(default), or skip it and list it in the manifest")  # fmt: skip
+    ag.add_argument("--jpeg-quality", type=int, default=95, help="quality of re-encoded JPEG images (default 95)")
+
+
+def _fog_arg(text: str) -> object:
+    """A --fog value: a level name or metres, or a fog field as JSON text or a .json file."""
+    import json
+
+    from fog_gym.fog.fields import field_from_info
+
+    t = text.strip()
+    if t.startswith("{") or t.endswith(".json"):
+        try:
+            info = json.loads(Path(t).read_text() if t.endswith(".json") else t)
+            return field_from_info(info)
+        except (OSError, json.JSONDecodeError, TypeError, KeyError) as e:
+            raise ValueError(f"--fog {text!r} is not a fog field ({e})") from None
+    try:
+        return float(t)
+    except ValueError:
+        return t
+
+
+def _augment(args: argparse.Namespace) -> int:
+    from fog_gym.augment.run import augment
+    from fog_gym.dataset.lock import DatasetLocked, DatasetLockError
+
+    try:
+        fogs = [_fog_arg(f) for f in args.fog]
+        r = augment(args.src, args.dst, args.format, fogs, tuple(args.sensors), args.seed, args.workers, args.ray,
+                    args.resume, args.on_error, args.jpeg_quality, args.profile)  # fmt: skip
+    except (ValueError, DatasetLocked, DatasetLockError) as e:
+        raise _fail("augment", str(e).split("\n")[0]) from None
+    except OSError as e:
+        raise _fail("augment", _write_failure(e)) from None
+    for name, m in r.items():
+        skipped = f", {len(m['skipped'])} skipped (listed in the manifest)" if m["skipped"] else ""
+        print(f"{name}: {len(m['files'])} files fogged, {m['linked']} linked{skipped}")
+    return 0
 
 
 def _add_export_parser(sub) -> None:
