@@ -9,7 +9,9 @@ fog_gym.experiments.bench.<name>``):
 * :mod:`~fog_gym.experiments.bench.fog`: camera and LiDAR fog, and the full paired fog frame;
 * :mod:`~fog_gym.experiments.bench.dataset`: the recorder against the PNG-encoder bound, ``fog-gym generate`` with 1 and 2 workers;
 * :mod:`~fog_gym.experiments.bench.geometry`: the world of meshes against the box world in the same run (day and night
-  steps, point sensors, the pixel RL vector env, memory).
+  steps, point sensors, the pixel RL vector env, memory);
+* :mod:`~fog_gym.experiments.bench.augment`: fog on real data per core (a KITTI-sized scan per level and in a bank, a
+  KITTI-sized image with depth completion) beside the reference fog program's cost.
 
 Usage::
 
@@ -25,6 +27,7 @@ import argparse
 import time
 from pathlib import Path
 
+from fog_gym.experiments.bench import augment as bench_augment
 from fog_gym.experiments.bench import dataset as bench_dataset
 from fog_gym.experiments.bench import env as bench_env
 from fog_gym.experiments.bench import fog as bench_fog
@@ -74,9 +77,11 @@ def main(argv: list[str] | None = None, prog: str = "fog-gym bench") -> int:
     rl = bench_env.bench_rl(repeats)
     baseline = bench_env.bench_baselines(args.town, repeats, profile_steps)
     geometry = bench_geometry.bench_geometry(repeats, 5 if args.quick else 15)
+    augment = bench_augment.bench_augment(repeats)
     finish_meta(meta, t0)
     results = {"meta": meta, "rigs": rigs, "point_sensors": point_sensors, "fog": fog, "labels": labels,
-               "recording": recording, "rl": rl, "baseline": baseline, "night": night, "geometry": geometry}  # fmt: skip
+               "recording": recording, "rl": rl, "baseline": baseline, "night": night, "geometry": geometry,
+               "augment": augment}  # fmt: skip
 
     print(bench_env.render_stages(results))
     print("\n" + "\n".join(bench_sensors.render_point_sensors(point_sensors, repeats)))
@@ -87,6 +92,7 @@ def main(argv: list[str] | None = None, prog: str = "fog-gym bench") -> int:
     print("\n" + "\n".join(bench_env.render_rl(rl)))
     print("\n" + "\n".join(bench_sensors.render_night(night, repeats)))
     print("\n" + "\n".join(bench_geometry.render_geometry(geometry)))
+    print("\n" + "\n".join(bench_augment.render_augment(augment, repeats)))
     write_json(args.json, results)
     return 0
 
