@@ -41,13 +41,9 @@ def _samples(src: Path, out: Path, fmt: str) -> list[tuple[str, Path | None]]:
 
     version = next(p.parent for p in out.glob("*/sample_data.json"))
     sd = json.loads((version / "sample_data.json").read_text())
-    sample = {s["token"]: s for s in json.loads((version / "sample.json").read_text())}
     lidar = {r["sample_token"]: out / r["filename"] for r in sd if r["filename"].startswith("samples/LIDAR_TOP")}
-    # the export keeps FogDrive's sample order within scenes; map by timestamp order
-    ds = FogDrive(src)
-    ours = sorted(ds.sample, key=lambda s: (ds.get_scene_for_sample(s["token"])["name"], s["timestamp"]))
-    theirs = sorted(sample.values(), key=lambda s: (s["scene_token"], s["timestamp"]))
-    return [(a["token"], lidar.get(b["token"])) for a, b in zip(ours, theirs, strict=False)]
+    # fog-gym's nuScenes export keeps each sample's token, without its dashes
+    return [(s["token"], lidar.get(s["token"].replace("-", ""))) for s in ds.sample]
 
 
 def to_fogdrive_points(points: np.ndarray, fmt: str) -> np.ndarray:
