@@ -95,7 +95,7 @@ def camera_errors(src: str | Path, level: str, completed: bool, camera: str = "C
     from fog_gym.dataset.access import FogDrive
     from fog_gym.dataset.decode import load_channel
     from fog_gym.dataset.layout import extrinsic_key
-    from fog_gym.experiments.defog.data import intrinsic
+    from fog_gym.dataset.export.frames import camera_intrinsic as intrinsic
     from fog_gym.fog import atmospheric_light, night_airlight
 
     ds = FogDrive(src)

@@ -143,7 +143,7 @@ def fog_file(src: Path, task: Task, fog: Any, seed: int, profile: Any, jpeg_qual
         return encode_image(path, out, jpeg_quality)
     # fog-gym's own layout: exact depth, and the airlight fog-gym made the set's fog with
     from fog_gym.dataset.decode import load_channel
-    from fog_gym.experiments.defog.data import intrinsic
+    from fog_gym.dataset.export.frames import camera_intrinsic as intrinsic
 
     depth = load_channel(f"{info['camera']}_DEPTH", src / info["depth"])
     key = str(src / info["first"])

@@ -170,3 +170,12 @@ def test_colour_jitter_keeps_geometry_and_grey_and_is_seeded():
     grey = np.full((4, 4, 3), 77, np.uint8)  # no hue or saturation: only the value gain acts
     out = augment_hsv(grey, (0.5, 0.5, 0.0), np.random.default_rng(2))
     assert (out == grey).all()
+
+
+def test_the_gpu_configuration_runs_at_toy_size_on_the_cpu(camera_set, tmp_path):
+    """--gpu selects the wider detector, DehazeFormer-S and longer budgets; here shrunk to a toy run on the CPU."""
+    full = Exp2Config.gpu()
+    assert (full.width, full.depth, full.dehazeformer, full.profile) == (32, 2, "S", "gpu") and full.epochs > Exp2Config().epochs
+    config = Exp2Config.gpu(**{**TINY, "dehazeformer_steps": 1})
+    r = run_experiment2(camera_set, tmp_path / "gpu", config, progress=False, log=lambda *_: None)
+    assert r["config"]["profile"] == "gpu" and r["config"]["dehazeformer"] == "S" and "A" in r["detection"]

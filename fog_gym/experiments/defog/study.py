@@ -208,8 +208,8 @@ class Exp2Study(DatasetStudy):
 
             model, summary = train_dehazeformer_pairs(ds, train_f, c, unit.seed, device, progress)
         else:
-            from fog_gym.experiments.defog.data import DetectionSet, eval_set
-            from fog_gym.experiments.defog.train import train_detector
+            from fog_gym.experiments.defog.data import eval_set
+            from fog_gym.experiments.defog.train import DetectionSet, train_detector
 
             level, size = unit.params["level"], tuple(c.input_size)
             val = eval_set(ds, self._frames(ds, "val"), level, size, min_height=c.min_height)

@@ -17,7 +17,7 @@ import numpy as np
 import torch
 
 from fog_gym.dataset.access import FogDrive
-from fog_gym.experiments.defog.data import LEVELS, Frame, load_image
+from fog_gym.experiments.defog.data import LEVELS, Frame, load_boxes, load_image, resize
 from fog_gym.experiments.defog.evaluate import detect
 from fog_gym.experiments.detection3d.model import optimizer_step
 
@@ -39,6 +39,57 @@ def augment_hsv(image: np.ndarray, gains: Sequence[float], rng: np.random.Genera
     lut_v = np.clip(x * r[2], 0, 255).astype(np.uint8)
     hsv = cv2.merge((cv2.LUT(hue, lut_h), cv2.LUT(sat, lut_s), cv2.LUT(val, lut_v)))
     return cv2.cvtColor(hsv, cv2.COLOR_HSV2RGB)
+
+
+class DetectionSet:
+    """A detector's training set (a ``torch`` ``Dataset``): the frames at one fog level, resized to the input size
+    ``(W, H)``, with their boxes; with ``augment``, a horizontal flip (probability ½) and Ultralytics-style colour
+    jitter (``hsv`` gains, :func:`augment_hsv`), drawn from (``seed``, epoch,
+    item) so that an epoch is reproducible. Items: ``(image (H, W, 3) uint8, boxes (N, 4) input pixels, class
+    channel indices (N,))``."""
+
+    def __init__(self, ds: FogDrive, items: Sequence[Frame], level: str, size: tuple[int, int], augment: bool = False,
+                 seed: int = 0, hsv: Sequence[float] = (0.0, 0.0, 0.0)) -> None:  # fmt: skip
+        if not items:
+            raise ValueError("the training split has no frames")
+        self.ds, self.items, self.level, self.size = ds, list(items), level, tuple(size)
+        self.augment, self.seed, self.hsv, self.epoch = augment, seed, tuple(hsv), 0
+
+    def __len__(self) -> int:
+        return len(self.items)
+
+    def __getitem__(self, i: int):
+        from fog_gym.experiments.defog.yolo import CLASSES
+
+        f = self.items[i]
+        img = load_image(self.ds, f, self.level)
+        boxes, classes = load_boxes(self.ds, f)
+        h0, w0 = img.shape[:2]
+        w, h = self.size
+        img = resize(img, self.size)
+        boxes = boxes * np.array([w / w0, h / h0, w / w0, h / h0])
+        if self.augment:
+            rng = np.random.default_rng([self.seed, self.epoch, i])
+            if any(self.hsv):
+                img = augment_hsv(img, self.hsv, rng)
+            if rng.random() < 0.5:
+                img = np.ascontiguousarray(img[:, ::-1])
+                boxes = np.stack([w - boxes[:, 2], boxes[:, 1], w - boxes[:, 0], boxes[:, 3]], 1)
+        channel = np.array([CLASSES.index(int(c)) for c in classes], np.int64)
+        return img, boxes.astype(np.float32), channel
+
+
+def collate_detection(batch):
+    """Images ``(B, 3, H, W)`` float in [0, 1] (channels-last memory), boxes padded to ``(B, G, 4)``, class channels
+    ``(B, G)`` and the mask of real boxes."""
+    g = max(1, max(len(b[1]) for b in batch))
+    boxes = np.zeros((len(batch), g, 4), np.float32)
+    classes = np.zeros((len(batch), g), np.int64)
+    mask = np.zeros((len(batch), g), bool)
+    for k, (_, b, c) in enumerate(batch):
+        boxes[k, : len(b)], classes[k, : len(c)], mask[k, : len(c)] = b, c, True
+    imgs = torch.from_numpy(np.stack([b[0] for b in batch])).permute(0, 3, 1, 2).float().div_(255.0)
+    return imgs.contiguous(memory_format=torch.channels_last), torch.from_numpy(boxes), torch.from_numpy(classes), torch.from_numpy(mask)
 
 
 class EMA:
@@ -73,7 +124,6 @@ def train_detector(train: Any, val_images: list[np.ndarray], val_gt: list[dict],
     history (the learning curve)."""
     from tqdm import tqdm
 
-    from fog_gym.experiments.defog.data import collate_detection
     from fog_gym.experiments.defog.yolo import YoloDetector
     from fog_gym.experiments.defog.yolo_loss import detection_loss
     from fog_gym.experiments.detection3d.train import autocast, resolve_precision
