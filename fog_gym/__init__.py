@@ -29,7 +29,7 @@ import fog_gym.envs  # noqa: E402,F401  (registers the environments)
 from fog_gym._version import __version__  # noqa: E402
 from fog_gym.geometry import Pose  # noqa: E402
 from fog_gym.sensors import CAMERA_NAMES, CameraConfig, LidarConfig, RadarConfig, RigConfig, SemanticLidarConfig  # noqa: E402
-from fog_gym.dataset.packing import unpack_points  # noqa: E402
+from fog_gym.channels.packing import unpack_points  # noqa: E402
 from fog_gym.world.hazards import HazardConfig  # noqa: E402
 from fog_gym.world.towns import TIMES_OF_DAY, TOWNS  # noqa: E402
 

@@ -15,7 +15,7 @@ ROOT = Path(__file__).resolve().parents[1]
 #: The dataset format layer: reads and writes the FogDrive layout, knows nothing of how the data was made.
 FORMAT_LAYER = ("fog_gym.dataset",)
 #: Pure physics and geometry: numpy in, numpy out.
-PURE = ("fog_gym._numba", "fog_gym.checks", "fog_gym.geometry", "fog_gym.world.primitives", "fog_gym.fog.physics",
+PURE = ("fog_gym._numba", "fog_gym.channels.spec", "fog_gym.checks", "fog_gym.geometry", "fog_gym.world.primitives", "fog_gym.fog.physics",
         "fog_gym.fog.camera", "fog_gym.fog.glow", "fog_gym.fog.lidar", "fog_gym.fog.lidar_field", "fog_gym.fog.lidar_pulse",
         "fog_gym.fog.lidar_bank", "fog_gym.fog.lidar_height", "fog_gym.fog.depth",
         "fog_gym.fog.fields", "fog_gym.fog.schedules", "fog_gym.encoding", "fog_gym.seeds")  # fmt: skip
@@ -148,6 +148,17 @@ def test_the_dataset_format_layer_imports_neither_the_env_nor_the_wrappers(graph
 def test_pure_physics_and_geometry_import_only_pure_modules(graph):
     leaks = sorted((m, d) for m in PURE for d in graph[m] if not _under(d, PURE))
     assert leaks == []
+
+
+def test_the_channel_specification_is_the_bottom_of_the_data_path(graph):
+    """Sensors, fog and the world read the channel specification (fog_gym.channels), not the dataset layer; the
+    specification imports nothing of the project but itself."""
+    data_path = ("fog_gym.sensors", "fog_gym.fog", "fog_gym.world")
+    upward = sorted((m, d) for m, deps in graph.items() if _under(m, data_path) for d in deps if _under(d, ("fog_gym.dataset",)))
+    assert upward == []
+    below = sorted((m, d) for m, deps in graph.items() if _under(m, ("fog_gym.channels",))
+                   for d in deps if not _under(d, ("fog_gym.channels",)))  # fmt: skip
+    assert below == []
 
 
 def test_env_and_wrappers_do_not_import_each_other(graph):

@@ -8,7 +8,7 @@ import gymnasium as gym
 import numpy as np
 from gymnasium import spaces
 
-from fog_gym.dataset.packing import unpack_points
+from fog_gym.channels.packing import unpack_points
 from fog_gym.render.birds_eye import lidar_bev
 
 

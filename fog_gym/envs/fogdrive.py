@@ -28,7 +28,7 @@ from fog_gym.labels.boxes import CameraView, LabelConfig, annotate
 from fog_gym.geometry import sensor_to_world
 from fog_gym.world.scene import Lighting, Scene, StaticWorld, town_static_world, vehicle_primitives
 from fog_gym.world.scenery import STYLES, build_surface, place_props
-from fog_gym.dataset.packing import SEMANTIC_LIDAR, pack_points
+from fog_gym.channels.packing import SEMANTIC_LIDAR, pack_points
 from fog_gym.sensors import CameraFrame, CameraRig, PointSensors, rig_layout, rig_sensors
 from fog_gym.world.fleet import EGO_ID
 from fog_gym.world.traffic_world import make_world

@@ -34,7 +34,7 @@ from fog_gym.fog.lidar_field import FIELD_COARSE, FIELD_STEP, field_pulse_weight
 from fog_gym.fog.physics import FogField, FogLevel, parse_fog
 from fog_gym.perception import objects as PO
 from fog_gym.seeds import stream
-from fog_gym.dataset.packing import pad_rows
+from fog_gym.channels.packing import pad_rows
 from fog_gym.world.hazards import HazardConfig, hazard_info
 from fog_gym.world.scene import Lighting, town_static_world
 from fog_gym.world.scenery import SURFACE_RGB

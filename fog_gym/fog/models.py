@@ -32,7 +32,7 @@ from fog_gym.fog.depth import field_pose
 from fog_gym.fog.lidar import fog_lidar
 from fog_gym.fog.lidar_field import fog_lidar_field
 from fog_gym.fog.physics import FogLevel, parse_fog  # noqa: F401  (parse_fog: the example)
-from fog_gym.dataset.packing import pack_points, unpack_points
+from fog_gym.channels.packing import pack_points, unpack_points
 
 
 @dataclass(frozen=True)

@@ -3,7 +3,7 @@
 :mod:`~fog_gym.sensors.camera` (RGB, depth, semantic tags), :mod:`~fog_gym.sensors.lidar` (``LIDAR_TOP``),
 :mod:`~fog_gym.sensors.semantic_lidar` (``SEM_LIDAR_TOP``), :mod:`~fog_gym.sensors.radar` (``RADAR_FRONT``), behind
 one protocol (:mod:`~fog_gym.sensors.base`); the ray caster they share (:mod:`~fog_gym.sensors.raycast`), the
-fixed-shape packing of point clouds in observations (:mod:`~fog_gym.dataset.packing`) and the rig
+fixed-shape packing of point clouds in observations (:mod:`~fog_gym.channels.packing`) and the rig
 (:mod:`~fog_gym.sensors.rig`). A rig (:class:`RigConfig`) is a sequence of ``(name, config)``; the config's type
 picks the sensor class from :data:`REGISTRY`. A new sensor is a class registered for its config type
 (:func:`register`) and one more entry of the sequence; a new camera is a :class:`CameraConfig` with a name of its own.
@@ -19,7 +19,7 @@ from fog_gym.sensors.base import REGISTRY, PointSensor, Sensor, build_sensor, re
 from fog_gym.sensors.camera import (CAMERA_NAMES, FOGDRIVE_CAMERA_POSES, LIGHT_RANGE, MAX_TAG, CameraConfig,
                                     CameraFrame, CameraRig, CameraSensor)  # fmt: skip
 from fog_gym.sensors.lidar import LidarConfig, LidarSensor, SemanticLidarConfig
-from fog_gym.dataset.packing import pack_points, unpack_points
+from fog_gym.channels.packing import pack_points, unpack_points
 from fog_gym.sensors.radar import RadarConfig, RadarSensor
 from fog_gym.sensors.rig import PointSensors, RigConfig, rig_layout, rig_sensors
 from fog_gym.sensors.semantic_lidar import SemanticLidarSensor

@@ -2,7 +2,7 @@
 
 A sensor declares everything the env and the dataset need to know about it: its channel names, its Gymnasium
 observation spaces, ``measure(scene, prims, rng, tick)``, and for each channel the dataset's
-:class:`~fog_gym.dataset.layout.ChannelSpec` (folder, file format, encoding, column count) that the writer,
+:class:`~fog_gym.channels.spec.ChannelSpec` (folder, file format, encoding, column count) that the writer,
 ``validate`` and the loaders read. The physics stays in :mod:`fog_gym.sensors.lidar` and :mod:`fog_gym.render`.
 
 See :func:`fog_gym.sensors.rig_sensors` for the sensors of a rig and :func:`fog_gym.sensors.rig_layout` for its
@@ -17,7 +17,7 @@ from typing import Any, ClassVar, Protocol, runtime_checkable
 import numpy as np
 from gymnasium import spaces
 
-from fog_gym.dataset.layout import ChannelSpec
+from fog_gym.channels.spec import ChannelSpec
 from fog_gym.world.primitives import Primitives
 from fog_gym.world.scene import Scene
 

@@ -28,7 +28,7 @@ from fog_gym import geometry
 from gymnasium import spaces
 
 from fog_gym.checks import finite
-from fog_gym.dataset.layout import CAMERA_NAMES, FOG_LEVELS, ChannelSpec  # noqa: F401  (CAMERA_NAMES: re-exported)
+from fog_gym.channels.spec import CAMERA_NAMES, FOG_LEVELS, ChannelSpec  # noqa: F401  (CAMERA_NAMES: re-exported)
 from fog_gym.geometry import Pose
 from fog_gym.sensors.base import check_sensor_name, register
 from fog_gym.render.lights import (beam_window, concat_lights, cull_lights, headlights, lamp_light_map, render_night,

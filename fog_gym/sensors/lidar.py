@@ -34,10 +34,10 @@ from numba import njit
 
 from fog_gym._numba import readonly
 from fog_gym.checks import finite, interval, positive
-from fog_gym.dataset.layout import FOG_LEVELS
+from fog_gym.channels.spec import FOG_LEVELS
 from fog_gym.geometry import Pose, sensor_to_world
 from fog_gym.sensors.base import PointSensor, point_space, register
-from fog_gym.dataset.packing import LIDAR
+from fog_gym.channels.packing import LIDAR
 from fog_gym.sensors.raycast import GROUND, MISS, cast_rays
 from fog_gym.world.primitives import Primitives
 from fog_gym.world.scenery import ROAD, SurfaceMap

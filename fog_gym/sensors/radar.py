@@ -22,7 +22,7 @@ from fog_gym.checks import finite, positive
 from fog_gym.geometry import Pose, sensor_to_world
 from fog_gym.sensors.base import PointSensor, point_space, register
 from fog_gym.sensors.lidar import simulation_frequency_hz, split_transform
-from fog_gym.dataset.packing import RADAR
+from fog_gym.channels.packing import RADAR
 from fog_gym.sensors.raycast import cast_rays
 from fog_gym.world.primitives import Primitives
 

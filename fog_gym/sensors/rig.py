@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from fog_gym.checks import parse_resolution
-from fog_gym.dataset.layout import BBOX_3D, CAMERA_NAMES, FOGDRIVE_CHANNELS, ChannelSpec, check_layout
+from fog_gym.channels.spec import BBOX_3D, CAMERA_NAMES, FOGDRIVE_CHANNELS, ChannelSpec, check_layout
 from fog_gym.geometry import Pose
 from fog_gym.sensors.base import REGISTRY, build_sensor, check_sensor_name, registered_type
 from fog_gym.sensors.camera import FOGDRIVE_CAMERA_POSES, CameraConfig, CameraSensor

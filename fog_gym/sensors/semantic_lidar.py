@@ -20,7 +20,7 @@ from numba import njit
 from fog_gym.geometry import sensor_to_world
 from fog_gym.sensors.base import PointSensor, register
 from fog_gym.sensors.lidar import LidarConfig, SemanticLidarConfig, lidar_directions, lidar_space, split_transform
-from fog_gym.dataset.packing import SEMANTIC_LIDAR
+from fog_gym.channels.packing import SEMANTIC_LIDAR
 from fog_gym.sensors.raycast import MISS, cast_rays
 from fog_gym.world.mesh import MATERIAL_TAG
 from fog_gym.world.primitives import Primitives

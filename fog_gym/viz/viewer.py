@@ -113,7 +113,7 @@ def sample_from_dataset(ds: Any, sample_token: str) -> dict[str, Any]:
 
 def sample_from_env(obs: Mapping[str, np.ndarray], info: Mapping[str, Any]) -> dict[str, Any]:
     """One sample from a live FogDrive-v0 step (paired fog and ground truth on): the dataset's channel names."""
-    from fog_gym.dataset.packing import COLUMNS, unpack_points
+    from fog_gym.channels.packing import COLUMNS, unpack_points
 
     out: dict[str, Any] = {}
     for key, value in obs.items():

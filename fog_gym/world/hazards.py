@@ -75,7 +75,7 @@ def hazard_info(rows: np.ndarray, config: HazardConfig) -> dict[str, Any]:
     >>> info["hazards"].shape, info["hazard_count"], bool((info["hazards"][1:] == 0).all())
     ((10, 4), 1, True)
     """
-    from fog_gym.dataset.packing import pad_rows
+    from fog_gym.channels.packing import pad_rows
 
     return {"hazards": pad_rows(np.asarray(rows, np.float64).reshape(-1, 4), config.capacity),
             "hazard_count": int(len(rows))}

@@ -1,0 +1,96 @@
+"""Fixed-shape observation representation of point clouds, and :func:`unpack_points`.
+
+SB3 and vector envs need fixed shapes, while a LiDAR sweep has a variable number of points. Each point channel
+is a ``(capacity, C)`` float32 array whose capacity is the number of rays the sensor casts per tick (so no
+sweep can overflow it): the sweep's points come first, in the sensor's order (laser-major, as CARLA's
+``raw_data``), and the rest of the rows are zero. No real return is an all-zero row (a LiDAR point has a
+non-zero range, a radar detection a non-zero depth), so :func:`unpack_points` recovers the exact ``(N, C)``
+array — the one the recorder writes.
+
+Example:
+    >>> pts = np.array([[1.0, 2.0, 0.5, 0.9]], np.float32)
+    >>> obs = {"LIDAR_TOP": pack_points(pts, capacity=3)}
+    >>> unpack_points(obs, "LIDAR_TOP").tolist()
+    [[1.0, 2.0, 0.5, 0.8999999761581421]]
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+
+import numpy as np
+
+from fog_gym.channels.spec import COLUMNS, LIDAR, RADAR, SEMANTIC_LIDAR  # noqa: F401  (COLUMNS re-exported)
+
+
+def channel_kind(channel: str) -> str | None:
+    """``LIDAR_TOP``, ``SEM_LIDAR_TOP`` or ``RADAR_FRONT`` for a FogDrive point channel (fog variants
+    ``LIDAR_TOP_FOG_*`` included); None for an added point sensor's channel, whose points are its non-zero rows.
+    A camera or box channel (``CAM_*``, ``*_DEPTH``, ``*_SEM``, ``*_BBOX``) raises ``ValueError``."""
+    if channel == SEMANTIC_LIDAR or channel.startswith(SEMANTIC_LIDAR + "_"):
+        return SEMANTIC_LIDAR
+    if channel == LIDAR or channel.startswith(LIDAR + "_"):
+        return LIDAR
+    if channel == RADAR or channel.startswith(RADAR + "_"):
+        return RADAR
+    if channel.startswith("CAM_") or channel.endswith(("_DEPTH", "_SEM", "_BBOX")) or channel == "BBOX_3D":
+        raise ValueError(f"channel must be a point channel ({LIDAR}[_FOG_*], {SEMANTIC_LIDAR}, {RADAR} or an added "
+                         f"point sensor's), got the camera or box channel {channel!r}")  # fmt: skip
+    return None
+
+
+def pack_points(points: np.ndarray, capacity: int) -> np.ndarray:
+    """Points ``(N, C)`` → ``(capacity, C)`` float32, zero rows after the N points."""
+    points = np.asarray(points, np.float32)
+    if points.ndim != 2 or len(points) > capacity:
+        raise ValueError(f"expected at most {capacity} points as an (N, C) array, got shape {points.shape}")
+    out = np.zeros((capacity, points.shape[1]), np.float32)
+    out[: len(points)] = points
+    return out
+
+
+def unpack_points(obs: Mapping[str, np.ndarray] | np.ndarray, channel: str | None = None) -> np.ndarray:
+    """The exact ``(N, 4)`` / ``(N, 6)`` / ``(N, 4)`` float32 points of ``LIDAR_TOP*``, ``SEM_LIDAR_TOP`` or
+    ``RADAR_FRONT`` (or ``(N, C)`` of an added point sensor) from an observation dict (or from the channel's array
+    itself)."""
+    kind = None if channel is None else channel_kind(channel)  # None: an added sensor, any non-zero row is a point
+    if isinstance(obs, Mapping):
+        if channel is None:
+            raise ValueError("unpack_points needs the channel name when given an observation dict")
+        if channel not in obs:
+            raise KeyError(f"{channel!r} is not in the observation (keys: {sorted(obs)})")
+        array = np.asarray(obs[channel])
+    else:
+        array = np.asarray(obs)
+    if array.ndim != 2:
+        raise ValueError(
+            f"expected one (capacity, C) point array, got shape {array.shape} (index a vector env's batch first)"
+        )
+    if kind == RADAR:  # a detection has a non-zero depth
+        valid = array[:, 3] != 0
+    elif kind is not None:  # a LiDAR return has a non-zero position
+        valid = (array[:, 0] != 0) | (array[:, 1] != 0) | (array[:, 2] != 0)
+    else:
+        valid = np.any(array != 0, axis=1)
+    n = int(valid.sum())
+    if n and not valid[:n].all():  # not packed: keep every non-zero row, in order
+        return np.ascontiguousarray(array[valid], np.float32)
+    return np.ascontiguousarray(array[:n], np.float32)
+
+
+def pad_rows(rows: np.ndarray, capacity: int, fill: float = 0) -> np.ndarray:
+    """``rows`` (N, …) in a ``(capacity, …)`` array, the rest ``fill`` (zeros: equal to themselves, unlike NaN, so
+    Gymnasium's determinism checks hold): the fixed-shape form of a variable-length ``info`` entry, so that
+    Gymnasium's vectorisers can stack it (the count goes beside it).
+
+    >>> pad_rows(np.array([[1.0, 2.0]]), 3).tolist()
+    [[1.0, 2.0], [0.0, 0.0], [0.0, 0.0]]
+    >>> pad_rows(np.array([7, 8]), 3, fill=-1).tolist()
+    [7, 8, -1]
+    """
+    rows = np.asarray(rows)
+    if len(rows) > capacity:
+        raise ValueError(f"{len(rows)} rows do not fit a capacity of {capacity}")
+    out = np.full((capacity, *rows.shape[1:]), fill, dtype=rows.dtype)
+    out[: len(rows)] = rows
+    return out
