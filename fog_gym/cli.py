@@ -108,6 +108,9 @@ def build_parser() -> argparse.ArgumentParser:
                      "(RGB, its three fog variants, depth and 2D boxes of each camera, and the 3D boxes)")
     gen.add_argument("--cameras", nargs="+", choices=CAMERA_NAMES, default=[], metavar="CAM",
                      help="write only these cameras' channels (e.g. CAM_FRONT CAM_LEFT; default every camera)")
+    gen.add_argument("--lidar-returns", choices=("strongest", "last", "dual"), default="strongest",
+                     help="the LiDAR's echo in fog: strongest (FogDrive's, the default), last, or dual (both, with a "
+                     "return column); the last and dual LiDARs' channels are LIDAR_TOP_LAST / LIDAR_TOP_DUAL")
     gen.add_argument("--fog-fields", choices=FOG_FIELD_KINDS, default="levels",
                      help="how each scene's three fog levels are laid out: levels (FogDrive's homogeneous fog, the "
                      "default), banks (a fog bank on the road ahead), height (ground fog) or mixed (per scene one of "
@@ -356,7 +359,7 @@ def _generate(args: argparse.Namespace) -> int:
     modality = args.modality or ("lidar" if args.lidar_only else "full")
     try:
         plan = plan_scenes(args.scenes, tuple(args.towns), args.seed, args.resolution, args.seconds, modality,
-                           args.fog_fields, tuple(args.cameras))  # fmt: skip
+                           args.fog_fields, tuple(args.cameras), args.lidar_returns)  # fmt: skip
         tables = generate(args.root, plan, args.workers, args.resume, args.ray)
     except (ValueError, DatasetLocked, DatasetLockError) as e:  # a second writer: one line naming root and holder
         raise _fail("generate", str(e)) from None

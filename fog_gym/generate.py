@@ -54,10 +54,15 @@ class SceneSpec:
     modality: str = "full"  # a key of MODALITIES: "full" (35 channels), "lidar" or "cameras"
     fog_fields: str = "levels"  # one of FOG_FIELD_KINDS: how the three fog levels are laid out (scene_fog)
     cameras: tuple[str, ...] = ()  # write only these cameras' channels (empty: every camera of the modality)
+    lidar_returns: str = "strongest"  # the LiDAR's return mode (fog_gym.fog.returns); others rename its channels
 
     @property
     def channels(self) -> tuple[str, ...]:
-        return modality_channels(self.modality, tuple(self.cameras))
+        names = modality_channels(self.modality, tuple(self.cameras))
+        if self.lidar_returns == "strongest":
+            return names
+        suffix = f"_{self.lidar_returns.upper()}"
+        return tuple(n.replace("LIDAR_TOP", "LIDAR_TOP" + suffix, 1) if n.startswith("LIDAR_TOP") else n for n in names)
 
     @property
     def folder(self) -> str:
@@ -71,7 +76,7 @@ class SceneSpec:
 
 def plan_scenes(n_scenes: int, towns: tuple[str, ...] = TOWNS, seed: int = 0, resolution: tuple[int, int] = (1280, 960),
                 seconds: float = 20.0, modality: str = "full", fog_fields: str = "levels",
-                cameras: tuple[str, ...] = ()) -> list[SceneSpec]:  # fmt: skip
+                cameras: tuple[str, ...] = (), lidar_returns: str = "strongest") -> list[SceneSpec]:  # fmt: skip
     """``n_scenes`` (even) spread over ``towns`` in day/night pairs, as evenly as possible, in a fixed order.
 
     ``modality`` "lidar" writes only :data:`~fog_gym.dataset.layout.MODALITIES` ``["lidar"]``: the same scenes,
@@ -80,6 +85,8 @@ def plan_scenes(n_scenes: int, towns: tuple[str, ...] = TOWNS, seed: int = 0, re
 
     ``modality`` "cameras" writes only the cameras' RGB, fog variants, depth and 2D boxes (and the 3D boxes);
     ``cameras`` (names, e.g. ``("CAM_FRONT", "CAM_LEFT")``) keeps only those cameras' channels of either set.
+    ``lidar_returns`` "last" or "dual" records a LiDAR of that return mode (:mod:`fog_gym.fog.returns`): its
+    channels are ``LIDAR_TOP_LAST`` / ``LIDAR_TOP_DUAL`` and their fog variants.
 
     ``fog_fields`` lays each scene's three fog levels out in space (:func:`scene_fog`): ``levels`` (FogDrive's
     homogeneous fog), ``banks``, ``height`` or ``mixed``.
@@ -87,6 +94,9 @@ def plan_scenes(n_scenes: int, towns: tuple[str, ...] = TOWNS, seed: int = 0, re
     if fog_fields not in FOG_FIELD_KINDS:
         raise ValueError(f"fog_fields must be one of {FOG_FIELD_KINDS}, got {fog_fields!r}")
     modality_channels(modality, tuple(cameras))  # a bad modality or camera name is a ValueError naming it
+    from fog_gym.fog.returns import check_mode
+
+    check_mode(lidar_returns)
     if isinstance(n_scenes, bool) or not isinstance(n_scenes, int) or n_scenes < 2 or n_scenes % 2:
         raise ValueError(f"scenes must be an even number >= 2 (day/night pairs), got {n_scenes!r}")
     for t in towns:
@@ -103,7 +113,7 @@ def plan_scenes(n_scenes: int, towns: tuple[str, ...] = TOWNS, seed: int = 0, re
                 index = len(plan)
                 scene_seed = int(np.random.SeedSequence([seed, index]).generate_state(1)[0] & 0x7FFFFFFF)
                 plan.append(SceneSpec(index, town, tod, run, scene_seed, tuple(resolution), float(seconds), seed,
-                                      modality, fog_fields, tuple(cameras)))  # fmt: skip
+                                      modality, fog_fields, tuple(cameras), lidar_returns))  # fmt: skip
     return plan
 
 
@@ -162,8 +172,14 @@ def generate_scene(root: str | Path, spec: SceneSpec | dict[str, Any]) -> str:
     # the cameras are rendered in both modalities: FogDrive's 3D boxes are the vehicles annotated in some camera,
     # so a LiDAR-only scene gets exactly the boxes (and LiDAR files) of the full scene; only the writing is skipped
     env = FogWrapper(FogDriveEnv(town=spec.town, time_of_day=spec.time_of_day, resolution=spec.resolution,
-                                 episode_seconds=spec.seconds), scene_fog(spec))  # fmt: skip
-    writer = SceneWriter(root, spec.folder, spec.channels)
+                                 episode_seconds=spec.seconds, lidar_returns=spec.lidar_returns), scene_fog(spec))  # fmt: skip
+    if spec.lidar_returns == "strongest":
+        writer = SceneWriter(root, spec.folder, spec.channels)
+    else:  # the LiDAR's own channels: the rig's layout of them
+        from fog_gym.sensors import rig_layout
+
+        layout = rig_layout(env.unwrapped.config.rig)
+        writer = SceneWriter(root, spec.folder, {c: layout[c] for c in spec.channels})
     fields = spec.fog_fields != "levels"  # a set of fog fields records every scene's, homogeneous ones included
     try:
         obs, info = env.reset(seed=spec.seed)
@@ -179,7 +195,8 @@ def generate_scene(root: str | Path, spec: SceneSpec | dict[str, Any]) -> str:
         writer.close()
         try:
             marker = {k: v for k, v in asdict(spec).items()
-                      if (k != "fog_fields" or v != "levels") and (k != "cameras" or v)}  # (as before these fields)
+                      if (k != "fog_fields" or v != "levels") and (k != "cameras" or v)
+                      and (k != "lidar_returns" or v != "strongest")}  # (as before these fields)
             _atomic_write(root / PROGRESS_DIR / f"{spec.folder}.json", json.dumps(marker).encode())
         except WriteError as e:
             raise e.with_what(f"cannot mark scene {spec.folder} done") from None

@@ -243,7 +243,8 @@ class FogWrapper(gym.Wrapper):
             poses = {ch: base.sensor_to_world(ch) for ch in self.models}
         context = FogContext(base.intrinsics, self.airlight, self._rngs,
                              base.scene is not None and base.scene.lighting.night, self.lidar_noise, reflect, poses,
-                             self.field_frame, self._field_time())  # fmt: skip
+                             self.field_frame, self._field_time(),
+                             lidar.returns if lidar is not None else "strongest")  # fmt: skip
         for channel, model in self.models.items():  # the model of each sensor kind (fog_gym.fog.models)
             for name, fogged in model.apply(obs, channel, levels, context).items():
                 out[name][channel] = fogged

@@ -26,7 +26,7 @@ from fog_gym.dataset.access import TABLES, DatasetError, FogDrive, load_table, r
 from fog_gym.checks import json_numbers
 from fog_gym.dataset.decode import box_json_problem, decode_png, png_problem, read_npy
 from fog_gym.dataset.layout import (
-    DATA_ROOT, FOGDRIVE_CHANNELS, ChannelSpec, extrinsic_key, layout_cameras,
+    DATA_ROOT, FOGDRIVE_CHANNELS, LAYOUT_FILE, ChannelSpec, extrinsic_key, layout_cameras,
 )  # fmt: skip
 from fog_gym.dataset.fog_record import fog_record_problem
 from fog_gym.dataset.poses import ego_pose_problem
@@ -161,9 +161,11 @@ def validate(root: str | Path, progress: bool = False) -> list[str]:
     except (DatasetError, FileNotFoundError) as e:
         return [str(e)]
     # the set's layout is its rig's (index/channels.json; the FogDrive channels where it has none); without a
-    # manifest every sample must have the 35 FogDrive channels and every channel of that layout
+    # manifest every sample must have every channel of that layout — and, where the rig keeps FogDrive's LiDAR
+    # (not a last- or dual-return one, whose channels are its own), the 35 FogDrive channels
     layout = ds.channels
-    channels = set(manifest["channels"]) if manifest else set(FOGDRIVE_CHANNELS) | set(layout)
+    own_lidar = (root / LAYOUT_FILE).exists() and "LIDAR_TOP" not in layout
+    channels = set(manifest["channels"]) if manifest else set(layout) if own_lidar else set(FOGDRIVE_CHANNELS) | set(layout)
     extrinsic_keys = list(dict.fromkeys((*EXTRINSIC_KEYS, *(extrinsic_key(c) for c in layout_cameras(layout)))))
     size = tuple(manifest["resolution"]) if manifest else None
     # a set generated with fog fields has one fog-field file per sample naming every fog level of its layout

@@ -58,7 +58,9 @@ class FogDriveEnv(gym.Env):
     ``info["hazard_count"]`` rows of a fixed ``(capacity, 4)`` array, zeros after), its offset from the
     ego in metres ahead and to the right, its length and width), ``geometry`` ("boxes" or "meshes": what the sensors
     see of vehicles and props, :mod:`fog_gym.world.bodies`, :mod:`fog_gym.world.prop_meshes`), ``lidar_intensity``
-    ("carla", FogDrive's distance model, or "reflectance": the surface's reflectivity × incidence × range loss), or
+    ("carla", FogDrive's distance model, or "reflectance": the surface's reflectivity × incidence × range loss),
+    ``lidar_returns`` ("strongest", FogDrive's; "last"; or "dual": both echoes with a ``return`` column — the LiDAR's
+    channels are then ``LIDAR_TOP_LAST`` / ``LIDAR_TOP_DUAL`` and their fog variants, :mod:`fog_gym.fog.returns`), or
     ``config`` (a complete :class:`FogDriveConfig`).
 
     Public attributes (what wrappers and tools may use): ``config`` (the validated :class:`FogDriveConfig`),
@@ -95,6 +97,7 @@ class FogDriveEnv(gym.Env):
         static_world: str | None = None,
         geometry: str | None = None,
         lidar_intensity: str | None = None,
+        lidar_returns: str | None = None,
         world: Any = None,
     ) -> None:
         cfg = config if config is not None else FogDriveConfig()
@@ -107,10 +110,14 @@ class FogDriveEnv(gym.Env):
             rig_cfg = replace(rig_cfg, cameras=tuple(_camera(rig_cfg, n) for n in cameras))
         if resolution is not None:
             rig_cfg = rig_cfg.with_resolution(resolution)
-        if lidar_intensity is not None:  # "reflectance": reflectivity × incidence × range loss (fog_gym.sensors.lidar)
+        for name, value in (("intensity", lidar_intensity), ("returns", lidar_returns)):
+            # intensity "reflectance": reflectivity × incidence × range loss; returns "last" / "dual": the echoes a
+            # beam reports in fog (fog_gym.sensors.lidar, fog_gym.fog.returns)
+            if value is None:
+                continue
             if rig_cfg.lidar is None:
-                raise ValueError("lidar_intensity needs a rig with a LiDAR")
-            lidar = replace(rig_cfg.lidar, intensity=lidar_intensity)  # checked by LidarConfig
+                raise ValueError(f"lidar_{name} needs a rig with a LiDAR")
+            lidar = replace(rig_cfg.lidar, **{name: value})  # checked by LidarConfig
             rig_cfg = RigConfig(tuple((n, lidar if c is rig_cfg.lidar else c) for n, c in rig_cfg.sensors))
         label_cfg = cfg.labels if isinstance(labels, str) and labels == "default" else labels
         if visibility is not None:

@@ -123,7 +123,8 @@ class ObjectWorlds:
                               o.camera_range])  # fmt: skip
         self._rad = np.array([o.radar_pose[0], o.radar_pose[1], o.radar_range, math.radians(o.radar_fov[0]),
                               math.radians(o.radar_fov[1]), o.radar_rays])  # fmt: skip
-        self._rules = np.array([o.min_points, o.min_pixels, o.min_contrast, PO.LAYOUTS.index(o.layout), o.max_rays],
+        self._rules = np.array([o.min_points, o.min_pixels, o.min_contrast, PO.LAYOUTS.index(o.layout), o.max_rays,
+                                float(o.lidar_returns == "last")],
                                np.float64)  # fmt: skip
         self._mask = o.sensor_mask
         for w in range(num_worlds):

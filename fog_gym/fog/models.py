@@ -52,6 +52,8 @@ class FogContext:
     poses: Mapping[str, np.ndarray] = field(default_factory=dict)
     frame: tuple[float, float, float] = (0.0, 0.0, 0.0)
     time: float = 0.0
+    #: The LiDAR's return mode (:mod:`fog_gym.fog.returns`): "strongest", "last" or "dual"
+    lidar_returns: str = "strongest"
 
 
 @runtime_checkable
@@ -120,14 +122,24 @@ class Hahner:
     name = "hahner"
 
     def apply(self, obs, channel, levels, context):
+        from fog_gym.fog.returns import apply_returns, field_tau, homogeneous_tau
+
         clean = unpack_points(obs, channel)
+        mode = context.lidar_returns
+        if mode == "dual":  # the clean sweep's return column (all 0): the physics takes x, y, z, intensity
+            clean = np.ascontiguousarray(clean[:, :4])
         capacity = obs[channel].shape[0]
         out = {}
         for lv in levels:
             if lv.is_homogeneous:
                 fogged = fog_lidar(clean, lv, context.rngs[lv.name], context.lidar_noise, context.lidar_reflectance)
+                tau = None if mode == "strongest" else homogeneous_tau(clean, lv.alpha)
             else:  # a fog field: the local extinction along each beam
-                fogged = fog_lidar_field(clean, lv, context.rngs[lv.name], field_pose(context.poses[channel],
-                                         context.frame), context.time, context.lidar_noise, context.lidar_reflectance)  # fmt: skip
+                pose = field_pose(context.poses[channel], context.frame)
+                fogged = fog_lidar_field(clean, lv, context.rngs[lv.name], pose, context.time, context.lidar_noise,
+                                         context.lidar_reflectance)  # fmt: skip
+                tau = None if mode == "strongest" else field_tau(clean, lv, pose, context.time)
+            if mode != "strongest":
+                fogged = apply_returns(clean, fogged, tau, mode)
             out[lv.name] = pack_points(fogged, capacity)
         return out

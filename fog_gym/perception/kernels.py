@@ -33,6 +33,7 @@ import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before 
 from fog_gym.fog.depth import segment_depth
 from fog_gym.fog.lidar import hahner_keeps
 from fog_gym.fog.lidar_field import field_keeps
+from fog_gym.fog.returns import field_last_detected, last_detected
 
 _MASK = np.uint64(0xFFFFFFFFFFFFFFFF)
 #: Sensor keys of the hash streams.
@@ -184,11 +185,13 @@ def angular_extents(n, bx, by, byaw, bl, bw, bh, sx, sy, sz, syaw, amin, amax, e
 @njit(cache=True, nogil=True)
 def lidar_detect(n, bx, by, byaw, bl, bw, bh, ex, ey, eyaw, sz, elev, az_cos, az_sin, rng_max, key, tick, alpha,
                  beta_ratio, table_i, table_r, drop_general, drop_limit, drop_zero, max_rays, count, centroid, terms,
-                 frame, weights, ramp, weights5, ramp5, beta_max):  # fmt: skip
+                 frame, weights, ramp, weights5, ramp5, beta_max, last=False):  # fmt: skip
     """Surviving LiDAR returns per vehicle (``count``, scaled by the stride) and their centroid in the sensor frame
     (``centroid`` (V, 3)), for a LiDAR at height ``sz`` above the ego origin (ex, ey) with the ego's yaw. ``terms``
     (rows, 8): a packed fog field laid at ``frame`` = (x0, y0, heading) (:func:`fog_gym.fog.lidar_field.field_keeps`
-    decides with ``weights`` … ``beta_max``); no rows: homogeneous fog of extinction ``alpha``."""
+    decides with ``weights`` … ``beta_max``); no rows: homogeneous fog of extinction ``alpha``. ``last``: a return
+    counts when the hard target reaches the detection floor (a last-return LiDAR, :mod:`fog_gym.fog.returns`),
+    instead of when it is the strongest echo."""
     amin = np.empty(n)
     amax = np.empty(n)
     emin = np.empty(n)
@@ -239,11 +242,18 @@ def lidar_detect(n, bx, by, byaw, bl, bw, bh, ex, ey, eyaw, sz, elev, az_cos, az
                 if inten <= drop_limit and uniform(key, tick, 2, ci, k) >= inten * drop_zero / drop_limit + 1 - drop_zero:
                     continue
                 if field:
-                    if not field_keeps(t, inten, terms, u0, sz, dx * fh + dy * gh, fz, weights, ramp, weights5, ramp5,
-                                       beta_max):  # fmt: skip
+                    if last:
+                        if not field_last_detected(t, inten, terms, u0, sz, dx * fh + dy * gh, fz):
+                            continue
+                    elif not field_keeps(t, inten, terms, u0, sz, dx * fh + dy * gh, fz, weights, ramp, weights5, ramp5,
+                                         beta_max):  # fmt: skip
                         continue
-                elif alpha > 0.0 and not hahner_keeps(t, inten, table_i, table_r, alpha, beta_ratio):
-                    continue
+                elif alpha > 0.0:
+                    if last:
+                        if not last_detected(t, inten, alpha):
+                            continue
+                    elif not hahner_keeps(t, inten, table_i, table_r, alpha, beta_ratio):
+                        continue
                 w = stride * stride
                 total += w
                 sx += w * fx * t

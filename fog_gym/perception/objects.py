@@ -102,9 +102,15 @@ class ObjectsConfig:
     radar_pose: tuple[float, float] = (2.0, 1.2)
     max_rays: int = 64  # rays cast per vehicle and sensor at most (strided beyond)
     layout: str = "list"  # the observation's layout: "list" (objects nearest first) or "lanes" (see LAYOUTS)
+    #: Which LiDAR echo detects: "strongest" (the default: a return counts when it is the strongest echo, not the
+    #: fog's) or "last" (opt-in: when the hard target reaches the detection floor, as a last-return LiDAR reports;
+    #: fog_gym.fog.returns)
+    lidar_returns: str = "strongest"
     flat: bool = False  # the observation as one flat vector (SB3's MlpPolicy and CleanRL take it without a warning)
 
     def __post_init__(self) -> None:
+        if self.lidar_returns not in ("strongest", "last"):
+            raise ValueError(f"lidar_returns must be strongest or last, got {self.lidar_returns!r}")
         if self.layout not in LAYOUTS:
             raise ValueError(f"layout must be one of {LAYOUTS}, got {self.layout!r}")
         if not isinstance(self.flat, bool):
@@ -351,7 +357,7 @@ def perceive_worlds(active, floats, counts, classes, colors, heights, keys, tick
             PK.lidar_detect(n, bx, by, byaw, bl, bw, bh, bx[0], by[0], byaw[0], lidar_h, elev, az_cos, az_sin, lidar_range,
                             key, tick, alphas[w], beta_ratios[w], tables_i[w], tables_r[w], drop[0], drop[1], drop[2],
                             int(rules[4]), lid_count, lid_cen, terms, fframes[w], weights, ramp, weights5, ramp5,
-                            fbeta[w])  # fmt: skip
+                            fbeta[w], rules[5] > 0.5)  # fmt: skip
         cam_pix = np.zeros(n)
         cam_con = np.zeros(n)
         cam_bear = np.zeros(n)

@@ -83,6 +83,10 @@ class LidarConfig:
     #: "carla": CARLA's ``exp(−attenuation · d)`` (FogDrive's data); "reflectance": the surface's LiDAR reflectivity
     #: (its material, or the road surface's class) × |cos incidence| × ``exp(−attenuation · d)``
     intensity: str = "carla"
+    #: The echo a beam reports in fog (:mod:`fog_gym.fog.returns`): "strongest" (FogDrive's, today's output),
+    #: "last" or "dual" (both, with a ``return`` column). A LiDAR in "last" or "dual" mode names its channels
+    #: ``<name>_LAST`` / ``<name>_DUAL`` (and their fog variants ``<name>_DUAL_FOG_<LEVEL>``).
+    returns: str = "strongest"
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "pose", Pose.coerce(self.pose))
@@ -112,6 +116,9 @@ class LidarConfig:
             object.__setattr__(self, name, v)
         if self.intensity not in INTENSITY_MODELS:
             raise ValueError(f"intensity must be one of {INTENSITY_MODELS}, got {self.intensity!r}")
+        from fog_gym.fog.returns import check_mode
+
+        check_mode(self.returns)
 
     @classmethod
     def fogdrive(cls, **overrides: Any) -> LidarConfig:
@@ -352,6 +359,20 @@ class LidarSensor(PointSensor):
     kind = "lidar"
     default_channel, columns, default_folder = LIDAR, 4, "lidar"
 
+    def __init__(self, config: Any, simulation_frequency: float = 20.0, channel: str | None = None) -> None:
+        super().__init__(config, simulation_frequency, channel)
+        if config.returns != "strongest" and self.channel == self.default_channel:
+            self.channel = f"{self.default_channel}_{config.returns.upper()}"
+        #: A dual-return LiDAR's points carry a fifth column: 0 a beam's strongest echo, 1 its last where it differs.
+        self.columns = 5 if config.returns == "dual" else 4
+
+    @classmethod
+    def build(cls, name: str, config: Any, simulation_frequency: float = 20.0, far: float = 1000.0) -> PointSensor:
+        """The sensor of a rig entry ``(name, config)``: its channel is ``name`` (``name_LAST`` / ``name_DUAL`` in
+        the other return modes: their data are not FogDrive's)."""
+        channel = name if config.returns == "strongest" else f"{name}_{config.returns.upper()}"
+        return cls(config, simulation_frequency, channel=channel)
+
     def layout(self):
         """The clean channel and its fog variants ``<channel>_FOG_<LEVEL>`` in ``<folder>_fog_<level>``."""
         out = super().layout()
@@ -360,10 +381,18 @@ class LidarSensor(PointSensor):
         return out
 
     def space(self):
-        return lidar_space(self.config, self.simulation_frequency, semantic=False)
+        box = lidar_space(self.config, self.simulation_frequency, semantic=False)
+        if self.config.returns != "dual":
+            return box
+        from fog_gym.sensors.base import point_space
+
+        # dual: a second echo per beam at most; the return column in [0, 1]
+        return point_space(2 * box.shape[0], [*box.low[0], 0.0], [*box.high[0], 1.0])
 
     def measure(self, scene, prims, rng: np.random.Generator, tick: int) -> dict[str, np.ndarray]:
         cfg = self.config
         pts = simulate_lidar(cfg, sensor_to_world(cfg.pose, scene.ego_pose), prims, scene.static.surface, rng,
                              self.simulation_frequency, self.start_angle(tick))  # fmt: skip
+        if cfg.returns == "dual":  # in clear air a beam's strongest echo is its last: one row, return 0
+            pts = np.concatenate([pts, np.zeros((len(pts), 1), np.float32)], axis=1)
         return {self.channel: pts}

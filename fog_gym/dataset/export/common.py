@@ -54,7 +54,9 @@ class Source:
         self.split = split
         self._have = set(self.ds.list_channels())
         self.all_cameras = tuple(c for c in layout_cameras(self.ds.channels) if c in self._have)
-        self.lidar_channel = fog_channel(LIDAR, fog)
+        # FogDrive's LiDAR, or a last- / dual-return LiDAR's own channels (fog_gym.fog.returns)
+        lidar = next((c for c in (LIDAR, f"{LIDAR}_LAST", f"{LIDAR}_DUAL") if c in self._have), LIDAR)
+        self.lidar_channel = fog_channel(lidar, fog)
         self.cameras: tuple[str, ...] = ()
         self.select_cameras(cameras)
         self.scenes = self.ds.scene if split == "all" else self.ds.get_scenes_for_split(split)
@@ -99,8 +101,10 @@ class Source:
         return self.ds.get_sample_data_for_sample(token, [channel])[0]
 
     def lidar(self, token: str) -> np.ndarray:
-        """The sample's LiDAR sweep at the export's fog level: (N, 4) float32 x, y, z, intensity (left-handed)."""
-        return self.load(token, self.lidar_channel)
+        """The sample's LiDAR sweep at the export's fog level: (N, 4) float32 x, y, z, intensity (left-handed). A
+        dual-return sweep gives every echo as a point (the formats have no return column: its fifth column is
+        dropped, as a dual-return sensor's cloud holds both echoes)."""
+        return np.ascontiguousarray(self.load(token, self.lidar_channel)[:, :4])
 
     def image_path(self, token: str, camera: str) -> Path:
         return self.path(token, fog_channel(camera, self.fog))
