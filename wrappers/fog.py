@@ -83,6 +83,7 @@ class FogWrapper(gym.Wrapper):
         self._fixed_airlight, self.lidar_noise = fixed, float(lidar_noise)
         self._pending: FogLevel | None = None
         self._last: dict | None = None
+        self._fog_lidar: tuple[str, dict[str, np.ndarray]] | None = None
         self.cameras = list(base.camera_names)
         # the fogged channels and their models, from the rig in rig order: each sensor's first channel (a camera's
         # RGB, a LiDAR's points) gets the model of its kind (fog_gym.fog.models); kinds without one stay clean
@@ -204,10 +205,41 @@ class FogWrapper(gym.Wrapper):
 
             b3 = info["boxes_3d"]
             depths = self._box_depths(b3, info["boxes_2d"]) if self.fields else {}
-            info["boxes_3d"] = b3.with_fields(transmittance=transmittance(b3["distance"], True, depths.get(None)))
-            info["boxes_2d"] = {cam: b.with_fields(transmittance=transmittance(b["distance"], False, depths.get(cam)))
+            info["boxes_3d"] = b3.with_fields(transmittance=transmittance(b3["distance"], True, depths.get(None)),
+                                              **self._fogged_counts(b3))  # fmt: skip
+            info["boxes_2d"] = {cam: self._perceivable(b.with_fields(transmittance=transmittance(b["distance"], False,
+                                                                                                depths.get(cam))))
                                 for cam, b in info["boxes_2d"].items()}  # fmt: skip
         return info
+
+    def _fogged_counts(self, b3) -> dict[str, Any]:
+        """``num_lidar_pts`` in the fogged sweep(s): the level's counts (in place), or per level with the clean
+        sweep's under "clear" (paired); nothing when the rig has no LiDAR or the base env counted none."""
+        if "num_lidar_pts" not in b3 or not self._fog_lidar:
+            return {}
+        from fog_gym.labels.visibility import points_in_boxes
+
+        base = self.env.unwrapped
+        channel, clouds = self._fog_lidar
+        m = np.linalg.inv(self._lidar_to_world()) @ base.sensor_to_world(channel)
+        counts = {name: points_in_boxes(p[:, :3] @ m[:3, :3].T + m[:3, 3], b3["center"], b3["size"], b3["yaw"])
+                  for name, p in clouds.items()}  # fmt: skip
+        if not self.paired:
+            return {"num_lidar_pts": counts[self.levels[0].name]}
+        return {"num_lidar_pts": {"clear": b3["num_lidar_pts"], **counts}}
+
+    def _perceivable(self, b) -> Any:
+        """``perceivable``: the box's apparent contrast ``|C₀|·t`` at its range reaches 5 % (in place: at the level;
+        paired: per level, with "clear" for the clean frame); :func:`fog_gym.labels.visibility.perceivable`."""
+        if "contrast" not in b:
+            return b
+        from fog_gym.labels.visibility import perceivable
+
+        t = b["transmittance"]
+        if not self.paired:
+            return b.with_fields(perceivable=perceivable(b["contrast"], t))
+        return b.with_fields(perceivable={"clear": perceivable(b["contrast"], np.ones(len(b["contrast"]))),
+                                          **{name: perceivable(b["contrast"], v) for name, v in t.items()}})  # fmt: skip
 
     def _box_depths(self, boxes_3d, boxes_2d) -> dict[str | None, dict[str, np.ndarray]]:
         """Each field's optical depth from the LiDAR origin (key None) and from each camera's centre to each box
@@ -250,13 +282,28 @@ class FogWrapper(gym.Wrapper):
                 out[name][channel] = fogged
         return out
 
+    def _keep_lidar(self, obs: dict, fogged: dict[str, dict[str, np.ndarray]]) -> None:
+        """The fogged LiDAR sweeps of this frame, for the boxes' ``num_lidar_pts`` per level."""
+        from fog_gym.channels.packing import unpack_points
+
+        lidar = next((ch for ch, m in self.models.items() if getattr(m, "name", "") == "hahner"), None)
+        self._fog_lidar = None if lidar is None else (lidar, {name: unpack_points(f[lidar], lidar)[:, :3]
+                                                              for name, f in fogged.items() if lidar in f})  # fmt: skip
+
     def _apply(self, obs: dict) -> dict:
         if not self.paired:
             level = self.levels[0]
-            self._last = obs if level.is_clear else {**obs, **self._fogged(obs, self.levels)[level.name]}
+            if level.is_clear:
+                self._last = obs
+                self._keep_lidar(obs, {level.name: obs})
+            else:
+                fogged = self._fogged(obs, self.levels)
+                self._keep_lidar(obs, fogged)
+                self._last = {**obs, **fogged[level.name]}
             return self._last
         out = dict(obs)
         fogged = self._fogged(obs, self.levels)
+        self._keep_lidar(obs, fogged)
         for lv in self.levels:
             out.update({f"{k}_{lv.channel_suffix}": v for k, v in fogged[lv.name].items()})
         return out

@@ -122,6 +122,18 @@ def _replace(tmp: Path, path: Path) -> None:
         raise WriteError.from_os_error("cannot write a file", path, e) from None
 
 
+def _extra(boxes: Mapping[str, Any], keys: tuple[str, ...]) -> dict[str, Any]:
+    """The visibility labels a box file carries beside FogDrive's keys (:mod:`fog_gym.labels.visibility`): each of
+    ``keys`` the boxes have, as a list, or as ``{fog level: list}`` where the env gave one per level. A reader that
+    only knows FogDrive's keys ignores them."""
+    out: dict[str, Any] = {}
+    for k in keys:
+        if k in boxes:
+            v = boxes[k]
+            out[k] = {lv: np.asarray(a).tolist() for lv, a in v.items()} if isinstance(v, Mapping) else np.asarray(v).tolist()
+    return out
+
+
 def _atomic_write(path: Path, data: bytes) -> None:
     """Write ``data`` to ``path`` through a temporary file renamed into place; on any failure the temporary file
     is removed and :class:`WriteError` raised (an interrupt is re-raised after the same clean-up)."""
@@ -258,7 +270,7 @@ class SceneWriter:
             b = info["boxes_2d"][cam]
             return lambda: json.dumps({
                 "bboxes": np.asarray(b["bboxes"]).tolist(), "vehicle_ids": np.asarray(b["vehicle_ids"]).tolist(),
-                "vehicle_class": np.asarray(b["vehicle_class"]).tolist(),
+                "vehicle_class": np.asarray(b["vehicle_class"]).tolist(), **_extra(b, ("perceivable",)),
             }).encode()  # fmt: skip
 
         jobs: dict[str, Callable[[], bytes]] = {}
@@ -285,6 +297,7 @@ class SceneWriter:
         b3 = info["boxes_3d"]
         jobs["BBOX_3D"] = lambda: json.dumps({
             "bboxes_3d": np.asarray(b3["corners"]).tolist(), "vehicle_ids": np.asarray(b3["vehicle_ids"]).tolist(),
+            **_extra(b3, ("num_lidar_pts", "num_radar_pts")),
         }).encode()  # fmt: skip
         return jobs
 

@@ -301,12 +301,39 @@ class FogDriveEnv(gym.Env):
         boxes_3d, boxes_2d = annotate(v.ids[others], v.classes[others], v.centers[others], v.sizes[others],
                                       v.yaws[others], v.velocities[others], world_to_lidar, views, sem,
                                       label_cfg)  # fmt: skip
+        boxes_3d, boxes_2d = self._visibility_labels(boxes_3d, boxes_2d, world_to_lidar)
         return {
             "boxes_3d": boxes_3d,
             "boxes_2d": boxes_2d,
             "intrinsics": {c.name: self.cameras.intrinsics[c.name].copy() for c in rig.cameras},
             "extrinsics": {extrinsic_key(c.name): self._extrinsics[c.name].copy() for c in rig.cameras},
         }
+
+    def _visibility_labels(self, boxes_3d: Any, boxes_2d: dict[str, Any], world_to_lidar: np.ndarray) -> tuple[Any, dict]:
+        """Per 3D box the clean LiDAR's and the radar's points inside it (``num_lidar_pts``, ``num_radar_pts``), per
+        2D box its intrinsic contrast against its background (``contrast``; :mod:`fog_gym.labels.visibility`)."""
+        from fog_gym.labels.visibility import box_contrast, points_in_boxes, radar_xyz
+
+        def in_boxes(channel: str, pts: np.ndarray, margin: float) -> np.ndarray:
+            m = world_to_lidar @ self.sensor_to_world(channel)
+            p = pts[:, :3] @ m[:3, :3].T + m[:3, 3]
+            return points_in_boxes(p, boxes_3d["center"], boxes_3d["size"], boxes_3d["yaw"], margin)
+
+        lidar = next((s.channel for s in self.sensors if getattr(s, "kind", "") == "lidar"), None)
+        radar = next((s.channel for s in self.sensors if getattr(s, "kind", "") == "radar"), None)
+        n = len(boxes_3d["vehicle_ids"])
+        zeros = np.zeros(n, np.int64)
+        boxes_3d = boxes_3d.with_fields(
+            num_lidar_pts=in_boxes(lidar, self.points[lidar], 0.0) if lidar and n else zeros,
+            # radar detections lie on the surface; a margin of 0.2 m keeps them from rounding out of the box
+            num_radar_pts=in_boxes(radar, radar_xyz(self.points[radar]), 0.2) if radar and n else zeros)  # fmt: skip
+        out = {}
+        for cam, b in boxes_2d.items():
+            frame = self.frames.get(cam)
+            c = (box_contrast(frame.rgb, frame.instance, b["bboxes"], b["vehicle_ids"])
+                 if frame is not None and frame.instance is not None and len(b["vehicle_ids"]) else np.zeros(len(b["vehicle_ids"])))  # fmt: skip
+            out[cam] = b.with_fields(contrast=c)
+        return boxes_3d, out
 
     def sensor_to_world(self, channel: str) -> np.ndarray:
         """4×4 transform of the sensor that fills ``channel`` at the current frame: a camera's optical frame (x right,

@@ -124,6 +124,18 @@ class Source:
         """``bboxes`` (M, 2, 2) ``[[x0, y0], [x1, y1]]`` inclusive pixels, ``vehicle_ids``, ``vehicle_class``."""
         return self.load(token, f"{camera}_BBOX")
 
+    def radar_counts(self, token: str) -> np.ndarray | None:
+        """The radar detections inside each 3D box (``num_radar_pts``) where the set's ``BBOX_3D`` file records them
+        (fog-gym's sets since its visibility labels), else None."""
+        import json
+
+        try:
+            data = json.loads(self.path(token, "BBOX_3D").read_bytes())
+            counts = np.asarray(data["num_radar_pts"], np.int64).reshape(-1)
+        except (KeyError, ValueError, TypeError, OSError):
+            return None
+        return counts if len(counts) == len(data.get("vehicle_ids", ())) else None
+
     def boxes(self, token: str) -> Boxes:
         """The sample's 3D boxes with classes from the cameras' 2D boxes (every 3D box is annotated in some
         camera), or from box heights in a set without cameras (:func:`~.frames.class_from_height`)."""

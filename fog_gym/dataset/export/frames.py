@@ -20,6 +20,8 @@ import math
 import cv2
 import numpy as np
 
+from fog_gym.labels.visibility import points_in_boxes  # noqa: F401  (re-exported: the exports count points in boxes)
+
 from fog_gym import geometry
 
 #: The reflection between FogDrive's left-handed frames and the right-handed ones of nuScenes and KITTI.
@@ -121,19 +123,6 @@ def ring_index(points_rh: np.ndarray, beams: dict | None = None) -> np.ndarray:
     elevation = np.degrees(np.arctan2(p[:, 2], np.hypot(p[:, 0], p[:, 1])))
     step = (beams["upper_fov"] - beams["lower_fov"]) / max(beams["channels"] - 1, 1)
     return np.clip(np.rint((beams["upper_fov"] - elevation) / step), 0, beams["channels"] - 1)
-
-
-def points_in_boxes(points: np.ndarray, centers: np.ndarray, sizes: np.ndarray, yaws: np.ndarray) -> np.ndarray:
-    """How many of ``points`` (N, ≥3) lie in each upright box (centre, (l, w, h), yaw; one frame for all)."""
-    p = np.asarray(points, np.float64)[:, :3]
-    counts = np.zeros(len(centers), np.int64)
-    for k, (c, size, yaw) in enumerate(zip(centers, sizes, yaws)):
-        near = np.abs(p[:, :2] - c[:2]).max(axis=1) <= 0.5 * math.hypot(size[0], size[1])
-        d = p[near] - c
-        cs, sn = math.cos(yaw), math.sin(yaw)
-        x, y = d[:, 0] * cs + d[:, 1] * sn, -d[:, 0] * sn + d[:, 1] * cs
-        counts[k] = int(((np.abs(x) <= size[0] / 2) & (np.abs(y) <= size[1] / 2) & (np.abs(d[:, 2]) <= size[2] / 2)).sum())
-    return counts
 
 
 #: A pixel inside a box's image region whose depth is this much nearer than the box's nearest corner is occluded.

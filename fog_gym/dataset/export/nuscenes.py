@@ -9,7 +9,11 @@ limits.
   whole metres so that the scene's map starts at (0, 0) (``log.json`` records the shift as ``world_origin``).
 * Ego poses are the recorded ones (``ego_pose/``); a scene without them gets identity poses: each sample's
   global frame is then its own LiDAR frame and box velocities mean nothing (the export says so).
-* LiDAR: ``.pcd.bin`` float32 × 5 — x, y, z, intensity × 255 (nuScenes' 0–255 range), ring index.
+* LiDAR: ``.pcd.bin`` float32 × 5 — x, y, z, intensity × 255 (nuScenes' 0–255 range), ring index. A last-return
+  set exports its LiDAR as is; a dual-return set every echo of a beam as a point (the format has no return column).
+* Annotations: ``num_lidar_pts`` counts the exported sweep's points in each box (at the export's fog level);
+  ``num_radar_pts`` the radar detections in it, as the set's ``BBOX_3D`` files record them (0 in sets made before
+  fog-gym recorded them); ``visibility_token`` nuScenes' bin of the best-seen camera.
 * Keyframes only (FogDrive has 10 Hz samples and no sweeps between them); one ego pose per sample, shared by its
   sensors (FogDrive's sensors are synchronous).
 * FogDrive's splits are the devkit's custom splits ``fogdrive_train``, ``fogdrive_val``, ``fogdrive_test``
@@ -155,6 +159,7 @@ class _Scene:
         centers, sizes, yaws = boxes_from_corners(boxes.corners)
         counts = points_in_boxes(reflect_points(points[:, :3].astype(np.float64)), centers, sizes, yaws)
         visible = self._visibility(fog_token, boxes)
+        radar = self.src.radar_counts(fog_token)  # radar is not fogged: the set's own count
         to_global = self.ego_to_global[k] @ self.lidar_to_ego
         for b, vid in enumerate(boxes.ids.tolist()):
             rotation = to_global[:3, :3] @ yaw_matrix(yaws[b])
@@ -163,7 +168,8 @@ class _Scene:
                 "instance_token": tok("instance", self.folder, vid), "visibility_token": visible.get(vid, ""),
                 "attribute_tokens": [], "translation": (to_global @ [*centers[b], 1.0])[:3].tolist(),
                 "size": [sizes[b, 1], sizes[b, 0], sizes[b, 2]], "rotation": matrix_quaternion(rotation).tolist(),
-                "prev": "", "next": "", "num_lidar_pts": int(counts[b]), "num_radar_pts": 0,
+                "prev": "", "next": "", "num_lidar_pts": int(counts[b]),
+                "num_radar_pts": int(radar[b]) if radar is not None else 0,
                 "category_token": tok("category", NUSCENES_CATEGORIES.get(int(boxes.classes[b]), "vehicle.car")),
                 "_time": self.samples[k]["timestamp"] / 1e6,
             })  # fmt: skip
