@@ -21,6 +21,7 @@ SALTS: dict[str, int] = {
     "sensors": 0x11DA,  # sensor noise (fog_gym.envs.fogdrive)
     "fog": 0xF06,  # LiDAR fog noise per level (fog_gym.wrappers.fog)
     "hazards": 0x4A2,  # stalled vehicles: distances and lanes (fog_gym.world.traffic_world, HazardConfig)
+    "camera_noise": 0xCA3,  # camera sensor noise: one seed per episode, keys per frame (fog_gym.sensors.camera_effects)
 }
 
 

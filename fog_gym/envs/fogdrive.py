@@ -30,6 +30,9 @@ from fog_gym.world.scene import Lighting, Scene, StaticWorld, town_static_world,
 from fog_gym.world.scenery import STYLES, build_surface, place_props
 from fog_gym.channels.packing import SEMANTIC_LIDAR, pack_points
 from fog_gym.sensors import CameraFrame, CameraRig, PointSensors, rig_layout, rig_sensors
+from fog_gym.sensors.camera import CameraConfig
+from fog_gym.sensors.camera_effects import CameraEffects
+from fog_gym.sensors.camera_noise import parse_noise
 from fog_gym.world.fleet import EGO_ID
 from fog_gym.world.traffic_world import make_world
 from fog_gym.world.towns import TOWN_SPECS
@@ -60,7 +63,10 @@ class FogDriveEnv(gym.Env):
     see of vehicles and props, :mod:`fog_gym.world.bodies`, :mod:`fog_gym.world.prop_meshes`), ``lidar_intensity``
     ("carla", FogDrive's distance model, or "reflectance": the surface's reflectivity × incidence × range loss),
     ``lidar_returns`` ("strongest", FogDrive's; "last"; or "dual": both echoes with a ``return`` column — the LiDAR's
-    channels are then ``LIDAR_TOP_LAST`` / ``LIDAR_TOP_DUAL`` and their fog variants, :mod:`fog_gym.fog.returns`), or
+    channels are then ``LIDAR_TOP_LAST`` / ``LIDAR_TOP_DUAL`` and their fog variants, :mod:`fog_gym.fog.returns`),
+    ``camera_noise`` (None, the default: noise-free frames; "default" or a
+    :class:`~fog_gym.sensors.camera_noise.CameraNoise`: every camera records with shot and read noise, a gain that
+    follows its auto-exposure and, if asked, motion blur; :attr:`frames` keep the noise-free images), or
     ``config`` (a complete :class:`FogDriveConfig`).
 
     Public attributes (what wrappers and tools may use): ``config`` (the validated :class:`FogDriveConfig`),
@@ -98,6 +104,7 @@ class FogDriveEnv(gym.Env):
         geometry: str | None = None,
         lidar_intensity: str | None = None,
         lidar_returns: str | None = None,
+        camera_noise: Any = None,
         world: Any = None,
     ) -> None:
         cfg = config if config is not None else FogDriveConfig()
@@ -119,6 +126,10 @@ class FogDriveEnv(gym.Env):
                 raise ValueError(f"lidar_{name} needs a rig with a LiDAR")
             lidar = replace(rig_cfg.lidar, **{name: value})  # checked by LidarConfig
             rig_cfg = RigConfig(tuple((n, lidar if c is rig_cfg.lidar else c) for n, c in rig_cfg.sensors))
+        if camera_noise is not None:  # every camera of the rig records through this sensor (None keeps the rig's)
+            noise = parse_noise(camera_noise)
+            rig_cfg = RigConfig(tuple((n, replace(c, noise=noise) if isinstance(c, CameraConfig) else c)
+                                      for n, c in rig_cfg.sensors))  # fmt: skip
         label_cfg = cfg.labels if isinstance(labels, str) and labels == "default" else labels
         if visibility is not None:
             label_cfg = replace(label_cfg if label_cfg is not None else LabelConfig(), visibility=visibility)
@@ -145,6 +156,8 @@ class FogDriveEnv(gym.Env):
                                                                 c.episode_seconds, dict(c.highway_config),
                                                                 traffic=c.traffic, hazards=c.hazards)  # fmt: skip
         self.cameras = CameraRig(c.rig, far=c.far_distance)
+        #: Motion blur and sensor noise of the cameras that have them (falsy when none has: noise-free frames).
+        self.camera_effects = CameraEffects(c.rig.cameras)
         self.action_space = self.world.action_space
         rig_layout(c.rig)  # channel or folder clashes between the rig's sensors fail here, before any work
         #: Every sensor of the rig, in rig order (the observation's channels are theirs).
@@ -188,6 +201,7 @@ class FogDriveEnv(gym.Env):
         self._static = self.town_static_world() if self.config.static_world == "town" else self.build_static_world(rng)
         self._lighting = Lighting.for_time_of_day(self.config.time_of_day, rng)
         self._sensor_rng = stream(world_seed, "sensors")
+        self._noise_seed = int(stream(world_seed, "camera_noise").integers(0, 2**63 - 1))
         self._steps = 0
         obs = self._observe()
         return obs, self._info({})
@@ -248,9 +262,12 @@ class FogDriveEnv(gym.Env):
         self.scene = self.build_scene()
         prims = self.cameras.primitives(self.scene, in_view=False)  # every sensor's world
         self.frames = self.cameras.render(self.scene, self.cameras.in_view(prims, self.scene))
+        fx = self.camera_effects
+        if fx:
+            fx.prepare(self._noise_seed, self._steps, self.cameras.exposure, self.scene.lighting.night, self._flows())
         obs: dict[str, np.ndarray] = {}
         for name, f in self.frames.items():
-            obs[name] = f.rgb
+            obs[name] = fx.apply(name, f.rgb, 0) if fx else f.rgb
             obs[f"{name}_DEPTH"] = f.depth
             obs[f"{name}_SEM"] = f.semantic
         tick = max(self.world.tick - 1, 0)  # the simulation tick this keyframe closes
@@ -258,6 +275,25 @@ class FogDriveEnv(gym.Env):
         for name, pts in self.points.items():
             obs[name] = pack_points(pts, self.observation_space[name].shape[0])
         return obs
+
+    def _flows(self) -> dict[str, tuple]:
+        """The arguments of :func:`~fog_gym.sensors.motion_blur.image_flow` (but the exposure) of each camera with
+        motion blur: depth, instance ids, intrinsics, pose, world velocity by instance id and the ego's velocity."""
+        blurred = [n for n, noise in self.camera_effects.noise.items() if noise.motion_blur and n in self.frames]
+        if not blurred:
+            return {}
+        state = self.scene.vehicles
+        velocities = np.zeros((max(int(state.ids.max(initial=0)), 0) + 1, 3))
+        velocities[state.ids] = state.velocities
+        ego = velocities[self.scene.ego_id]
+        return {n: (self.frames[n].depth, self.frames[n].instance, self.intrinsics[n], self.sensor_to_world(n),
+                    velocities, ego) for n in blurred}  # fmt: skip
+
+    def camera_record(self, name: str, rgb: np.ndarray, variant: int) -> np.ndarray:
+        """What camera ``name`` records of the noise-free image ``rgb`` of this frame (the clean frame, ``variant``
+        0, or a fogged version of it, its own integer): motion blur and noise when the camera has them
+        (:mod:`fog_gym.sensors.camera_effects`), else ``rgb`` itself."""
+        return self.camera_effects.apply(name, rgb, variant)
 
     def _info(self, hw_info: dict) -> dict[str, Any]:
         info = {
@@ -393,4 +429,4 @@ def _camera(rig: RigConfig, name: str):
         return rig.camera(name)
     except KeyError:
         ref = rig.cameras[0] if rig.cameras else None
-        return CameraConfig(name, FOGDRIVE_CAMERA_POSES[name], *((ref.width, ref.height, ref.fov) if ref else ()))
+        return CameraConfig(name, FOGDRIVE_CAMERA_POSES[name], *((ref.width, ref.height, ref.fov, ref.noise) if ref else ()))

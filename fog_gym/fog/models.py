@@ -21,7 +21,7 @@ Example:
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import ClassVar, Protocol, runtime_checkable
 
@@ -54,6 +54,12 @@ class FogContext:
     time: float = 0.0
     #: The LiDAR's return mode (:mod:`fog_gym.fog.returns`): "strongest", "last" or "dual"
     lidar_returns: str = "strongest"
+    #: Cameras that record with noise (:mod:`fog_gym.sensors.camera_effects`): their noise-free images (fog is
+    #: added to the light, before the sensor), ``record(channel, rgb, variant)`` that turns a fogged image into
+    #: what the camera records, and each level's variant number (its own noise draws)
+    clean_rgb: Mapping[str, np.ndarray] = field(default_factory=dict)
+    record: Callable[[str, np.ndarray, int], np.ndarray] | None = None
+    variants: Mapping[str, int] = field(default_factory=dict)
 
 
 @runtime_checkable
@@ -98,7 +104,7 @@ class Koschmieder:
     name = "koschmieder"
 
     def apply(self, obs, channel, levels, context):
-        rgb, depth, K = obs[channel], obs[f"{channel}_DEPTH"], context.intrinsics[channel]
+        rgb, depth, K = context.clean_rgb.get(channel, obs[channel]), obs[f"{channel}_DEPTH"], context.intrinsics[channel]
         out = {}
         flat = [lv for lv in levels if lv.is_homogeneous]
         if flat:
@@ -111,6 +117,8 @@ class Koschmieder:
             images = fog_field_images(rgb, depth, K, shaped, context.airlight[channel], pose, context.time,
                                       validate=False, glow=context.night)  # fmt: skip
             out.update({lv.name: img for lv, img in zip(shaped, images)})
+        if context.record is not None and channel in context.clean_rgb:
+            return {lv.name: context.record(channel, out[lv.name], context.variants[lv.name]) for lv in levels}
         return {lv.name: out[lv.name] for lv in levels}
 
 

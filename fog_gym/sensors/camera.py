@@ -31,6 +31,7 @@ from fog_gym.checks import finite
 from fog_gym.channels.spec import CAMERA_NAMES, FOG_LEVELS, ChannelSpec  # noqa: F401  (CAMERA_NAMES: re-exported)
 from fog_gym.geometry import Pose
 from fog_gym.sensors.base import check_sensor_name, register
+from fog_gym.sensors.camera_noise import parse_noise
 from fog_gym.render.lights import (beam_window, concat_lights, cull_lights, headlights, lamp_light_map, render_night,
                                    street_lamp_lights)  # fmt: skip
 from fog_gym.render.raster import render
@@ -55,9 +56,13 @@ class CameraConfig:
     width: int = 1280
     height: int = 960
     fov: float = 100.0  # horizontal field of view, degrees
+    #: Sensor noise and motion blur (:mod:`fog_gym.sensors.camera_noise`): None (noise-free, FogDrive's), "default"
+    #: (an automotive-class CMOS pixel) or a :class:`~fog_gym.sensors.camera_noise.CameraNoise`.
+    noise: Any = None
 
     def __post_init__(self) -> None:
-        check_sensor_name(self.name)  # the FogDrive cameras are CAMERA_NAMES; an added camera takes any such name
+        check_sensor_name(self.name)
+        object.__setattr__(self, "noise", parse_noise(self.noise, "noise"))  # the FogDrive cameras are CAMERA_NAMES; an added camera takes any such name
         object.__setattr__(self, "pose", Pose.coerce(self.pose))
         for attr in ("width", "height"):
             value = getattr(self, attr)

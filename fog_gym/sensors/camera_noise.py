@@ -1,0 +1,293 @@
+"""Camera noise: photon shot noise, read noise, a gain that follows the auto-exposure, and quantisation (EMVA 1288).
+
+fog-gym's renderer gives each pixel an exposed linear signal ``x`` (the frame's 8-bit value over 255 by day; at night
+the value through the inverse of the night tone curve, :func:`fog_gym.render.shading.tone`). A real sensor turns
+that signal into electrons and back into a digital value, and on the way it adds noise. The linear camera model of
+the EMVA 1288 standard (research note ``fifth_layer.md`` §6):
+
+* the pixel collects ``μ_e = x · Q / A`` electrons on average, ``Q`` the full-well capacity (a full-scale signal at
+  the sensor's base gain fills the well) and ``A`` the total gain; the count is Poisson: ``σ_e² = μ_e``
+  (photon shot noise);
+* the read-out adds Gaussian noise of ``σ_r`` electrons rms (read and dark noise together);
+* the well saturates at ``Q``; the system gain ``K = 255·A/Q`` DN per electron maps the count onto the 8-bit
+  output, through the night tone curve at night, rounded to the nearest level (quantisation, ``σ_q² = 1/12`` DN²;
+  the sensor's 12-bit ADC steps are 1/16 of an output level, finer than the output's own rounding);
+* so ``σ_y² = K²(σ_r² + μ_e) + 1/12`` DN² at a mid-grey pixel (:func:`predicted_variance`).
+
+**The gain follows the auto-exposure.** By day ``A = 1`` (a sunlit scene fills the well at a short exposure; the
+renderer's day gain is 1). At night the renderer's linear units stand for a scene three to four orders of
+magnitude darker than daylight (a lit road: tens of lux; sunlight: tens of thousands); the exposure time stretches
+to the frame period and the sensor's analog and digital gain make up the rest. The model takes ``A = night_gain ·
+g`` with ``g`` the frame's auto-exposure gain (:attr:`fog_gym.sensors.CameraRig.exposure`, 1–16): night frames
+are noisier, and the darker the scene the noisier.
+
+**The default sensor** (:data:`DEFAULT_NOISE`, ``camera_noise="default"``) is an automotive-class 3.0 µm pixel of
+onsemi's DR-Pix family, as in the AR0230CS datasheet (same pixel family as the AR0231AT automotive sensor): its
+maximum SNR of 41 dB gives the full well, ``Q = 10^(41/10) ≈ 12 600 e⁻`` (shot-noise limited at full scale);
+read noise ``σ_r = 2.5 e⁻`` is an assumption (the 2–3 e⁻ of the pixel family; not on the datasheet);
+``night_gain = 8`` is an assumption (at ``g = 4``, a typical lit street, 1 DN is 1.5 electrons). A
+:class:`CameraNoise` takes other values.
+
+**How it is drawn.** The output of a pixel depends only on its noise-free level ``v`` (0–255), the gain and its
+random draw, so per camera and frame :func:`noise_table` tabulates the exact distribution of the model for every
+``v`` as :data:`TABLE_SIZE` quantiles (the Poisson ⊛ Gaussian law summed exactly, :func:`_cdf_table`), and the kernel (:func:`add_noise`) looks each pixel's channel up at a quantile drawn by a
+counter-based hash (SplitMix64) of the frame's key and the pixel's index: the same key gives the same noise on any
+machine and thread count, and every (episode, frame, camera, fog variant) has its own key (:func:`frame_key`).
+
+**Motion blur** (``motion_blur=True``, opt-in): the frame is averaged over the exposure time along each pixel's image
+motion (:func:`blur_motion`, a velocity-buffer blur: the ego's motion for the static world and each vehicle's own
+motion from the instance buffer), before the noise, as the sensor integrates before it reads out.
+
+Example:
+    >>> table = noise_table(DEFAULT_NOISE, gain=1.0, night=False)
+    >>> table.shape, table.dtype
+    ((256, 4096), dtype('uint8'))
+    >>> round(float(table[128].astype(float).std()), 2), round(predicted_variance(DEFAULT_NOISE, 128, 1.0) ** 0.5, 2)
+    (1.63, 1.64)
+    >>> img = np.full((4, 4, 3), 128, np.uint8)
+    >>> bool((add_noise(img, table, frame_key(0, 0, 0, 0)) == add_noise(img, table, frame_key(0, 0, 0, 0))).all())
+    True
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numba import njit, prange
+
+import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
+from fog_gym._numba import pick, serial_twin
+from fog_gym.checks import finite
+from fog_gym.render.shading import KNEE
+
+#: Quantiles per level of a noise table (a draw resolves probabilities of 1/4096: tails beyond ±3.7 σ are cut).
+TABLE_SIZE = 4096
+
+
+@dataclass(frozen=True)
+class CameraNoise:
+    """A camera's sensor noise (module docstring): full well ``full_well_e`` [e⁻], read noise ``read_noise_e``
+    [e⁻ rms], the night gain at auto-exposure gain 1 ``night_gain``, optional motion blur over the exposure time
+    (``exposure_s``: by day, at night [s]), and the sensor it describes (``sensor``, for the record).
+
+    >>> CameraNoise(full_well_e=6000, read_noise_e=3.0).full_well_e
+    6000.0
+    >>> CameraNoise(read_noise_e=-1)
+    Traceback (most recent call last):
+    ...
+    ValueError: CameraNoise.read_noise_e must be >= 0 electrons, got -1
+    """
+
+    full_well_e: float = 12_600.0
+    read_noise_e: float = 2.5
+    night_gain: float = 8.0
+    motion_blur: bool = False
+    exposure_s: tuple[float, float] = (0.002, 0.030)
+    sensor: str = "onsemi DR-Pix 3.0 um (AR0230CS datasheet: SNRmax 41 dB); read noise and night gain assumed"
+
+    def __post_init__(self) -> None:
+        full = finite("CameraNoise.full_well_e", self.full_well_e)
+        if full < 255.0:
+            raise ValueError(f"CameraNoise.full_well_e must be >= 255 electrons (one per output level), got {self.full_well_e!r}")
+        read = finite("CameraNoise.read_noise_e", self.read_noise_e)
+        if read < 0:
+            raise ValueError(f"CameraNoise.read_noise_e must be >= 0 electrons, got {self.read_noise_e!r}")
+        night = finite("CameraNoise.night_gain", self.night_gain)
+        if night < 1.0:
+            raise ValueError(f"CameraNoise.night_gain must be >= 1, got {self.night_gain!r}")
+        if not isinstance(self.motion_blur, bool):
+            raise ValueError(f"CameraNoise.motion_blur must be True or False, got {self.motion_blur!r}")
+        exp = tuple(self.exposure_s) if isinstance(self.exposure_s, (tuple, list)) else ()
+        if len(exp) != 2 or not all(isinstance(e, (int, float)) and not isinstance(e, bool) and math.isfinite(e)
+                                    and 0 < e <= 0.1 for e in exp):  # fmt: skip
+            raise ValueError(f"CameraNoise.exposure_s must be (day, night) exposure times in (0, 0.1] s, got {self.exposure_s!r}")
+        if not isinstance(self.sensor, str):
+            raise ValueError(f"CameraNoise.sensor must be a string, got {self.sensor!r}")
+        object.__setattr__(self, "full_well_e", full)
+        object.__setattr__(self, "read_noise_e", read)
+        object.__setattr__(self, "night_gain", night)
+        object.__setattr__(self, "exposure_s", (float(exp[0]), float(exp[1])))
+
+    def gain(self, exposure_gain: float, night: bool) -> float:
+        """The total gain ``A`` of a frame with auto-exposure gain ``exposure_gain`` (module docstring)."""
+        return float(exposure_gain) * (self.night_gain if night else 1.0)
+
+
+#: The default sensor: ``camera_noise="default"``.
+DEFAULT_NOISE = CameraNoise()
+#: Named sensors ``camera_noise=`` accepts.
+NOISE_PRESETS: dict[str, CameraNoise] = {"default": DEFAULT_NOISE}
+
+
+def parse_noise(value: Any, field: str = "camera_noise") -> CameraNoise | None:
+    """``None`` (noise-free, the default), a preset name of :data:`NOISE_PRESETS`, or a :class:`CameraNoise`."""
+    if value is None or isinstance(value, CameraNoise):
+        return value
+    if isinstance(value, str) and value in NOISE_PRESETS:
+        return NOISE_PRESETS[value]
+    raise ValueError(f"{field} must be None, one of {sorted(NOISE_PRESETS)} or a CameraNoise, got {value!r}")
+
+
+# -- the signal a level stands for and the level a signal gives ---------------------------------------------------
+def level_signal(levels: np.ndarray, night: bool) -> np.ndarray:
+    """The exposed linear signal ``x`` of 8-bit levels (inverse of :func:`encode_signal`; level 255 maps to the
+    middle of its rounding interval at night, where the shoulder never reaches 1)."""
+    y = np.asarray(levels, np.float64) / 255.0
+    if not night:
+        return y
+    y = np.minimum(y, 254.5 / 255.0)
+    shoulder = KNEE - (1.0 - KNEE) * np.log(np.maximum(1.0 - (y - KNEE) / (1.0 - KNEE), 1e-300))
+    return np.where(y <= KNEE, y, shoulder)
+
+
+def _thresholds(noise: CameraNoise, gain: float, night: bool) -> np.ndarray:
+    """Electron counts where the output steps from level d to d + 1 (d = 0..254), after saturation at the well."""
+    x = level_signal(np.arange(255) + 0.5, night)
+    return x * noise.full_well_e / gain
+
+
+def noise_table(noise: CameraNoise, gain: float, night: bool) -> np.ndarray:
+    """``(256, TABLE_SIZE)`` uint8: row ``v`` holds the model's output levels for a noise-free level ``v`` at the
+    quantiles ``(m + ½)/TABLE_SIZE`` (module docstring; ``gain`` is the frame's auto-exposure gain)."""
+    a = noise.gain(gain, night)
+    lam = level_signal(np.arange(256), night) * noise.full_well_e / a  # mean electrons per level
+    t = _thresholds(noise, a, night)
+    t = np.where(t > noise.full_well_e, np.inf, t)  # a full well reads above every threshold it reaches
+    cdf = _cdf_table(lam, np.where(np.isfinite(t), t, -1.0), noise.read_noise_e)
+    # the level of quantile u_m = (m + ½)/M is the number of thresholds with F(t_d) <= u_m: threshold d is reached
+    # from m = ceil(F·M − ½) on, so a histogram of those first quantiles, summed along m, is the table
+    first = np.clip(np.ceil(np.minimum(cdf, 1.0) * TABLE_SIZE - 0.5), 0, TABLE_SIZE).astype(np.int64)
+    first += (TABLE_SIZE + 1) * np.arange(256)[:, None]
+    counts = np.bincount(first.ravel(), minlength=256 * (TABLE_SIZE + 1)).reshape(256, TABLE_SIZE + 1)
+    table = np.cumsum(counts[:, :TABLE_SIZE], axis=1)
+    return table.astype(np.uint8)
+
+
+@njit(cache=True, nogil=True)
+def _cdf_table(lam, thresholds, sigma):
+    """``F[v, d] = P(N_v + R < t_d)``, ``N_v ~ Poisson(lam[v])``, ``R ~ N(0, sigma²)``, exactly: the Poisson mass
+    over ``λ ± (8√λ + 10)`` by recurrence from its mode, the read noise's Φ over ``t ± 7σ`` (tabulated once per
+    threshold; below that window each count adds its whole mass). A negative threshold stands for one beyond the full well (never reached: F = 1)."""
+    n_lv, n_t = lam.shape[0], thresholds.shape[0]
+    out = np.empty((n_lv, n_t))
+    r = int(math.ceil(7.0 * sigma)) + 1  # counts farther than 7σ from a threshold are wholly below or above it
+    # phi[d, j] = Φ((t_d − k)/σ) for the count k = floor(t_d) − r + j: the same for every level
+    phi = np.zeros((n_t, 2 * r + 1))
+    for d in range(n_t):
+        t = thresholds[d]
+        if t >= 0.0 and sigma > 0.0:
+            base = math.floor(t) - r
+            for j in range(2 * r + 1):
+                phi[d, j] = 0.5 * math.erfc(-(t - (base + j)) / (sigma * math.sqrt(2.0)))
+    for v in range(n_lv):
+        L = lam[v]
+        half = 8.0 * math.sqrt(L) + 10.0
+        k0 = max(0, int(L - half))
+        k1 = int(L + half) + 1
+        n = k1 - k0 + 1
+        p = np.empty(n)
+        mode = int(L)
+        if L > 0.0:
+            p[mode - k0] = math.exp(mode * math.log(L) - L - math.lgamma(mode + 1.0))
+            for k in range(mode + 1, k1 + 1):
+                p[k - k0] = p[k - 1 - k0] * L / k
+            for k in range(mode - 1, k0 - 1, -1):
+                p[k - k0] = p[k + 1 - k0] * (k + 1) / L
+        else:
+            p[:] = 0.0
+            p[0] = 1.0
+        p /= p.sum()
+        cum = np.cumsum(p)  # cum[i] = P(N <= k0 + i)
+        for d in range(n_t):
+            t = thresholds[d]
+            if t < 0.0:
+                out[v, d] = 1.0
+                continue
+            if sigma == 0.0:
+                m = int(math.ceil(t)) - 1 - k0  # P(N < t) = P(N <= ceil(t) − 1)
+                out[v, d] = 0.0 if m < 0 else (1.0 if m >= n else cum[m])
+                continue
+            base = int(math.floor(t)) - r  # counts below base add their whole mass, above base + 2r none
+            if base > k1:
+                out[v, d] = 1.0
+                continue
+            if base + 2 * r < k0:
+                out[v, d] = 0.0
+                continue
+            f = cum[base - 1 - k0] if base - 1 - k0 >= 0 else 0.0
+            for j in range(max(k0 - base, 0), min(k1 - base, 2 * r) + 1):
+                f += p[base + j - k0] * phi[d, j]
+            out[v, d] = min(f, 1.0)
+    return out
+
+
+def predicted_variance(noise: CameraNoise, level: float, gain: float, night: bool = False) -> float:
+    """EMVA 1288's output variance [DN²] at a noise-free level in the linear part of the encoding:
+    ``K²(σ_r² + μ_e) + 1/12`` with ``K = 255·A/Q`` (clipping and the night shoulder not included)."""
+    a = noise.gain(gain, night)
+    k = 255.0 * a / noise.full_well_e
+    mu_e = float(level) / 255.0 * noise.full_well_e / a
+    return k * k * (noise.read_noise_e**2 + mu_e) + 1.0 / 12.0
+
+
+# -- keys and the kernel -------------------------------------------------------------------------------------------
+_M64 = (1 << 64) - 1
+
+
+def _mix(z: int) -> int:
+    z = (z + 0x9E3779B97F4A7C15) & _M64
+    z = ((z ^ (z >> 30)) * 0xBF58476D1CE4E5B9) & _M64
+    z = ((z ^ (z >> 27)) * 0x94D049BB133111EB) & _M64
+    return z ^ (z >> 31)
+
+
+def frame_key(seed: int, tick: int, camera: int, variant: int) -> int:
+    """The 64-bit noise key of one frame: episode ``seed`` (drawn from the env's ``camera_noise`` stream), keyframe
+    ``tick``, ``camera`` index in the rig and fog ``variant`` (0 the clean frame, a level's key + 1 a fogged one).
+
+    >>> frame_key(1, 2, 0, 0) != frame_key(1, 2, 0, 1) != frame_key(1, 3, 0, 0)
+    True
+    """
+    z = 0
+    for part in (seed, tick, camera, variant):
+        z = _mix(z ^ (int(part) & _M64))
+    return z
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _noise_kernel(rgb, table, key, out):
+    height, width, _ = rgb.shape
+    golden = np.uint64(0x9E3779B97F4A7C15)
+    c1 = np.uint64(0xBF58476D1CE4E5B9)
+    c2 = np.uint64(0x94D049BB133111EB)
+    mask = np.uint64(TABLE_SIZE - 1)
+    s30, s27, s31, s12, s24 = np.uint64(30), np.uint64(27), np.uint64(31), np.uint64(12), np.uint64(24)
+    for i in prange(height):
+        base = np.uint64(i) * np.uint64(width)
+        for j in range(width):
+            z = key + (base + np.uint64(j) + np.uint64(1)) * golden
+            z = (z ^ (z >> s30)) * c1
+            z = (z ^ (z >> s27)) * c2
+            z = z ^ (z >> s31)
+            out[i, j, 0] = table[rgb[i, j, 0], np.intp(z & mask)]
+            out[i, j, 1] = table[rgb[i, j, 1], np.intp((z >> s12) & mask)]
+            out[i, j, 2] = table[rgb[i, j, 2], np.intp((z >> s24) & mask)]
+    return out
+
+
+_noise_kernel_serial = serial_twin(_noise_kernel)
+
+
+def add_noise(rgb: np.ndarray, table: np.ndarray, key: int) -> np.ndarray:
+    """``rgb`` (H, W, 3) uint8 with the noise of ``table`` (:func:`noise_table`) drawn from ``key``
+    (:func:`frame_key`); a new array, the input is not changed."""
+    img = np.ascontiguousarray(rgb)
+    if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
+        raise ValueError(f"rgb must be an (H, W, 3) uint8 image, got {img.dtype} {img.shape}")
+    if table.shape != (256, TABLE_SIZE) or table.dtype != np.uint8:
+        raise ValueError(f"table must be a (256, {TABLE_SIZE}) uint8 noise table, got {table.dtype} {table.shape}")
+    out = np.empty_like(img)
+    return pick(_noise_kernel, _noise_kernel_serial, img.shape[0] * img.shape[1])(img, table, np.uint64(int(key) & _M64), out)

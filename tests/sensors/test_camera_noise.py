@@ -1,0 +1,174 @@
+"""Camera noise (EMVA 1288 linear model) and motion blur: the statistics of the model, determinism, the env and the
+fog wrapper (fog before the sensor), and bad configurations."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from fog_gym.envs.fogdrive import FogDriveEnv
+from fog_gym.geometry import Pose
+from fog_gym.sensors.camera import CameraConfig
+from fog_gym.sensors.camera_noise import (DEFAULT_NOISE, TABLE_SIZE, CameraNoise, add_noise, frame_key, level_signal,
+                                          noise_table, parse_noise, predicted_variance)  # fmt: skip
+from fog_gym.sensors.motion_blur import blur_motion, image_flow
+from fog_gym.wrappers import FogWrapper
+
+
+def _moments(row: np.ndarray) -> tuple[float, float]:
+    r = row.astype(np.float64)
+    return float(r.mean()), float(r.var())
+
+
+@pytest.mark.parametrize("night, gain", [(False, 1.0), (True, 1.0), (True, 4.0), (True, 16.0)])
+def test_table_moments_match_the_emva_model_in_the_linear_range(night, gain):
+    table = noise_table(DEFAULT_NOISE, gain, night)
+    for level in (20, 40, 64, 100, 140):
+        sd = predicted_variance(DEFAULT_NOISE, level, gain, night) ** 0.5
+        if level - 3.5 * sd < 0 or night and level + 3.5 * sd > 153:
+            continue  # the model holds in the linear part of the encoding, away from black (and the night shoulder)
+        mean, var = _moments(table[level])
+        assert abs(mean - level) < 0.06 + 0.01 * level**0.5
+        assert var == pytest.approx(predicted_variance(DEFAULT_NOISE, level, gain, night), rel=0.04)
+
+
+def test_night_frames_are_noisier_and_noise_grows_with_the_exposure_gain():
+    sd = [np.sqrt(_moments(noise_table(DEFAULT_NOISE, g, n)[80])[1]) for n, g in ((False, 1.0), (True, 1.0), (True, 4.0), (True, 16.0))]
+    assert sd == sorted(sd) and sd[1] > 2 * sd[0]
+    # shot noise: at fixed gain the variance grows linearly with the signal (K²·μ_e), the read noise sets the floor
+    table = noise_table(DEFAULT_NOISE, 4.0, True)
+    v1, v2 = _moments(table[30])[1], _moments(table[120])[1]
+    k = 255 * DEFAULT_NOISE.gain(4.0, True) / DEFAULT_NOISE.full_well_e
+    assert (v2 - v1) / 90 == pytest.approx(k, rel=0.05)  # slope of variance over level = K [DN per electron]
+
+
+def test_low_light_table_is_the_poisson_gaussian_law_itself():
+    """Few electrons: the table's distribution equals a Monte-Carlo draw of Poisson + read noise, rounded."""
+    noise = CameraNoise(full_well_e=2000.0, read_noise_e=1.5, night_gain=8.0)
+    gain, level = 2.0, 12  # A = 16: 1 DN = 0.49 e-, mean 6 electrons
+    rng = np.random.default_rng(0)
+    lam = level_signal(np.array([level]), True)[0] * noise.full_well_e / noise.gain(gain, True)
+    n = rng.poisson(lam, 400_000) + rng.normal(0.0, noise.read_noise_e, 400_000)
+    dn = np.clip(np.floor(n * 255 * noise.gain(gain, True) / noise.full_well_e + 0.5), 0, 255)  # linear below the knee
+    mc = np.bincount(dn.astype(int), minlength=256) / dn.size
+    tab = np.bincount(noise_table(noise, gain, True)[level], minlength=256) / TABLE_SIZE
+    assert np.abs(np.cumsum(mc) - np.cumsum(tab)).max() < 0.004  # Kolmogorov distance: table resolution 1/4096
+
+
+@settings(max_examples=25, deadline=None)
+@given(full=st.floats(300, 50_000), read=st.floats(0, 20), gain=st.floats(1, 16), night=st.booleans())
+def test_tables_are_quantile_functions_ordered_by_level(full, read, gain, night):
+    table = noise_table(CameraNoise(full_well_e=full, read_noise_e=read), gain, night).astype(np.int16)
+    assert (np.diff(table, axis=1) >= 0).all()  # each row a quantile function
+    assert (np.diff(table, axis=0) >= 0).all()  # a brighter pixel reads brighter at every quantile
+
+
+def test_kernel_draws_follow_the_table_and_are_reproducible_and_independent():
+    table = noise_table(DEFAULT_NOISE, 4.0, True)
+    img = np.full((400, 500, 3), 64, np.uint8)
+    a = add_noise(img, table, frame_key(5, 1, 0, 0))
+    assert (add_noise(img, table, frame_key(5, 1, 0, 0)) == a).all()
+    b = add_noise(img, table, frame_key(5, 1, 0, 3))
+    assert (a != b).mean() > 0.8  # another variant, other draws
+    mean, var = _moments(table[64])
+    x = a.astype(np.float64)
+    assert x.mean() == pytest.approx(mean, abs=0.05) and x.var() == pytest.approx(var, rel=0.02)
+    r = x.reshape(-1, 3) - x.mean()
+    assert abs(np.corrcoef(r[:, 0], r[:, 1])[0, 1]) < 0.01  # channels, and neighbours, independent
+    assert abs(np.corrcoef(x[:, :-1, 0].ravel(), x[:, 1:, 0].ravel())[0, 1]) < 0.01
+    assert (img == 64).all()  # the input is not changed
+
+
+def test_bad_noise_configs_are_one_line_errors_naming_the_field():
+    for kwargs, field in (({"full_well_e": 0}, "full_well_e"), ({"read_noise_e": -1}, "read_noise_e"),
+                          ({"night_gain": 0.5}, "night_gain"), ({"motion_blur": 1}, "motion_blur"),
+                          ({"exposure_s": (0.0, 0.03)}, "exposure_s"), ({"full_well_e": float("nan")}, "full_well_e")):  # fmt: skip
+        with pytest.raises(ValueError, match=field) as err:
+            CameraNoise(**kwargs)
+        assert "\n" not in str(err.value)
+    with pytest.raises(ValueError, match="camera_noise"):
+        parse_noise("loud")
+    with pytest.raises(ValueError, match="noise"):
+        CameraConfig("CAM_FRONT", Pose(1.8, 0, 1.2), 8, 6, noise=3)
+    with pytest.raises(ValueError, match="camera_noise"):
+        FogDriveEnv(resolution=(32, 24), cameras=["CAM_FRONT"], camera_noise="loud")
+
+
+@settings(max_examples=40, deadline=None)
+@given(st.one_of(st.integers(), st.text(max_size=6), st.floats(), st.lists(st.integers(), max_size=2)))
+def test_anything_but_none_a_preset_or_a_cameranoise_is_refused(value):
+    if value is None or value in ("default",):
+        return
+    with pytest.raises(ValueError, match="camera_noise"):
+        parse_noise(value)
+
+
+def test_still_world_has_no_flow_and_blur_keeps_a_linear_ramp():
+    K = np.array([[100.0, 0, 40], [0, 100.0, 30], [0, 0, 1]])
+    depth = np.full((60, 80), 12.0, np.float32)
+    inst = np.zeros((60, 80), np.uint16)
+    flow = image_flow(depth, inst, K, np.eye(4), np.zeros((1, 3)), np.zeros(3), 0.03)
+    assert not flow.any()
+    img = np.random.default_rng(0).integers(0, 256, (60, 80, 3), dtype=np.uint8)
+    assert (blur_motion(img, flow) == img).all()
+    ramp = np.repeat(np.repeat((np.arange(80) * 3).astype(np.uint8)[None, :, None], 60, 0), 3, 2)
+    f = np.zeros((60, 80, 2), np.float32)
+    f[..., 0] = 6.0
+    out = blur_motion(ramp, f)
+    assert (out[:, 5:-5] == ramp[:, 5:-5]).all()  # a linear ramp averaged symmetrically along x stays itself
+
+
+def test_forward_motion_expands_from_the_centre_and_vehicles_move_by_their_own_velocity():
+    K = np.array([[100.0, 0, 40], [0, 100.0, 30], [0, 0, 1]])
+    depth = np.full((60, 80), 10.0, np.float32)
+    inst = np.zeros((60, 80), np.uint16)
+    inst[:, 60:] = 2  # a vehicle on the right, driving along with the camera
+    vel = np.array([[0.0, 0, 0], [0, 0, 0], [0, 0, 20.0]])
+    flow = image_flow(depth, inst, K, np.eye(4), vel, np.array([0.0, 0, 20.0]), 0.05)  # optical z forward
+    assert abs(flow[30, 40]).max() < 0.1  # the focus of expansion
+    assert flow[30, 10, 0] < -1 and flow[30, 50, 0] > 0  # the static world streams outward
+    assert not flow[:, 60:].any()  # the vehicle keeps its place in the image
+
+
+@pytest.fixture(scope="module")
+def noisy_pair():
+    def make(noise, tod):
+        return FogWrapper(FogDriveEnv(town="merge", resolution=(96, 72), cameras=["CAM_FRONT", "CAM_LEFT"],
+                                      time_of_day=tod, camera_noise=noise), fog=["light", "dense"])  # fmt: skip
+    return make
+
+
+@pytest.mark.parametrize("tod", ["day", "night"])
+def test_env_records_the_clean_light_through_the_sensor_and_fog_comes_before_the_noise(noisy_pair, tod):
+    clean_env, noisy_env = noisy_pair(None, tod), noisy_pair("default", tod)
+    ref, _ = clean_env.reset(seed=11)
+    obs, _ = noisy_env.reset(seed=11)
+    base = noisy_env.unwrapped
+    for cam in ("CAM_FRONT", "CAM_LEFT"):
+        assert (base.frames[cam].rgb == ref[cam]).all()  # the frames keep the noise-free light
+        assert (obs[cam] == base.camera_record(cam, ref[cam], 0)).all()
+        for lv in ("LIGHT", "DENSE"):  # the fogged light of the noise-free env, recorded through the sensor
+            key = f"{cam}_FOG_{lv}"
+            variant = noisy_env.fog[0 if lv == "LIGHT" else 1]
+            from fog_gym.wrappers.fog import _level_key
+
+            assert (obs[key] == base.camera_record(cam, ref[key], _level_key(variant) + 1)).all()
+            assert (obs[key] != obs[cam]).any()
+        assert obs[f"{cam}_DEPTH"] is not None and (obs[f"{cam}_DEPTH"] == ref[f"{cam}_DEPTH"]).all()
+    again, _ = noisy_env.reset(seed=11)
+    assert all((again[k] == obs[k]).all() for k in obs)
+    other, _ = noisy_env.reset(seed=12)
+    assert (other["CAM_FRONT"] != obs["CAM_FRONT"]).any()
+
+
+def test_night_recording_is_noisier_than_day():
+    sds = {}
+    for tod in ("day", "night"):
+        env = FogDriveEnv(town="merge", resolution=(96, 72), cameras=["CAM_FRONT"], time_of_day=tod, camera_noise="default")
+        obs, _ = env.reset(seed=3)
+        d = obs["CAM_FRONT"].astype(float) - env.frames["CAM_FRONT"].rgb
+        mid = (env.frames["CAM_FRONT"].rgb > 10) & (env.frames["CAM_FRONT"].rgb < 150)
+        sds[tod] = (d[mid] / np.sqrt(env.frames["CAM_FRONT"].rgb[mid].astype(float))).std()  # per unit shot noise
+    assert sds["night"] > 2 * sds["day"]
