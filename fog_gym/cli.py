@@ -111,6 +111,12 @@ def build_parser() -> argparse.ArgumentParser:
     gen.add_argument("--lidar-returns", choices=("strongest", "last", "dual"), default="strongest",
                      help="the LiDAR's echo in fog: strongest (FogDrive's, the default), last, or dual (both, with a "
                      "return column); the last and dual LiDARs' channels are LIDAR_TOP_LAST / LIDAR_TOP_DUAL")
+    gen.add_argument("--lidar-motion", choices=("instant", "continuous"), default="instant",
+                     help="the LiDAR's sweep: instant (FogDrive's, the default) or continuous (each azimuth fires at its "
+                     "time, ego and vehicles where they are then, a time column; channels LIDAR_TOP_MOTION ...)")
+    gen.add_argument("--camera-noise", choices=("default",), default=None,
+                     help="record the cameras with sensor noise (shot and read noise, a gain that follows the "
+                     "auto-exposure; fog_gym.sensors.camera_noise); default: noise-free, as FogDrive")
     gen.add_argument("--fog-fields", choices=FOG_FIELD_KINDS, default="levels",
                      help="how each scene's three fog levels are laid out: levels (FogDrive's homogeneous fog, the "
                      "default), banks (a fog bank on the road ahead), height (ground fog) or mixed (per scene one of "
@@ -359,7 +365,8 @@ def _generate(args: argparse.Namespace) -> int:
     modality = args.modality or ("lidar" if args.lidar_only else "full")
     try:
         plan = plan_scenes(args.scenes, tuple(args.towns), args.seed, args.resolution, args.seconds, modality,
-                           args.fog_fields, tuple(args.cameras), args.lidar_returns)  # fmt: skip
+                           args.fog_fields, tuple(args.cameras), args.lidar_returns, args.lidar_motion,
+                           args.camera_noise)  # fmt: skip
         tables = generate(args.root, plan, args.workers, args.resume, args.ray)
     except (ValueError, DatasetLocked, DatasetLockError) as e:  # a second writer: one line naming root and holder
         raise _fail("generate", str(e)) from None

@@ -29,6 +29,7 @@ from fog_gym.world.towns import TOWNS
 from fog_gym.fog import FOG_PRESETS
 from fog_gym.fog.physics import FogField
 from fog_gym.dataset.layout import DATA_ROOT, MODALITIES, SAMPLE_PERIOD_US, modality_channels, scene_folder_name, scene_id
+from fog_gym.channels.spec import lidar_channel
 from fog_gym.dataset.lock import LOCK_FILE, DatasetLock
 from fog_gym.dataset.manifest import (
     FOG_FIELD_KINDS, MANIFEST_FILE, differences, make_manifest, read_manifest, write_manifest,
@@ -55,14 +56,21 @@ class SceneSpec:
     fog_fields: str = "levels"  # one of FOG_FIELD_KINDS: how the three fog levels are laid out (scene_fog)
     cameras: tuple[str, ...] = ()  # write only these cameras' channels (empty: every camera of the modality)
     lidar_returns: str = "strongest"  # the LiDAR's return mode (fog_gym.fog.returns); others rename its channels
+    lidar_motion: str = "instant"  # the LiDAR's sweep timing (fog_gym.sensors.motion); continuous renames them too
+    camera_noise: str | None = None  # a camera noise preset (fog_gym.sensors.camera_noise), None: noise-free
+
+    @property
+    def own_lidar(self) -> bool:
+        """Whether the LiDAR's channels are its own (another return mode or sweep timing), not FogDrive's."""
+        return self.lidar_returns != "strongest" or self.lidar_motion != "instant"
 
     @property
     def channels(self) -> tuple[str, ...]:
         names = modality_channels(self.modality, tuple(self.cameras))
-        if self.lidar_returns == "strongest":
+        if not self.own_lidar:
             return names
-        suffix = f"_{self.lidar_returns.upper()}"
-        return tuple(n.replace("LIDAR_TOP", "LIDAR_TOP" + suffix, 1) if n.startswith("LIDAR_TOP") else n for n in names)
+        lidar = lidar_channel("LIDAR_TOP", self.lidar_returns, self.lidar_motion)
+        return tuple(n.replace("LIDAR_TOP", lidar, 1) if n.startswith("LIDAR_TOP") else n for n in names)
 
     @property
     def folder(self) -> str:
@@ -76,7 +84,8 @@ class SceneSpec:
 
 def plan_scenes(n_scenes: int, towns: tuple[str, ...] = TOWNS, seed: int = 0, resolution: tuple[int, int] = (1280, 960),
                 seconds: float = 20.0, modality: str = "full", fog_fields: str = "levels",
-                cameras: tuple[str, ...] = (), lidar_returns: str = "strongest") -> list[SceneSpec]:  # fmt: skip
+                cameras: tuple[str, ...] = (), lidar_returns: str = "strongest", lidar_motion: str = "instant",
+                camera_noise: str | None = None) -> list[SceneSpec]:  # fmt: skip
     """``n_scenes`` (even) spread over ``towns`` in day/night pairs, as evenly as possible, in a fixed order.
 
     ``modality`` "lidar" writes only :data:`~fog_gym.dataset.layout.MODALITIES` ``["lidar"]``: the same scenes,
@@ -86,7 +95,9 @@ def plan_scenes(n_scenes: int, towns: tuple[str, ...] = TOWNS, seed: int = 0, re
     ``modality`` "cameras" writes only the cameras' RGB, fog variants, depth and 2D boxes (and the 3D boxes);
     ``cameras`` (names, e.g. ``("CAM_FRONT", "CAM_LEFT")``) keeps only those cameras' channels of either set.
     ``lidar_returns`` "last" or "dual" records a LiDAR of that return mode (:mod:`fog_gym.fog.returns`): its
-    channels are ``LIDAR_TOP_LAST`` / ``LIDAR_TOP_DUAL`` and their fog variants.
+    channels are ``LIDAR_TOP_LAST`` / ``LIDAR_TOP_DUAL`` and their fog variants; ``lidar_motion`` "continuous" a sweep
+    that takes time (:mod:`fog_gym.sensors.motion`; channels ``…_MOTION`` with a time column); ``camera_noise`` a
+    preset of :data:`fog_gym.sensors.camera_noise.NOISE_PRESETS` records every camera with sensor noise.
 
     ``fog_fields`` lays each scene's three fog levels out in space (:func:`scene_fog`): ``levels`` (FogDrive's
     homogeneous fog), ``banks``, ``height`` or ``mixed``.
@@ -97,6 +108,12 @@ def plan_scenes(n_scenes: int, towns: tuple[str, ...] = TOWNS, seed: int = 0, re
     from fog_gym.fog.returns import check_mode
 
     check_mode(lidar_returns)
+    lidar_channel("LIDAR_TOP", lidar_returns, lidar_motion)  # a bad motion is a ValueError naming it
+    if camera_noise is not None:
+        from fog_gym.sensors.camera_noise import NOISE_PRESETS
+
+        if camera_noise not in NOISE_PRESETS:
+            raise ValueError(f"camera_noise must be None or one of {sorted(NOISE_PRESETS)}, got {camera_noise!r}")
     if isinstance(n_scenes, bool) or not isinstance(n_scenes, int) or n_scenes < 2 or n_scenes % 2:
         raise ValueError(f"scenes must be an even number >= 2 (day/night pairs), got {n_scenes!r}")
     for t in towns:
@@ -113,7 +130,8 @@ def plan_scenes(n_scenes: int, towns: tuple[str, ...] = TOWNS, seed: int = 0, re
                 index = len(plan)
                 scene_seed = int(np.random.SeedSequence([seed, index]).generate_state(1)[0] & 0x7FFFFFFF)
                 plan.append(SceneSpec(index, town, tod, run, scene_seed, tuple(resolution), float(seconds), seed,
-                                      modality, fog_fields, tuple(cameras), lidar_returns))  # fmt: skip
+                                      modality, fog_fields, tuple(cameras), lidar_returns, lidar_motion,
+                                      camera_noise))  # fmt: skip
     return plan
 
 
@@ -172,8 +190,9 @@ def generate_scene(root: str | Path, spec: SceneSpec | dict[str, Any]) -> str:
     # the cameras are rendered in both modalities: FogDrive's 3D boxes are the vehicles annotated in some camera,
     # so a LiDAR-only scene gets exactly the boxes (and LiDAR files) of the full scene; only the writing is skipped
     env = FogWrapper(FogDriveEnv(town=spec.town, time_of_day=spec.time_of_day, resolution=spec.resolution,
-                                 episode_seconds=spec.seconds, lidar_returns=spec.lidar_returns), scene_fog(spec))  # fmt: skip
-    if spec.lidar_returns == "strongest":
+                                 episode_seconds=spec.seconds, lidar_returns=spec.lidar_returns,
+                                 lidar_motion=spec.lidar_motion, camera_noise=spec.camera_noise), scene_fog(spec))  # fmt: skip
+    if not spec.own_lidar:
         writer = SceneWriter(root, spec.folder, spec.channels)
     else:  # the LiDAR's own channels: the rig's layout of them
         from fog_gym.sensors import rig_layout
@@ -196,7 +215,8 @@ def generate_scene(root: str | Path, spec: SceneSpec | dict[str, Any]) -> str:
         try:
             marker = {k: v for k, v in asdict(spec).items()
                       if (k != "fog_fields" or v != "levels") and (k != "cameras" or v)
-                      and (k != "lidar_returns" or v != "strongest")}  # (as before these fields)
+                      and (k != "lidar_returns" or v != "strongest") and (k != "lidar_motion" or v != "instant")
+                      and (k != "camera_noise" or v is not None)}  # (as before these fields)
             _atomic_write(root / PROGRESS_DIR / f"{spec.folder}.json", json.dumps(marker).encode())
         except WriteError as e:
             raise e.with_what(f"cannot mark scene {spec.folder} done") from None
@@ -221,7 +241,7 @@ def plan_manifest(plan: list[SceneSpec]) -> dict[str, Any]:
     towns = list(dict.fromkeys(s.town for s in plan))
     first = plan[0]
     return make_manifest(len(plan), first.resolution, first.seconds, first.base_seed, towns, fog_levels=FOG_PRESETS,
-                         channels=first.channels, fog_fields=first.fog_fields)  # fmt: skip
+                         channels=first.channels, fog_fields=first.fog_fields, camera_noise=first.camera_noise)  # fmt: skip
 
 
 def check_manifest(root: Path, manifest: dict[str, Any], resume: bool) -> None:

@@ -115,5 +115,37 @@ POINT_COLUMNS: dict[str, tuple[str, ...]] = {
     SEMANTIC_LIDAR: ("x", "y", "z", "cos_incidence", "object_id", "tag"),
     RADAR: ("velocity", "azimuth", "altitude", "depth"),
 }
+#: The LiDAR's return modes and sweep timings (:mod:`fog_gym.fog.returns`, :mod:`fog_gym.sensors.motion`).
+LIDAR_RETURNS = ("strongest", "last", "dual")
+LIDAR_MOTIONS = ("instant", "continuous")
+
+
+def lidar_channel(name: str = LIDAR, returns: str = "strongest", motion: str = "instant") -> str:
+    """The channel of a LiDAR named ``name``: FogDrive's ``name`` for strongest returns and an instantaneous sweep;
+    ``name_LAST`` / ``name_DUAL`` for the other return modes and a ``_MOTION`` suffix for a sweep that takes time
+    (their data are not FogDrive's: other echoes, a time column).
+
+    >>> lidar_channel(), lidar_channel(returns="dual"), lidar_channel(returns="last", motion="continuous")
+    ('LIDAR_TOP', 'LIDAR_TOP_DUAL', 'LIDAR_TOP_LAST_MOTION')
+    """
+    if returns not in LIDAR_RETURNS:
+        raise ValueError(f"returns must be one of {LIDAR_RETURNS}, got {returns!r}")
+    if motion not in LIDAR_MOTIONS:
+        raise ValueError(f"motion must be one of {LIDAR_MOTIONS}, got {motion!r}")
+    return name + ("" if returns == "strongest" else f"_{returns.upper()}") + ("_MOTION" if motion == "continuous" else "")
+
+
+def lidar_columns(returns: str = "strongest", motion: str = "instant") -> tuple[str, ...]:
+    """The columns of a LiDAR's points: x, y, z, intensity, then ``time`` (seconds from the keyframe, a sweep that
+    takes time) and ``return`` (dual: 0 a beam's strongest echo, 1 its last where it differs).
+
+    >>> lidar_columns("dual", "continuous")
+    ('x', 'y', 'z', 'intensity', 'time', 'return')
+    """
+    lidar_channel(LIDAR, returns, motion)  # checks both
+    return POINT_COLUMNS[LIDAR] + (("time",) if motion == "continuous" else ()) + (("return",) if returns == "dual" else ())
+
+
+POINT_COLUMNS.update({lidar_channel(LIDAR, r, m): lidar_columns(r, m) for r in LIDAR_RETURNS for m in LIDAR_MOTIONS})
 #: Column counts of the point channels.
 COLUMNS: dict[str, int] = {k: len(v) for k, v in POINT_COLUMNS.items()}

@@ -25,10 +25,10 @@ from fog_gym.dataset.layout import FOG_LEVELS, FOGDRIVE_CHANNELS
 MANIFEST_FILE = "index/manifest.json"
 FORMAT = 1
 #: The settings that must agree between a run and the run it resumes.
-SETTINGS = ("scenes", "resolution", "seconds", "seed", "towns", "fog_levels", "channels", "fog_fields")
+SETTINGS = ("scenes", "resolution", "seconds", "seed", "towns", "fog_levels", "channels", "fog_fields", "camera_noise")
 #: Settings a manifest may leave out, and what their absence means (``fog_fields``: written only for fog fields, so
 #: a homogeneous set's manifest is what it always was).
-DEFAULTS = {"fog_fields": "levels"}
+DEFAULTS = {"fog_fields": "levels", "camera_noise": None}
 #: What ``--fog-fields`` may ask for (``fog-gym generate``): FogDrive's homogeneous levels, or each level's
 #: visibility as a fog bank, as ground fog, or a mix of homogeneous, bank, ground fog and a bank over ground fog.
 FOG_FIELD_KINDS = ("levels", "banks", "height", "mixed")
@@ -36,7 +36,7 @@ FOG_FIELD_KINDS = ("levels", "banks", "height", "mixed")
 
 def make_manifest(scenes: int, resolution: Sequence[int], seconds: float, seed: int, towns: Sequence[str],
                   fog_levels: Mapping[str, float], channels: Sequence[str] | None = None,
-                  fog_fields: str = "levels") -> dict[str, Any]:  # fmt: skip
+                  fog_fields: str = "levels", camera_noise: str | None = None) -> dict[str, Any]:  # fmt: skip
     """The manifest of a generation run (JSON-ready); ``fog_levels`` maps each FogDrive level name (light,
     moderate, dense) to the visibility [m] the run fogs it with; ``fog_fields`` (one of :data:`FOG_FIELD_KINDS`)
     how those levels are laid out in space (recorded only when not ``levels``)."""
@@ -61,6 +61,8 @@ def make_manifest(scenes: int, resolution: Sequence[int], seconds: float, seed: 
     }
     if fog_fields != DEFAULTS["fog_fields"]:
         manifest["fog_fields"] = fog_fields
+    if camera_noise is not None:  # the cameras' sensor noise preset (fog_gym.sensors.camera_noise)
+        manifest["camera_noise"] = camera_noise
     return manifest
 
 

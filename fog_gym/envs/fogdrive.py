@@ -64,10 +64,13 @@ class FogDriveEnv(gym.Env):
     ("carla", FogDrive's distance model, or "reflectance": the surface's reflectivity × incidence × range loss),
     ``lidar_returns`` ("strongest", FogDrive's; "last"; or "dual": both echoes with a ``return`` column — the LiDAR's
     channels are then ``LIDAR_TOP_LAST`` / ``LIDAR_TOP_DUAL`` and their fog variants, :mod:`fog_gym.fog.returns`),
+    ``lidar_motion`` ("instant", FogDrive's; or "continuous": each azimuth fires at its time within the sweep, points
+    carry a ``time`` column and the channels are ``LIDAR_TOP_MOTION`` …, :mod:`fog_gym.sensors.motion`),
     ``camera_noise`` (None, the default: noise-free frames; "default" or a
     :class:`~fog_gym.sensors.camera_noise.CameraNoise`: every camera records with shot and read noise, a gain that
-    follows its auto-exposure and, if asked, motion blur; :attr:`frames` keep the noise-free images), or
-    ``config`` (a complete :class:`FogDriveConfig`).
+    follows its auto-exposure and, if asked, motion blur; :attr:`frames` keep the noise-free images),
+    ``antialias`` (True: every camera's RGB with filtered ground and edge anti-aliasing, :mod:`fog_gym.render.antialias`;
+    depth and semantics stay point-sampled), or ``config`` (a complete :class:`FogDriveConfig`).
 
     Public attributes (what wrappers and tools may use): ``config`` (the validated :class:`FogDriveConfig`),
     ``episode_seed`` (set by ``reset``; every random stream of the episode derives from it), ``scene`` (the
@@ -104,7 +107,9 @@ class FogDriveEnv(gym.Env):
         geometry: str | None = None,
         lidar_intensity: str | None = None,
         lidar_returns: str | None = None,
+        lidar_motion: str | None = None,
         camera_noise: Any = None,
+        antialias: bool | None = None,
         world: Any = None,
     ) -> None:
         cfg = config if config is not None else FogDriveConfig()
@@ -117,7 +122,7 @@ class FogDriveEnv(gym.Env):
             rig_cfg = replace(rig_cfg, cameras=tuple(_camera(rig_cfg, n) for n in cameras))
         if resolution is not None:
             rig_cfg = rig_cfg.with_resolution(resolution)
-        for name, value in (("intensity", lidar_intensity), ("returns", lidar_returns)):
+        for name, value in (("intensity", lidar_intensity), ("returns", lidar_returns), ("motion", lidar_motion)):
             # intensity "reflectance": reflectivity × incidence × range loss; returns "last" / "dual": the echoes a
             # beam reports in fog (fog_gym.sensors.lidar, fog_gym.fog.returns)
             if value is None:
@@ -126,9 +131,13 @@ class FogDriveEnv(gym.Env):
                 raise ValueError(f"lidar_{name} needs a rig with a LiDAR")
             lidar = replace(rig_cfg.lidar, **{name: value})  # checked by LidarConfig
             rig_cfg = RigConfig(tuple((n, lidar if c is rig_cfg.lidar else c) for n, c in rig_cfg.sensors))
+        camera_updates: dict[str, Any] = {}
         if camera_noise is not None:  # every camera of the rig records through this sensor (None keeps the rig's)
-            noise = parse_noise(camera_noise)
-            rig_cfg = RigConfig(tuple((n, replace(c, noise=noise) if isinstance(c, CameraConfig) else c)
+            camera_updates["noise"] = parse_noise(camera_noise)
+        if antialias is not None:  # every camera anti-aliased, or none (None keeps the rig's)
+            camera_updates["antialias"] = antialias  # checked by CameraConfig
+        if camera_updates:
+            rig_cfg = RigConfig(tuple((n, replace(c, **camera_updates) if isinstance(c, CameraConfig) else c)
                                       for n, c in rig_cfg.sensors))  # fmt: skip
         label_cfg = cfg.labels if isinstance(labels, str) and labels == "default" else labels
         if visibility is not None:
@@ -246,6 +255,7 @@ class FogDriveEnv(gym.Env):
     def build_scene(self) -> Scene:
         """The :class:`Scene` of the world's current state (what every sensor sees)."""
         state = self.world.vehicle_state()
+        prev = self.scene if self._steps > 0 else None  # the keyframe before, within the episode
         return Scene(
             time=self.world.time,
             ego_id=EGO_ID,
@@ -256,6 +266,7 @@ class FogDriveEnv(gym.Env):
             primitives=vehicle_primitives(state, self._lighting.night, exclude_id=EGO_ID,  # never see the own body
                                           meshes=self.config.geometry == "meshes"),
             geometry=self.config.geometry,
+            previous=None if prev is None or not prev.time < self.world.time else (prev.time - self.world.time, prev.vehicles),
         )
 
     def _observe(self) -> dict[str, np.ndarray]:
@@ -305,6 +316,9 @@ class FogDriveEnv(gym.Env):
             "speed": self.world.ego_speed,
             "crashed": self.world.ego_crashed,
         }
+        for sensor in self.point_sensors.sensors:  # a sweep that takes time: the ego's poses it was cast from
+            if getattr(sensor, "ego_poses", None) is not None:
+                info["lidar_ego_poses"] = sensor.ego_poses  # (S + 1, 4): t, x, y, yaw (fog_gym.sensors.deskew)
         if self.config.hazards is not None:
             info.update(hazard_info(self.world.hazards_ego(), self.config.hazards))
         if "rewards" in hw_info:
@@ -429,4 +443,4 @@ def _camera(rig: RigConfig, name: str):
         return rig.camera(name)
     except KeyError:
         ref = rig.cameras[0] if rig.cameras else None
-        return CameraConfig(name, FOGDRIVE_CAMERA_POSES[name], *((ref.width, ref.height, ref.fov, ref.noise) if ref else ()))
+        return CameraConfig(name, FOGDRIVE_CAMERA_POSES[name], *((ref.width, ref.height, ref.fov, ref.noise, ref.antialias) if ref else ()))

@@ -134,19 +134,23 @@ class Hahner:
 
         clean = unpack_points(obs, channel)
         mode = context.lidar_returns
-        if mode == "dual":  # the clean sweep's return column (all 0): the physics takes x, y, z, intensity
-            clean = np.ascontiguousarray(clean[:, :4])
+        if mode == "dual":  # the clean sweep's return column (all 0) goes; apply_returns writes the fogged one
+            clean = clean[:, :-1]
+        physics = np.ascontiguousarray(clean[:, :4])  # x, y, z, intensity; a time column rides along per beam
+        extra = clean[:, 4:]
         capacity = obs[channel].shape[0]
         out = {}
         for lv in levels:
             if lv.is_homogeneous:
-                fogged = fog_lidar(clean, lv, context.rngs[lv.name], context.lidar_noise, context.lidar_reflectance)
-                tau = None if mode == "strongest" else homogeneous_tau(clean, lv.alpha)
+                fogged = fog_lidar(physics, lv, context.rngs[lv.name], context.lidar_noise, context.lidar_reflectance)
+                tau = None if mode == "strongest" else homogeneous_tau(physics, lv.alpha)
             else:  # a fog field: the local extinction along each beam
                 pose = field_pose(context.poses[channel], context.frame)
-                fogged = fog_lidar_field(clean, lv, context.rngs[lv.name], pose, context.time, context.lidar_noise,
+                fogged = fog_lidar_field(physics, lv, context.rngs[lv.name], pose, context.time, context.lidar_noise,
                                          context.lidar_reflectance)  # fmt: skip
-                tau = None if mode == "strongest" else field_tau(clean, lv, pose, context.time)
+                tau = None if mode == "strongest" else field_tau(physics, lv, pose, context.time)
+            if extra.shape[1]:
+                fogged = np.concatenate([fogged, extra], axis=1)
             if mode != "strongest":
                 fogged = apply_returns(clean, fogged, tau, mode)
             out[lv.name] = pack_points(fogged, capacity)

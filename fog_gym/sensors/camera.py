@@ -34,6 +34,7 @@ from fog_gym.sensors.base import check_sensor_name, register
 from fog_gym.sensors.camera_noise import parse_noise
 from fog_gym.render.lights import (beam_window, concat_lights, cull_lights, headlights, lamp_light_map, render_night,
                                    street_lamp_lights)  # fmt: skip
+from fog_gym.render.antialias import antialias, filter_ground
 from fog_gym.render.raster import render
 from fog_gym.render.shadows import HALF, ShadowCache
 from fog_gym.render.surface import albedo_lut, ground_lut, shadow_lut, tiled_surface
@@ -59,10 +60,16 @@ class CameraConfig:
     #: Sensor noise and motion blur (:mod:`fog_gym.sensors.camera_noise`): None (noise-free, FogDrive's), "default"
     #: (an automotive-class CMOS pixel) or a :class:`~fog_gym.sensors.camera_noise.CameraNoise`.
     noise: Any = None
+    #: Anti-aliased RGB (:mod:`fog_gym.render.antialias`): day ground pixels coloured by the mean of the surface over
+    #: their footprint, then morphological edge anti-aliasing; depth, semantics and instances stay point-sampled
+    antialias: bool = False
 
     def __post_init__(self) -> None:
         check_sensor_name(self.name)
-        object.__setattr__(self, "noise", parse_noise(self.noise, "noise"))  # the FogDrive cameras are CAMERA_NAMES; an added camera takes any such name
+        object.__setattr__(self, "noise", parse_noise(self.noise, "noise"))
+        if not isinstance(self.antialias, (bool, np.bool_)):
+            raise ValueError(f"antialias must be True or False, got {self.antialias!r}")
+        object.__setattr__(self, "antialias", bool(self.antialias))  # the FogDrive cameras are CAMERA_NAMES; an added camera takes any such name
         object.__setattr__(self, "pose", Pose.coerce(self.pose))
         for attr in ("width", "height"):
             value = getattr(self, attr)
@@ -254,6 +261,13 @@ class CameraRig:
                     shadows=shadows, shadow_lut=shade,
                 )  # fmt: skip
                 gains = np.ones(len(cams))
+            smooth = np.array([c.antialias for c in cams])
+            if smooth.any():  # filtered ground (by day) and edge anti-aliasing; the other buffers stay point-sampled
+                if not night:
+                    filter_ground(out, smooth, mats[:, :3, :3], mats[:, :3, 3], ks, self.far, tiled_surface(scene.static),
+                                  lut, shade, shadows, light.sky_horizon, light.sky_zenith)  # fmt: skip
+                for i in np.flatnonzero(smooth):
+                    out["rgb"][i] = antialias(out["rgb"][i], out["depth"][i], out["sem"][i], out["inst"][i])
             for i, c in enumerate(cams):
                 frames[c.name] = CameraFrame(out["rgb"][i], out["depth"][i], out["sem"][i], out["inst"][i])
                 self.exposure[c.name] = float(gains[i])

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import functools
 import math
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -34,11 +34,11 @@ from numba import njit
 
 from fog_gym._numba import readonly
 from fog_gym.checks import finite, interval, positive
-from fog_gym.channels.spec import FOG_LEVELS
+from fog_gym.channels.spec import FOG_LEVELS, LIDAR_MOTIONS, lidar_channel, lidar_columns
 from fog_gym.geometry import Pose, sensor_to_world
 from fog_gym.sensors.base import PointSensor, point_space, register
 from fog_gym.channels.packing import LIDAR
-from fog_gym.sensors.raycast import GROUND, MISS, cast_rays
+from fog_gym.sensors.raycast import GROUND, MISS, RayHits, cast_rays
 from fog_gym.world.primitives import Primitives
 from fog_gym.world.scenery import ROAD, SurfaceMap
 
@@ -87,6 +87,10 @@ class LidarConfig:
     #: "last" or "dual" (both, with a ``return`` column). A LiDAR in "last" or "dual" mode names its channels
     #: ``<name>_LAST`` / ``<name>_DUAL`` (and their fog variants ``<name>_DUAL_FOG_<LEVEL>``).
     returns: str = "strongest"
+    #: The sweep's timing (:mod:`fog_gym.sensors.motion`): "instant" (FogDrive's: the whole sweep at the keyframe's
+    #: instant, as CARLA's synchronous mode) or "continuous" (each azimuth fires at its time within the sweep, the ego
+    #: and every vehicle where they are then; a ``time`` column; channels ``<name>_MOTION``)
+    motion: str = "instant"
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "pose", Pose.coerce(self.pose))
@@ -119,6 +123,10 @@ class LidarConfig:
         from fog_gym.fog.returns import check_mode
 
         check_mode(self.returns)
+        if self.motion not in LIDAR_MOTIONS:
+            raise ValueError(f"motion must be one of {LIDAR_MOTIONS}, got {self.motion!r}")
+        if self.motion != "instant" and type(self).__name__ == "SemanticLidarConfig":
+            raise ValueError("motion: the semantic LiDAR sweeps instantaneously (motion='instant'); 'continuous' is the LiDAR's")
 
     @classmethod
     def fogdrive(cls, **overrides: Any) -> LidarConfig:
@@ -222,7 +230,7 @@ INTENSITY_MODELS: tuple[str, ...] = ("carla", "reflectance")
 
 @njit(cache=True, nogil=True)
 def _lidar_points(dirs, dist, index, noise, uniform, attenuation, limit, alpha, beta, reflect):
-    """Kept returns as (N, 4) float32 x, y, z, intensity; ``noise`` / ``uniform`` empty when switched off;
+    """Kept returns as (N, 4) float32 x, y, z, intensity and the ray of each; ``noise`` / ``uniform`` empty when switched off;
     ``reflect`` (N,) float32 the reflectivity × incidence factor of each ray's hit, or empty (CARLA's model).
 
     Intensity and the drop-off test are float32, as CARLA computes them."""
@@ -245,9 +253,11 @@ def _lidar_points(dirs, dist, index, noise, uniform, attenuation, limit, alpha, 
             keep[i] = True
             count += 1
     out = np.empty((count, 4), dtype=np.float32)
+    src = np.empty(count, dtype=np.int64)
     k = 0
     for i in range(n):
         if keep[i]:
+            src[k] = i
             r = np.float64(dist[i])
             if noise.shape[0] > 0:
                 r += noise[i]
@@ -256,7 +266,7 @@ def _lidar_points(dirs, dist, index, noise, uniform, attenuation, limit, alpha, 
             out[k, 2] = dirs[i, 2] * r
             out[k, 3] = intensity[i]
             k += 1
-    return out
+    return out, src
 
 
 _NONE = np.zeros(0)
@@ -270,6 +280,7 @@ def simulate_lidar(
     rng: np.random.Generator,
     simulation_frequency: float = 20.0,
     start_angle: float = 0.0,
+    motion: Callable[[float], tuple[np.ndarray, Primitives]] | None = None,
 ) -> np.ndarray:
     """One tick of a ray-cast LiDAR: ``(N, 4)`` float32 x, y, z, intensity in the sensor frame.
 
@@ -282,6 +293,10 @@ def simulate_lidar(
     reflectivity term): then ``I = ρ · |cos θ| · exp(−attenuation · d)`` with ``ρ`` the surface's LiDAR reflectivity.
     The random draws (a uniform per ray for the general drop-off, then per traced ray a normal for the noise and a
     uniform for the intensity drop-off, each only when switched on) all come from ``rng``: a seed fixes the result.
+    ``motion`` (a sweep that takes time, :mod:`fog_gym.sensors.motion`): ``motion(t)`` gives the sensor→world
+    transform and the primitives at ``t`` seconds from the tick's end; each slice of azimuth columns is cast from
+    there, and a fifth column holds each point's time (the same draws: in a still world the first four columns
+    equal the instantaneous sweep's).
 
     >>> cfg = LidarConfig.fogdrive(dropoff_general_rate=0.0, dropoff_zero_intensity=0.0)
     >>> pts = simulate_lidar(cfg, sensor_to_world(cfg.pose), Primitives.empty(), None, np.random.default_rng(0))
@@ -292,17 +307,46 @@ def simulate_lidar(
     """
     rot, origin = split_transform(sensor_to_world)
     dirs = lidar_directions(cfg, simulation_frequency, start_angle)
+    rays = None
     if cfg.dropoff_general_rate > _EPS:  # rays skipped before tracing
-        dirs = dirs.take(np.flatnonzero(rng.random(dirs.shape[0]) >= cfg.dropoff_general_rate), axis=0)
+        rays = np.flatnonzero(rng.random(dirs.shape[0]) >= cfg.dropoff_general_rate)
+        dirs = dirs.take(rays, axis=0)
     n = dirs.shape[0]
-    hits = cast_rays(origin, dirs, cfg.range, prims, rotation=rot)
+    times = None
+    if motion is None:
+        hits = cast_rays(origin, dirs, cfg.range, prims, rotation=rot)
+        reflect = _NONE32 if cfg.intensity == "carla" else reflectance(hits, dirs, rot, origin, surface, prims.colors)
+    else:  # a sweep that takes time: each slice of columns from where the sensor and the world are at its time
+        from fog_gym.sensors.motion import sweep_slices
+
+        columns = (np.arange(n) if rays is None else rays) % cfg.points_per_channel(simulation_frequency)
+        slices, times_of = sweep_slices(columns, cfg.points_per_channel(simulation_frequency), simulation_frequency)
+        dist, index = np.empty(n, np.float32), np.empty(n, np.int32)
+        cosine, material = np.empty(n, np.float32), np.empty(n, np.uint8)
+        reflect = _NONE32 if cfg.intensity == "carla" else np.empty(n, np.float32)
+        for k, sel in enumerate(slices):
+            if sel.size == 0:
+                continue
+            s2w, prims_k = motion(float(times_of[k]))
+            rot_k, origin_k = split_transform(s2w)
+            d = dirs.take(sel, axis=0)
+            h = cast_rays(origin_k, d, cfg.range, prims_k, rotation=rot_k)
+            dist[sel], index[sel], cosine[sel], material[sel] = h
+            if reflect.size:
+                reflect[sel] = reflectance(h, d, rot_k, origin_k, surface, prims_k.colors)
+        hits = RayHits(dist, index, cosine, material)
+        times = np.empty(n, np.float32)
+        for k, sel in enumerate(slices):
+            times[sel] = times_of[k]
     noise = rng.normal(0.0, cfg.noise_stddev, n) if cfg.noise_stddev > _EPS else _NONE
     uniform = rng.random(n) if cfg.dropoff_zero_intensity > 0.0 else _NONE
     limit = cfg.dropoff_intensity_limit
     alpha = cfg.dropoff_zero_intensity / limit if limit > 0.0 else 0.0
-    reflect = _NONE32 if cfg.intensity == "carla" else reflectance(hits, dirs, rot, origin, surface, prims.colors)
-    return _lidar_points(readonly(dirs), hits.distance, hits.index, noise, uniform, cfg.atmosphere_attenuation_rate, limit,
-                         alpha, 1.0 - cfg.dropoff_zero_intensity, reflect)  # fmt: skip
+    out, src = _lidar_points(readonly(dirs), hits.distance, hits.index, noise, uniform, cfg.atmosphere_attenuation_rate,
+                             limit, alpha, 1.0 - cfg.dropoff_zero_intensity, reflect)  # fmt: skip
+    if times is None:
+        return out
+    return np.concatenate([out, times[src, None]], axis=1)
 
 
 _NONE32 = np.zeros(0, np.float32)
@@ -361,17 +405,20 @@ class LidarSensor(PointSensor):
 
     def __init__(self, config: Any, simulation_frequency: float = 20.0, channel: str | None = None) -> None:
         super().__init__(config, simulation_frequency, channel)
-        if config.returns != "strongest" and self.channel == self.default_channel:
-            self.channel = f"{self.default_channel}_{config.returns.upper()}"
-        #: A dual-return LiDAR's points carry a fifth column: 0 a beam's strongest echo, 1 its last where it differs.
-        self.columns = 5 if config.returns == "dual" else 4
+        if self.channel == self.default_channel:  # LIDAR_TOP_LAST / _DUAL / _MOTION: not FogDrive's data
+            self.channel = lidar_channel(self.default_channel, config.returns, config.motion)
+        #: x, y, z, intensity; then ``time`` (a sweep that takes time) and ``return`` (dual: 0 a beam's strongest
+        #: echo, 1 its last where it differs) — :func:`fog_gym.channels.spec.lidar_columns`
+        self.columns = len(lidar_columns(config.returns, config.motion))
+        #: ``(S + 1, 4)`` rows of ``(t, x, y, yaw)``: the ego's pose at each slice of the latest continuous sweep
+        #: and at the keyframe (None for an instantaneous sweep)
+        self.ego_poses: np.ndarray | None = None
 
     @classmethod
     def build(cls, name: str, config: Any, simulation_frequency: float = 20.0, far: float = 1000.0) -> PointSensor:
         """The sensor of a rig entry ``(name, config)``: its channel is ``name`` (``name_LAST`` / ``name_DUAL`` in
-        the other return modes: their data are not FogDrive's)."""
-        channel = name if config.returns == "strongest" else f"{name}_{config.returns.upper()}"
-        return cls(config, simulation_frequency, channel=channel)
+        the other return modes and ``…_MOTION`` for a sweep that takes time: their data are not FogDrive's)."""
+        return cls(config, simulation_frequency, channel=lidar_channel(name, config.returns, config.motion))
 
     def layout(self):
         """The clean channel and its fog variants ``<channel>_FOG_<LEVEL>`` in ``<folder>_fog_<level>``."""
@@ -382,17 +429,33 @@ class LidarSensor(PointSensor):
 
     def space(self):
         box = lidar_space(self.config, self.simulation_frequency, semantic=False)
-        if self.config.returns != "dual":
+        cfg = self.config
+        low, high, capacity = list(box.low[0]), list(box.high[0]), box.shape[0]
+        if cfg.motion == "continuous":  # the time column: within the tick before the keyframe
+            low, high = low + [-1.0 / self.simulation_frequency], high + [0.0]
+        if cfg.returns == "dual":  # a second echo per beam at most; the return column in [0, 1]
+            low, high, capacity = low + [0.0], high + [1.0], 2 * capacity
+        if len(low) == 4:
             return box
-        from fog_gym.sensors.base import point_space
-
-        # dual: a second echo per beam at most; the return column in [0, 1]
-        return point_space(2 * box.shape[0], [*box.low[0], 0.0], [*box.high[0], 1.0])
+        return point_space(capacity, low, high)
 
     def measure(self, scene, prims, rng: np.random.Generator, tick: int) -> dict[str, np.ndarray]:
         cfg = self.config
+        motion = None
+        if cfg.motion == "continuous":
+            from fog_gym.sensors.motion import sweep_slices
+            from fog_gym.world.motion import SceneMotion
+
+            sm = SceneMotion(scene.vehicles, getattr(scene, "previous", None))
+
+            def motion(t: float):
+                return sensor_to_world(cfg.pose, sm.ego_pose_at(t, scene.ego_id)), sm.primitives_at(prims, t)
+
+            m = cfg.points_per_channel(self.simulation_frequency)
+            _, times = sweep_slices(np.arange(m), m, self.simulation_frequency)
+            self.ego_poses = np.array([(t, *sm.ego_pose_at(t, scene.ego_id)) for t in (*times, 0.0)])
         pts = simulate_lidar(cfg, sensor_to_world(cfg.pose, scene.ego_pose), prims, scene.static.surface, rng,
-                             self.simulation_frequency, self.start_angle(tick))  # fmt: skip
+                             self.simulation_frequency, self.start_angle(tick), motion)  # fmt: skip
         if cfg.returns == "dual":  # in clear air a beam's strongest echo is its last: one row, return 0
             pts = np.concatenate([pts, np.zeros((len(pts), 1), np.float32)], axis=1)
         return {self.channel: pts}

@@ -130,6 +130,9 @@ class Scene:
     lighting: Lighting
     primitives: Primitives
     geometry: str = "boxes"  # "meshes": the props are drawn as their meshes (fog_gym.world.prop_meshes) too
+    #: The previous keyframe's ``(time − this time, vehicles)`` (None at an episode's first frame): where a sensor
+    #: that takes time finds the vehicles between the two (:class:`fog_gym.world.motion.SceneMotion`)
+    previous: tuple[float, VehicleState] | None = None
 
 
 def _parts(cls: int, L, W, H):

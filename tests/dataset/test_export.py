@@ -341,9 +341,10 @@ def test_cli_export_writes_each_format_with_a_progress_bar(fogdrive, tmp_path):
         [sys.executable, "-m", "fog_gym.cli", "export", "--help"], capture_output=True, text=True).stdout
 
 
-def _devkit_car_ap(fogdrive, tmp_path, fog: str, min_points: int) -> tuple[float, int, int]:
-    """Export at ``fog``, submit every ground-truth box with at least ``min_points`` LiDAR points as a detection (score
-    1) to the devkit's DetectionEval; returns (car AP, boxes submitted, boxes without a point)."""
+def _devkit_car_ap(fogdrive, tmp_path, fog: str, min_points: int, radar: bool = True) -> tuple[float, int, int]:
+    """Export at ``fog``, submit every ground-truth box with at least ``min_points`` LiDAR (and, with ``radar``, radar)
+    points as a detection (score 1) to the devkit's DetectionEval; returns (car AP, boxes submitted, boxes without a
+    point)."""
     import contextlib
     import io
 
@@ -361,19 +362,19 @@ def _devkit_car_ap(fogdrive, tmp_path, fog: str, min_points: int) -> tuple[float
     results, empty = {}, 0
     for sample in (s for s in nusc.sample if s["scene_token"] in train):
         anns = [nusc.get("sample_annotation", t) for t in sample["anns"]]
-        empty += sum(a["num_lidar_pts"] == 0 for a in anns)
+        empty += sum(a["num_lidar_pts"] + radar * a["num_radar_pts"] == 0 for a in anns)
         results[sample["token"]] = [{
             "sample_token": sample["token"], "translation": a["translation"], "size": a["size"],
             "rotation": a["rotation"], "velocity": [0.0 if np.isnan(v) else float(v) for v in nusc.box_velocity(a["token"])[:2]],
             "detection_name": category_to_detection_name(a["category_name"]), "detection_score": 1.0,
             "attribute_name": nusc.get("attribute", a["attribute_tokens"][0])["name"] if a["attribute_tokens"] else "",
-        } for a in anns if a["num_lidar_pts"] >= min_points]  # fmt: skip
-    path = tmp_path / f"results_{fog}_{min_points}.json"
+        } for a in anns if a["num_lidar_pts"] + radar * a["num_radar_pts"] >= min_points]  # fmt: skip
+    path = tmp_path / f"results_{fog}_{min_points}_{radar}.json"
     path.write_text(json.dumps({"meta": {"use_lidar": True, "use_camera": False, "use_radar": False, "use_map": False,
                                          "use_external": False}, "results": results}))  # fmt: skip
     with contextlib.redirect_stdout(io.StringIO()):
         ev = DetectionEval(nusc, config_factory("detection_cvpr_2019"), str(path), "fogdrive_train",
-                           str(tmp_path / f"eval_{fog}_{min_points}"), verbose=False)  # fmt: skip
+                           str(tmp_path / f"eval_{fog}_{min_points}_{radar}"), verbose=False)  # fmt: skip
         metrics, _ = ev.evaluate()
     summary = metrics.serialize()
     if min_points:
@@ -387,11 +388,12 @@ def test_the_devkit_evaluates_the_ground_truth_on_fogdrives_split_at_map_1(fogdr
     assert ap == pytest.approx(1.0)
 
 
-def test_in_dense_fog_the_devkit_drops_boxes_without_points_so_the_ground_truth_scores_them_as_false_positives(
+def test_in_dense_fog_the_devkit_keeps_the_boxes_the_radar_sees_and_drops_those_without_any_point(
         fogdrive, tmp_path):  # fmt: skip
-    """docs/exports.md: DetectionEval removes ground-truth boxes with no LiDAR point (num_lidar_pts 0), as for nuScenes.
-    Every box submitted: those without points become false positives (AP < 1); the boxes with points: AP = 1."""
-    ap_all, n_all, empty = _devkit_car_ap(fogdrive, tmp_path, "dense", 0)
-    ap_pts, n_pts, _ = _devkit_car_ap(fogdrive, tmp_path, "dense", 1)
-    assert empty > 0 and n_pts == n_all - empty  # dense fog leaves boxes without a single return
-    assert ap_all < 0.999 and ap_pts == pytest.approx(1.0)
+    """docs/exports.md: DetectionEval removes ground-truth boxes with no LiDAR and no radar point (num_lidar_pts +
+    num_radar_pts 0), as for nuScenes. In dense fog the LiDAR loses far boxes the radar (not fogged) still sees: the
+    ground truth with LiDAR points alone misses them (AP < 1); with LiDAR or radar points it scores AP = 1."""
+    ap_lidar, n_lidar, no_lidar = _devkit_car_ap(fogdrive, tmp_path, "dense", 1, radar=False)
+    ap_pts, n_pts, empty = _devkit_car_ap(fogdrive, tmp_path, "dense", 1)
+    assert no_lidar > empty and n_pts > n_lidar  # boxes without a LiDAR return that the radar detects
+    assert ap_lidar < 0.999 and ap_pts == pytest.approx(1.0)

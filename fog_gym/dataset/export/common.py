@@ -17,6 +17,7 @@ import numpy as np
 from fog_gym.dataset.access import DatasetError, FogDrive
 from fog_gym.dataset.decode import load_channel
 from fog_gym.dataset.export.frames import class_from_height
+from fog_gym.channels.spec import LIDAR_MOTIONS, LIDAR_RETURNS, lidar_channel
 from fog_gym.dataset.layout import CAMERA_NAMES, layout_cameras
 from fog_gym.dataset.poses import EgoPose
 from fog_gym.dataset.writer import WriteError, _atomic_write, atomic_write_all
@@ -54,8 +55,10 @@ class Source:
         self.split = split
         self._have = set(self.ds.list_channels())
         self.all_cameras = tuple(c for c in layout_cameras(self.ds.channels) if c in self._have)
-        # FogDrive's LiDAR, or a last- / dual-return LiDAR's own channels (fog_gym.fog.returns)
-        lidar = next((c for c in (LIDAR, f"{LIDAR}_LAST", f"{LIDAR}_DUAL") if c in self._have), LIDAR)
+        # FogDrive's LiDAR, or a last- / dual-return LiDAR's or a sweep-in-time LiDAR's own channels
+        # (fog_gym.fog.returns, fog_gym.sensors.motion; the exports write x, y, z, intensity of every point)
+        variants = [lidar_channel(LIDAR, r, m) for m in LIDAR_MOTIONS for r in LIDAR_RETURNS]
+        lidar = next((c for c in variants if c in self._have), LIDAR)
         self.lidar_channel = fog_channel(lidar, fog)
         self.cameras: tuple[str, ...] = ()
         self.select_cameras(cameras)

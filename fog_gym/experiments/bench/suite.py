@@ -11,7 +11,9 @@ fog_gym.experiments.bench.<name>``):
 * :mod:`~fog_gym.experiments.bench.geometry`: the world of meshes against the box world in the same run (day and night
   steps, point sensors, the pixel RL vector env, memory);
 * :mod:`~fog_gym.experiments.bench.augment`: fog on real data per core (a KITTI-sized scan per level and in a bank, a
-  KITTI-sized image with depth completion) beside the reference fog program's cost.
+  KITTI-sized image with depth completion) beside the reference fog program's cost;
+* :mod:`~fog_gym.experiments.bench.realism`: sensors like real ones against the same work without them (dual LiDAR
+  returns, a sweep that takes time, camera noise, anti-aliasing), each a ratio measured in one run.
 
 Usage::
 
@@ -28,6 +30,7 @@ import time
 from pathlib import Path
 
 from fog_gym.experiments.bench import augment as bench_augment
+from fog_gym.experiments.bench import realism as bench_realism
 from fog_gym.experiments.bench import dataset as bench_dataset
 from fog_gym.experiments.bench import env as bench_env
 from fog_gym.experiments.bench import fog as bench_fog
@@ -78,10 +81,11 @@ def main(argv: list[str] | None = None, prog: str = "fog-gym bench") -> int:
     baseline = bench_env.bench_baselines(args.town, repeats, profile_steps)
     geometry = bench_geometry.bench_geometry(repeats, 5 if args.quick else 15)
     augment = bench_augment.bench_augment(repeats)
+    realism = bench_realism.bench_realism(repeats, (320, 240) if args.quick else (1280, 960))
     finish_meta(meta, t0)
     results = {"meta": meta, "rigs": rigs, "point_sensors": point_sensors, "fog": fog, "labels": labels,
                "recording": recording, "rl": rl, "baseline": baseline, "night": night, "geometry": geometry,
-               "augment": augment}  # fmt: skip
+               "augment": augment, "realism": realism}  # fmt: skip
 
     print(bench_env.render_stages(results))
     print("\n" + "\n".join(bench_sensors.render_point_sensors(point_sensors, repeats)))
@@ -93,6 +97,7 @@ def main(argv: list[str] | None = None, prog: str = "fog-gym bench") -> int:
     print("\n" + "\n".join(bench_sensors.render_night(night, repeats)))
     print("\n" + "\n".join(bench_geometry.render_geometry(geometry)))
     print("\n" + "\n".join(bench_augment.render_augment(augment, repeats)))
+    print("\n" + "\n".join(bench_realism.render_realism(realism, repeats)))
     write_json(args.json, results)
     return 0
 

@@ -1,0 +1,130 @@
+"""Sensors like real ones, what they cost: each option against the same work without it, alternating call by call in
+one run (so the machine's drift falls on both sides of each ratio):
+
+* dual LiDAR returns: the fog of one dense-fog FogDrive sweep (Hahner et al., then the return rule) against the
+  strongest echo alone — target ≤ 1.2×;
+* a sweep that takes time: the LiDAR's sweep (``motion="continuous"``, 32 slices cast from where the ego and the
+  vehicles are at each slice's time) against the instantaneous sweep — target ≤ 1.5×;
+* camera noise: a full-rig frame (``FogDrive-v0``'s step: four cameras at 1280 × 960, the LiDAR, semantic LiDAR,
+  radar and labels) with ``camera_noise="default"`` against one without — target ≤ 1.1×;
+* anti-aliasing: the full-rig day frame with ``antialias=True`` against one without — default on at ≤ 1.25×, else
+  opt-in with the cost documented.
+
+Medians over ``--repeats`` calls after a warm-up; prints a Markdown table and asserts no timing.
+
+Usage::
+
+    python -m fog_gym.experiments.bench.realism            # 20 repeats
+    python -m fog_gym.experiments.bench.realism --quick
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from collections.abc import Callable
+from typing import Any
+
+import numpy as np
+
+from fog_gym.experiments.bench.common import (
+    add_common_arguments, finish_meta, fmt_ms, markdown_table, meta_line, repeats_of, run_meta, summarize, timed,
+    write_json,
+)  # fmt: skip
+
+#: The issue's targets: the ratio of each option's cost to the cost without it.
+TARGETS = {"dual returns": 1.2, "continuous sweep": 1.5, "camera noise": 1.1, "anti-aliasing": 1.25}
+
+
+def paired(a: Callable[[], Any], b: Callable[[], Any], repeats: int) -> tuple[dict[str, Any], dict[str, Any], float]:
+    """Alternate ``a`` (the plain call) and ``b`` (with the option) ``repeats`` times after a warm-up of each; the
+    medians and the ratio of the medians."""
+    a()
+    b()
+    ta, tb = [], []
+    for _ in range(repeats):
+        ta.append(timed(a)[1])
+        tb.append(timed(b)[1])
+    sa, sb = summarize(ta), summarize(tb)
+    return sa, sb, sb["median"] / sa["median"]
+
+
+def bench_realism(repeats: int, resolution: tuple[int, int] = (1280, 960)) -> dict[str, Any]:
+    from dataclasses import replace
+
+    from fog_gym.channels.packing import unpack_points
+    from fog_gym.envs.fogdrive import FogDriveEnv
+    from fog_gym.fog.models import FogContext, model_for
+    from fog_gym.fog.physics import parse_fog
+    from fog_gym.sensors import LidarSensor
+
+    results: dict[str, Any] = {"resolution": list(resolution)}
+    # the LiDAR: a FogDrive scene a few steps in, its sweep, its fog
+    env = FogDriveEnv(town="highway", resolution=(64, 48), cameras=["CAM_FRONT"], labels=None)
+    env.reset(seed=0)
+    for _ in range(4):
+        env.step(env.idle_action)
+    scene = env.scene
+    prims = env.cameras.primitives(scene, in_view=False)
+    cfg = env.config.rig.lidar
+    instant = LidarSensor(cfg, env.config.simulation_frequency)
+    moving = LidarSensor(replace(cfg, motion="continuous"), env.config.simulation_frequency)
+    rng = np.random.default_rng(0)
+    results["continuous sweep"] = paired(lambda: instant.measure(scene, prims, rng, 3),
+                                         lambda: moving.measure(scene, prims, rng, 3), repeats)  # fmt: skip
+    sweep = unpack_points(env._observe(), "LIDAR_TOP")
+    dense = parse_fog("dense")
+    hahner = model_for("lidar")
+    obs4 = {"LIDAR_TOP": np.concatenate([sweep, np.zeros((len(sweep), 4), np.float32)])}
+    obs5 = {"LIDAR_TOP_DUAL": np.concatenate([np.c_[sweep, np.zeros(len(sweep), np.float32)],
+                                              np.zeros((2 * len(sweep), 5), np.float32)])}  # fmt: skip
+    ctx = {m: FogContext(rngs={dense.name: np.random.default_rng(1)}, lidar_returns=m) for m in ("strongest", "dual")}
+    results["dual returns"] = paired(lambda: hahner.apply(obs4, "LIDAR_TOP", [dense], ctx["strongest"]),
+                                     lambda: hahner.apply(obs5, "LIDAR_TOP_DUAL", [dense], ctx["dual"]), repeats)  # fmt: skip
+    results["points"] = int(len(sweep))
+    # full-rig frames
+    for name, kwargs in (("camera noise", {"camera_noise": "default"}), ("anti-aliasing", {"antialias": True})):
+        plain = FogDriveEnv(town="highway", resolution=resolution)
+        option = FogDriveEnv(town="highway", resolution=resolution, **kwargs)
+        plain.reset(seed=1)
+        option.reset(seed=1)
+        results[name] = paired(lambda: plain.step(plain.idle_action), lambda: option.step(option.idle_action), repeats)
+    return results
+
+
+def render_realism(results: dict[str, Any], repeats: int) -> list[str]:
+    w, h = results["resolution"]
+    what = {
+        "dual returns": f"LiDAR fog of one dense-fog sweep ({results['points'] // 1000} k points): strongest → dual",
+        "continuous sweep": "the LiDAR's sweep: instantaneous → continuous (32 slices)",
+        "camera noise": f"full-rig frame, 4 cameras {w} × {h}: noise-free → camera_noise='default'",
+        "anti-aliasing": f"full-rig day frame, 4 cameras {w} × {h}: point-sampled → antialias=True",
+    }
+    rows = []
+    for key, label in what.items():
+        a, b, ratio = results[key]
+        target = TARGETS[key]
+        rows.append([label, fmt_ms(a), fmt_ms(b), f"**{ratio:.2f}×**", f"≤ {target:g}×: {'met' if ratio <= target else 'not met'}"])
+    return [f"**Sensors like real ones** (median of {repeats}, alternating; ms)", "",
+            markdown_table(["option", "without", "with", "ratio", "target"], rows)]  # fmt: skip
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m fog_gym.experiments.bench.realism", description=__doc__.split("\n\n")[0],
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
+    add_common_arguments(parser)
+    args = parser.parse_args(argv)
+    repeats = repeats_of(args)
+    meta = run_meta(repeats=repeats, quick=args.quick)
+    t0 = time.perf_counter()
+    results = bench_realism(repeats, (320, 240) if args.quick else (1280, 960))
+    finish_meta(meta, t0)
+    print(meta_line(meta))
+    print("\n".join(render_realism(results, repeats)))
+    write_json(args.json, {"meta": meta, "realism": results})
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

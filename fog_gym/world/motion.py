@@ -1,0 +1,85 @@
+"""The world between keyframes: every vehicle's pose at a time near the scene's instant (pure numpy).
+
+A sensor that takes time to measure (a spinning LiDAR's sweep, :mod:`fog_gym.sensors.motion`) sees each vehicle
+where it is when the beam fires. :class:`SceneMotion` gives the poses at ``t`` seconds from the scene's instant
+(``t <= 0`` within the last keyframe interval): interpolated linearly (position, and heading along the shorter
+arc) between the previous keyframe's state (:attr:`fog_gym.world.scene.Scene.previous`) and the scene's, for
+vehicles in both; extrapolated at constant velocity and heading from the scene's state otherwise (a vehicle that
+appeared, the episode's first frame). Over FogDrive's keyframe interval (0.1 s, two simulation steps) a
+highway-env vehicle's path is a straight line to within millimetres, so this is the simulation's own motion.
+
+Example:
+    >>> from fog_gym.world.fleet import VehicleState
+    >>> def state(x, yaw):
+    ...     return VehicleState(np.array([1]), np.zeros(1, np.int8), np.array([[x, 0.0, 0.75]]), np.array([[4.5, 1.8, 1.5]]),
+    ...                         np.array([yaw]), np.array([[30.0, 0, 0]]), np.full((1, 3), 0.5))
+    >>> m = SceneMotion(state(13.0, 0.1), previous=(-0.1, state(10.0, 0.0)))
+    >>> m.ego_pose_at(-0.05, ego_id=1)
+    (11.5, 0.0, 0.05)
+    >>> SceneMotion(state(13.0, 0.0)).ego_pose_at(-0.05, ego_id=1)  # no previous keyframe: constant velocity
+    (11.5, 0.0, 0.0)
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+
+from fog_gym.world.fleet import VehicleState
+from fog_gym.world.primitives import Primitives
+
+
+class SceneMotion:
+    """Poses of the vehicles of ``current`` (the scene's state, time 0) at times near it; ``previous`` is the
+    ``(time, state)`` of the keyframe before (time < 0), or None."""
+
+    def __init__(self, current: VehicleState, previous: tuple[float, VehicleState] | None = None) -> None:
+        self.current = current
+        n = len(current)
+        self._row = {int(i): k for k, i in enumerate(current.ids)}
+        self._dxy = np.asarray(current.velocities, np.float64)[:, :2].copy()  # metres per second from time 0
+        self._dyaw = np.zeros(n)  # radians per second
+        if previous is not None:
+            t_prev, prev = previous
+            if not t_prev < 0:
+                raise ValueError(f"the previous keyframe must lie before the scene (time < 0), got {t_prev!r}")
+            rows = {int(i): k for k, i in enumerate(prev.ids)}
+            for k, vid in enumerate(current.ids):
+                j = rows.get(int(vid))
+                if j is None:
+                    continue
+                self._dxy[k] = (current.centers[k, :2] - prev.centers[j, :2]) / -t_prev
+                dyaw = (current.yaws[k] - prev.yaws[j] + np.pi) % (2 * np.pi) - np.pi
+                self._dyaw[k] = dyaw / -t_prev
+
+    def offsets(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """Each vehicle's displacement (N, 2) and heading change (N,) from the scene's instant to time ``t``."""
+        return self._dxy * t, self._dyaw * t
+
+    def ego_pose_at(self, t: float, ego_id: int) -> tuple[float, float, float]:
+        """``(x, y, yaw)`` of vehicle ``ego_id`` (the ground point under its centre) at time ``t``."""
+        k = self._row[int(ego_id)]
+        d, dyaw = self._dxy[k] * t, self._dyaw[k] * t
+        c = self.current.centers[k]
+        return (float(c[0] + d[0]), float(c[1] + d[1]), float(self.current.yaws[k] + dyaw))
+
+    def primitives_at(self, prims: Primitives, t: float) -> Primitives:
+        """``prims`` with every vehicle's boxes (``insts`` > 0, its id) moved rigidly to time ``t``: rotated about the
+        vehicle's centre by its heading change and shifted by its displacement; the static world stays."""
+        moving = np.flatnonzero(prims.insts > 0)
+        if moving.size == 0 or t == 0.0:
+            return prims
+        rows = np.array([self._row.get(int(i), -1) for i in prims.insts[moving]])
+        ok = rows >= 0
+        moving, rows = moving[ok], rows[ok]
+        d, dyaw = self.offsets(t)
+        pivot = self.current.centers[rows, :2]
+        c, s = np.cos(dyaw[rows]), np.sin(dyaw[rows])
+        rel = prims.centers[moving, :2] - pivot
+        centers = prims.centers.copy()
+        centers[moving, 0] = pivot[:, 0] + c * rel[:, 0] - s * rel[:, 1] + d[rows, 0]
+        centers[moving, 1] = pivot[:, 1] + s * rel[:, 0] + c * rel[:, 1] + d[rows, 1]
+        yaws = prims.yaws.copy()
+        yaws[moving] = yaws[moving] + dyaw[rows]
+        return replace(prims, centers=centers, yaws=yaws)
