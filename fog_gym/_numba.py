@@ -101,6 +101,11 @@ def _mark_worker() -> None:
     _THREAD.worker = True
 
 
+def in_worker() -> bool:
+    """Whether this thread is a :func:`worker_pool`'s (its kernels run their serial twins)."""
+    return bool(_THREAD.worker)
+
+
 def worker_pool(threads: int):
     """A ``ThreadPoolExecutor`` of ``threads`` threads marked as workers (:func:`pick` and :func:`launch` keep
     numba's threading layer to one launch at a time)."""

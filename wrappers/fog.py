@@ -138,9 +138,11 @@ class FogWrapper(gym.Wrapper):
         obs, info = self.env.reset(seed=seed, options=options)
         base = self.env.unwrapped
         night = base.scene is not None and base.scene.lighting.night  # night: the fog is lit by the scene's lights
+        clean, _ = self._clean_rgb(obs)
+        obs_clean = {**obs, **clean}  # the airlight of the light itself, not of a noisy recording of it
         self.airlight = {
             cam: self._fixed_airlight if self._fixed_airlight is not None
-            else night_airlight(obs[cam], obs[f"{cam}_DEPTH"]) if night else atmospheric_light(obs[cam])
+            else night_airlight(obs_clean[cam], obs[f"{cam}_DEPTH"]) if night else atmospheric_light(obs_clean[cam])
             for cam in self.cameras
         }
         self._rngs = {
@@ -273,14 +275,28 @@ class FogWrapper(gym.Wrapper):
         poses = {}
         if self.fields:  # each fogged sensor's pose in the world, for the fields' optical depths
             poses = {ch: base.sensor_to_world(ch) for ch in self.models}
+        clean, record = self._clean_rgb(obs)
         context = FogContext(base.intrinsics, self.airlight, self._rngs,
                              base.scene is not None and base.scene.lighting.night, self.lidar_noise, reflect, poses,
                              self.field_frame, self._field_time(),
-                             lidar.returns if lidar is not None else "strongest")  # fmt: skip
+                             lidar.returns if lidar is not None else "strongest", clean, record,
+                             {lv.name: _level_key(lv) + 1 for lv in levels})  # fmt: skip
         for channel, model in self.models.items():  # the model of each sensor kind (fog_gym.fog.models)
             for name, fogged in model.apply(obs, channel, levels, context).items():
                 out[name][channel] = fogged
         return out
+
+    def _clean_rgb(self, obs: dict) -> tuple[dict[str, np.ndarray], Any]:
+        """The noise-free images of the cameras that record with noise (fog is light in the scene: it is added
+        before the sensor's noise) and the env's ``camera_record``; none when no camera has noise (or an inner
+        wrapper changed the images)."""
+        base = self.env.unwrapped
+        effects = getattr(base, "camera_effects", None)
+        if not effects:
+            return {}, None
+        clean = {cam: base.frames[cam].rgb for cam in effects.noise
+                 if cam in base.frames and cam in obs and base.frames[cam].rgb.shape == np.shape(obs[cam])}  # fmt: skip
+        return clean, base.camera_record if clean else None
 
     def _keep_lidar(self, obs: dict, fogged: dict[str, dict[str, np.ndarray]]) -> None:
         """The fogged LiDAR sweeps of this frame, for the boxes' ``num_lidar_pts`` per level."""

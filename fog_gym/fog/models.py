@@ -130,28 +130,25 @@ class Hahner:
     name = "hahner"
 
     def apply(self, obs, channel, levels, context):
-        from fog_gym.fog.returns import apply_returns, field_tau, homogeneous_tau
+        from fog_gym.fog.returns import apply_returns, field_tau
 
         clean = unpack_points(obs, channel)
         mode = context.lidar_returns
         if mode == "dual":  # the clean sweep's return column (all 0) goes; apply_returns writes the fogged one
-            clean = clean[:, :-1]
-        physics = np.ascontiguousarray(clean[:, :4])  # x, y, z, intensity; a time column rides along per beam
-        extra = clean[:, 4:]
+            clean = np.ascontiguousarray(clean[:, :-1])
+        # x, y, z, intensity feed the physics; further columns (a sweep's time) ride along with each beam
         capacity = obs[channel].shape[0]
         out = {}
         for lv in levels:
             if lv.is_homogeneous:
-                fogged = fog_lidar(physics, lv, context.rngs[lv.name], context.lidar_noise, context.lidar_reflectance)
-                tau = None if mode == "strongest" else homogeneous_tau(physics, lv.alpha)
+                fogged = fog_lidar(clean, lv, context.rngs[lv.name], context.lidar_noise, context.lidar_reflectance)
+                tau = None  # α·R, in the return rule's own pass
             else:  # a fog field: the local extinction along each beam
                 pose = field_pose(context.poses[channel], context.frame)
-                fogged = fog_lidar_field(physics, lv, context.rngs[lv.name], pose, context.time, context.lidar_noise,
+                fogged = fog_lidar_field(clean, lv, context.rngs[lv.name], pose, context.time, context.lidar_noise,
                                          context.lidar_reflectance)  # fmt: skip
-                tau = None if mode == "strongest" else field_tau(physics, lv, pose, context.time)
-            if extra.shape[1]:
-                fogged = np.concatenate([fogged, extra], axis=1)
+                tau = None if mode == "strongest" else field_tau(clean, lv, pose, context.time)
             if mode != "strongest":
-                fogged = apply_returns(clean, fogged, tau, mode)
+                fogged = apply_returns(clean, fogged, tau, mode, alpha=lv.alpha if tau is None else None)
             out[lv.name] = pack_points(fogged, capacity)
         return out

@@ -54,10 +54,12 @@ def hard_intensity(points: np.ndarray, tau: np.ndarray) -> np.ndarray:
     return np.round(i_orig * np.exp(-2.0 * np.asarray(tau, np.float64)))
 
 
-def apply_returns(clean: np.ndarray, strongest: np.ndarray, tau: np.ndarray, mode: str) -> np.ndarray:
+def apply_returns(clean: np.ndarray, strongest: np.ndarray, tau: np.ndarray | None, mode: str,
+                  alpha: float | None = None) -> np.ndarray:  # fmt: skip
     """The sweep a LiDAR in ``mode`` reports, from the clean sweep, the model's strongest-echo output (same rows) and
-    the optical depth ``tau`` (N,) from the sensor to each clean point: ``(N, C)`` for ``strongest`` and ``last``,
-    ``(N + M, C + 1)`` for ``dual`` (the strongest rows first, in order, then the M extra last echoes, in order)."""
+    the optical depth ``tau`` (N,) from the sensor to each clean point (or, for homogeneous fog, ``tau`` None and the
+    extinction ``alpha``: ``τ = α·R``): ``(N, C)`` for ``strongest`` and ``last``, ``(N + M, C + 1)`` for ``dual``
+    (the strongest rows first, in order, then the M extra last echoes, in order)."""
     check_mode(mode)
     clean = np.asarray(clean, np.float32)
     strongest = np.asarray(strongest, np.float32)
@@ -65,20 +67,52 @@ def apply_returns(clean: np.ndarray, strongest: np.ndarray, tau: np.ndarray, mod
         raise ValueError(f"clean and strongest must be the same sweep, got shapes {clean.shape} and {strongest.shape}")
     if mode == "strongest":
         return strongest
-    fog = (strongest[:, :3] != clean[:, :3]).any(axis=1)  # beams whose strongest echo is the fog's
-    idx = np.flatnonzero(fog)
-    i_hard = hard_intensity(clean[idx], np.asarray(tau, np.float64)[idx])
-    seen = idx[i_hard >= DETECTION_FLOOR]  # the hard target still detected behind the fog
-    last = clean[seen].copy()
-    last[:, 3] = (i_hard[i_hard >= DETECTION_FLOOR] / 255.0).astype(np.float32)
-    if mode == "last":
+    if tau is None:
+        if alpha is None:
+            raise ValueError("apply_returns needs the optical depths tau or, for homogeneous fog, alpha")
+        tau_arr, a = np.zeros(0), float(alpha)
+    else:
+        tau_arr, a = np.ascontiguousarray(np.broadcast_to(np.asarray(tau, np.float64), (len(clean),))), 0.0
+    return _returns_kernel(np.ascontiguousarray(clean), np.ascontiguousarray(strongest), tau_arr, a, mode == "dual",
+                           DETECTION_FLOOR)  # fmt: skip
+
+
+@njit(cache=True, nogil=True)
+def _returns_kernel(clean, strongest, tau, alpha, dual, floor):
+    """:func:`apply_returns` for "last" (``dual`` False) and "dual" in one pass over the beams (then one to fill);
+    ``tau`` empty: ``α·R`` (homogeneous fog, as :func:`homogeneous_tau`)."""
+    n, c = clean.shape
+    seen = np.zeros(n, np.bool_)
+    i_hard = np.zeros(n, np.float32)
+    m = 0
+    for k in range(n):
+        if strongest[k, 0] != clean[k, 0] or strongest[k, 1] != clean[k, 1] or strongest[k, 2] != clean[k, 2]:
+            if tau.shape[0] > 0:
+                t = tau[k]
+            else:
+                x, y, z = np.float64(clean[k, 0]), np.float64(clean[k, 1]), np.float64(clean[k, 2])
+                t = alpha * np.sqrt(x * x + y * y + z * z)
+            h = np.round(np.round(np.float64(clean[k, 3]) * 255.0) * np.exp(-2.0 * t))
+            if h >= floor:  # the hard target still detected behind the fog
+                seen[k] = True
+                i_hard[k] = np.float32(h / 255.0)
+                m += 1
+    if not dual:
         out = strongest.copy()
-        out[seen] = last
+        for k in range(n):
+            if seen[k]:
+                out[k, :] = clean[k, :]
+                out[k, 3] = i_hard[k]
         return out
-    out = np.zeros((len(clean) + len(seen), clean.shape[1] + 1), np.float32)
-    out[: len(clean), :-1] = strongest
-    out[len(clean):, :-1] = last
-    out[len(clean):, -1] = 1.0
+    out = np.zeros((n + m, c + 1), np.float32)
+    out[:n, :c] = strongest
+    r = n
+    for k in range(n):
+        if seen[k]:
+            out[r, :c] = clean[k, :]
+            out[r, 3] = i_hard[k]
+            out[r, c] = 1.0
+            r += 1
     return out
 
 

@@ -324,16 +324,23 @@ def simulate_lidar(
         dist, index = np.empty(n, np.float32), np.empty(n, np.int32)
         cosine, material = np.empty(n, np.float32), np.empty(n, np.uint8)
         reflect = _NONE32 if cfg.intensity == "carla" else np.empty(n, np.float32)
-        for k, sel in enumerate(slices):
+        def trace(k: int):
+            sel = slices[k]
             if sel.size == 0:
-                continue
+                return None
             s2w, prims_k = motion(float(times_of[k]))
             rot_k, origin_k = split_transform(s2w)
             d = dirs.take(sel, axis=0)
-            h = cast_rays(origin_k, d, cfg.range, prims_k, rotation=rot_k)
+            h = cast_rays(origin_k, d, cfg.range, prims_k, rotation=rot_k, n_azimuth_bins=SLICE_AZIMUTH_BINS)
+            return sel, h, (reflectance(h, d, rot_k, origin_k, surface, prims_k.colors) if reflect.size else None)
+
+        for res in _slice_map(trace, len(slices)):  # the slices' casts on the cores (each a serial kernel)
+            if res is None:
+                continue
+            sel, h, refl = res
             dist[sel], index[sel], cosine[sel], material[sel] = h
-            if reflect.size:
-                reflect[sel] = reflectance(h, d, rot_k, origin_k, surface, prims_k.colors)
+            if refl is not None:
+                reflect[sel] = refl
         hits = RayHits(dist, index, cosine, material)
         times = np.empty(n, np.float32)
         for k, sel in enumerate(slices):
@@ -350,6 +357,27 @@ def simulate_lidar(
 
 
 _NONE32 = np.zeros(0, np.float32)
+_POOL: list = []
+
+
+def _slice_map(fn: Callable[[int], Any], n: int):
+    """``fn`` over ``range(n)``: on a pool of numba's thread count (kernels release the GIL; a small cast runs its
+    serial kernel), or in this thread when it is already a worker's (a vector env's) or numba has one thread."""
+    import numba
+
+    from fog_gym._numba import in_worker, worker_pool
+
+    threads = numba.get_num_threads()
+    if threads < 2 or in_worker():
+        return map(fn, range(n))
+    if not _POOL or _POOL[0][0] != threads:
+        _POOL[:] = [(threads, worker_pool(threads))]
+    return _POOL[0][1].map(fn, range(n))
+
+
+#: Azimuth bins of the ray caster for one slice of a sweep that takes time (its rays span a 16th of the turn: fewer
+#: bins bin the boxes faster; the hits do not depend on the bins)
+SLICE_AZIMUTH_BINS = 64
 
 
 def paint_reflectivity(colors: np.ndarray) -> np.ndarray:

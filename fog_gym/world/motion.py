@@ -40,6 +40,7 @@ class SceneMotion:
         self._row = {int(i): k for k, i in enumerate(current.ids)}
         self._dxy = np.asarray(current.velocities, np.float64)[:, :2].copy()  # metres per second from time 0
         self._dyaw = np.zeros(n)  # radians per second
+        self._prims: tuple | None = None  # (primitives, moving boxes, their vehicles' rows, pivots, offsets)
         if previous is not None:
             t_prev, prev = previous
             if not t_prev < 0:
@@ -67,19 +68,25 @@ class SceneMotion:
     def primitives_at(self, prims: Primitives, t: float) -> Primitives:
         """``prims`` with every vehicle's boxes (``insts`` > 0, its id) moved rigidly to time ``t``: rotated about the
         vehicle's centre by its heading change and shifted by its displacement; the static world stays."""
-        moving = np.flatnonzero(prims.insts > 0)
-        if moving.size == 0 or t == 0.0:
+        if t == 0.0:
             return prims
-        rows = np.array([self._row.get(int(i), -1) for i in prims.insts[moving]])
-        ok = rows >= 0
-        moving, rows = moving[ok], rows[ok]
-        d, dyaw = self.offsets(t)
-        pivot = self.current.centers[rows, :2]
-        c, s = np.cos(dyaw[rows]), np.sin(dyaw[rows])
-        rel = prims.centers[moving, :2] - pivot
+        cached = self._prims
+        if cached is None or cached[0] is not prims:  # which boxes move, with whom, once per set of primitives
+            moving = np.flatnonzero(prims.insts > 0)
+            rows = np.array([self._row.get(int(i), -1) for i in prims.insts[moving]], np.int64)
+            moving, rows = moving[rows >= 0], rows[rows >= 0]
+            still = (self._dxy[rows] == 0).all(axis=1) & (self._dyaw[rows] == 0)
+            moving, rows = moving[~still], rows[~still]
+            pivot = self.current.centers[rows, :2]
+            cached = self._prims = (prims, moving, rows, pivot, prims.centers[moving, :2] - pivot)
+        _, moving, rows, pivot, rel = cached
+        if moving.size == 0:
+            return prims
+        d, dyaw = self._dxy[rows] * t, self._dyaw[rows] * t
+        c, s = np.cos(dyaw), np.sin(dyaw)
         centers = prims.centers.copy()
-        centers[moving, 0] = pivot[:, 0] + c * rel[:, 0] - s * rel[:, 1] + d[rows, 0]
-        centers[moving, 1] = pivot[:, 1] + s * rel[:, 0] + c * rel[:, 1] + d[rows, 1]
+        centers[moving, 0] = pivot[:, 0] + c * rel[:, 0] - s * rel[:, 1] + d[:, 0]
+        centers[moving, 1] = pivot[:, 1] + s * rel[:, 0] + c * rel[:, 1] + d[:, 1]
         yaws = prims.yaws.copy()
-        yaws[moving] = yaws[moving] + dyaw[rows]
+        yaws[moving] = yaws[moving] + dyaw
         return replace(prims, centers=centers, yaws=yaws)

@@ -176,3 +176,20 @@ def test_the_perceived_objects_last_return_rule_sees_a_car_behind_dense_fog():
                         np.zeros(3), np.zeros((1, 1)), np.zeros(1), np.zeros((1, 1)), np.zeros(1), 0.0, last)  # fmt: skip
         counts[last] = count[1]
     assert counts[False] == 0 and counts[True] >= cfg.min_points
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 10_000), alpha=st.floats(0.001, 0.2))
+def test_homogeneous_alpha_path_equals_the_optical_depths(seed, alpha):
+    from fog_gym.fog.returns import homogeneous_tau
+
+    rng = np.random.default_rng(seed)
+    clean = np.c_[rng.uniform(-80, 80, (300, 3)), rng.uniform(0, 1, 300)].astype(np.float32)
+    strongest = clean.copy()
+    fogged = rng.random(300) < 0.5
+    strongest[fogged, :3] *= 0.3
+    for mode in ("last", "dual"):
+        assert np.array_equal(apply_returns(clean, strongest, None, mode, alpha=alpha),
+                              apply_returns(clean, strongest, homogeneous_tau(clean, alpha), mode))
+    with pytest.raises(ValueError, match="alpha"):
+        apply_returns(clean, strongest, None, "last")

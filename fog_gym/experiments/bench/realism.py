@@ -3,7 +3,7 @@ one run (so the machine's drift falls on both sides of each ratio):
 
 * dual LiDAR returns: the fog of one dense-fog FogDrive sweep (Hahner et al., then the return rule) against the
   strongest echo alone — target ≤ 1.2×;
-* a sweep that takes time: the LiDAR's sweep (``motion="continuous"``, 32 slices cast from where the ego and the
+* a sweep that takes time: the LiDAR's sweep (``motion="continuous"``, 16 slices cast from where the ego and the
   vehicles are at each slice's time) against the instantaneous sweep — target ≤ 1.5×;
 * camera noise: a full-rig frame (``FogDrive-v0``'s step: four cameras at 1280 × 960, the LiDAR, semantic LiDAR,
   radar and labels) with ``camera_noise="default"`` against one without — target ≤ 1.1×;
@@ -53,7 +53,7 @@ def paired(a: Callable[[], Any], b: Callable[[], Any], repeats: int) -> tuple[di
 def bench_realism(repeats: int, resolution: tuple[int, int] = (1280, 960)) -> dict[str, Any]:
     from dataclasses import replace
 
-    from fog_gym.channels.packing import unpack_points
+    from fog_gym.channels.packing import pack_points, unpack_points
     from fog_gym.envs.fogdrive import FogDriveEnv
     from fog_gym.fog.models import FogContext, model_for
     from fog_gym.fog.physics import parse_fog
@@ -76,9 +76,9 @@ def bench_realism(repeats: int, resolution: tuple[int, int] = (1280, 960)) -> di
     sweep = unpack_points(env._observe(), "LIDAR_TOP")
     dense = parse_fog("dense")
     hahner = model_for("lidar")
-    obs4 = {"LIDAR_TOP": np.concatenate([sweep, np.zeros((len(sweep), 4), np.float32)])}
-    obs5 = {"LIDAR_TOP_DUAL": np.concatenate([np.c_[sweep, np.zeros(len(sweep), np.float32)],
-                                              np.zeros((2 * len(sweep), 5), np.float32)])}  # fmt: skip
+    capacity = instant.space().shape[0]  # the channels' own capacities: one row per ray, two for dual
+    obs4 = {"LIDAR_TOP": pack_points(sweep, capacity)}
+    obs5 = {"LIDAR_TOP_DUAL": pack_points(np.c_[sweep, np.zeros(len(sweep), np.float32)], 2 * capacity)}
     ctx = {m: FogContext(rngs={dense.name: np.random.default_rng(1)}, lidar_returns=m) for m in ("strongest", "dual")}
     results["dual returns"] = paired(lambda: hahner.apply(obs4, "LIDAR_TOP", [dense], ctx["strongest"]),
                                      lambda: hahner.apply(obs5, "LIDAR_TOP_DUAL", [dense], ctx["dual"]), repeats)  # fmt: skip
@@ -97,7 +97,7 @@ def render_realism(results: dict[str, Any], repeats: int) -> list[str]:
     w, h = results["resolution"]
     what = {
         "dual returns": f"LiDAR fog of one dense-fog sweep ({results['points'] // 1000} k points): strongest → dual",
-        "continuous sweep": "the LiDAR's sweep: instantaneous → continuous (32 slices)",
+        "continuous sweep": "the LiDAR's sweep: instantaneous → continuous (16 slices)",
         "camera noise": f"full-rig frame, 4 cameras {w} × {h}: noise-free → camera_noise='default'",
         "anti-aliasing": f"full-rig day frame, 4 cameras {w} × {h}: point-sampled → antialias=True",
     }
