@@ -149,3 +149,25 @@ def test_bad_motion_values_are_one_line_errors():
         deskew(np.zeros((3, 4), np.float32), np.zeros((1, 4)))
     with pytest.raises(ValueError, match="previous keyframe"):
         SceneMotion(VehicleState(*(np.zeros((1, *s)) for s in ((), (), (3,), (3,), (), (3,), (3,)))), previous=(0.1, None))
+
+
+def test_generated_sweeps_in_time_validate_and_carry_their_time_column(tmp_path):
+    from fog_gym.dataset import FogDrive
+    from fog_gym.dataset.decode import load_channel
+    from fog_gym.dataset.validate import validate
+    from fog_gym.generate import generate, plan_scenes
+
+    plan = plan_scenes(2, towns=("highway",), seed=2, resolution=(32, 24), seconds=0.2, modality="lidar",
+                       lidar_motion="continuous", camera_noise="default")  # fmt: skip
+    assert plan[0].channels[0] == "LIDAR_TOP_MOTION"
+    generate(tmp_path / "m", plan, progress=False)
+    assert validate(tmp_path / "m") == []
+    ds = FogDrive(tmp_path / "m")
+    ch = "LIDAR_TOP_MOTION_FOG_LIGHT"
+    s = ds.sample[-1]
+    pts = load_channel(ch, ds.get_sample_paths(s["token"], [ch])[ch], ds.channels[ch])
+    assert pts.shape[1] == 5 and -0.05 <= pts[:, 4].min() and pts[:, 4].max() <= 0
+    with pytest.raises(ValueError, match="camera_noise"):
+        plan_scenes(2, camera_noise="loud")
+    with pytest.raises(ValueError, match="motion must be one of"):
+        plan_scenes(2, lidar_motion="smooth")
