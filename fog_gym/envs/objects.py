@@ -27,6 +27,7 @@ from gymnasium import spaces
 from gymnasium.utils import seeding
 
 from fog_gym._numba import launch
+from fog_gym.envs import batched as B
 from fog_gym.fog.banks import BankConfig, bank_rng
 from fog_gym.fog.fields import along_axis, field_info
 from fog_gym.fog.lidar import BETA_PER_MOR, GAMMA, soft_response_table
@@ -127,12 +128,22 @@ class ObjectWorlds:
                                 float(o.lidar_returns == "last")],
                                np.float64)  # fmt: skip
         self._mask = o.sensor_mask
+        self._fog_infos: list[dict[str, Any]] = [{}] * num_worlds
+        self._fog_batch: dict[str, Any] | None = None  # the fog infos of every world, batched (until a level changes)
         for w in range(num_worlds):
             self._set_level(w, self.levels[w])
+        hz = self.core.hazards
+        self._hazard_slots = np.full((num_worlds, 0 if hz is None else hz.capacity), -1, np.int64)
+        cfg = self.core.config
+        self._reward_args = (float(cfg["reward_speed_range"][0]), float(cfg["reward_speed_range"][1]),
+                             np.array([float(cfg.get(k, 0)) for k in B.REWARD_TERMS]), bool(cfg["normalize_reward"]),
+                             float(cfg["collision_reward"]), float(cfg["high_speed_reward"] + cfg["right_lane_reward"]))  # fmt: skip
 
     # -- fog ------------------------------------------------------------------------------------------
     def _set_level(self, w: int, level: FogField) -> None:
         self.levels[w] = level
+        self._fog_infos[w] = level.info() if isinstance(level, FogLevel) else field_info(level)
+        self._fog_batch = None
         self.frows[w] = 0
         self.fdrift[w] = False
         if not level.is_homogeneous:  # a fog field: closed-form τ on every ray, the soft return beam by beam
@@ -173,8 +184,9 @@ class ObjectWorlds:
         """Start a new episode in world ``w`` (seeded, or continuing its generator)."""
         self.reset_many([w], [seed])
 
-    def reset_many(self, worlds: list[int], seeds: list[int | None]) -> None:
-        """Start new episodes in several worlds, perceived in one call."""
+    def reset_many(self, worlds: list[int], seeds: list[int | None], perceive: bool = True) -> None:
+        """Start new episodes in several worlds, perceived in one call (``perceive=False``: by the caller's next
+        :meth:`step`, with ``also=`` these worlds)."""
         active = np.zeros(self.n, bool)
         for w, seed in zip(worlds, seeds):
             if seed is not None:
@@ -189,6 +201,10 @@ class ObjectWorlds:
             world_seed = int(self.np_random[w].integers(0, 2**31 - 1))
             self.episode_seed[w] = world_seed
             self.core.reset(w, world_seed)
+            if self._hazard_slots.shape[1]:
+                slots = self.core.hazard_slots[w][: self._hazard_slots.shape[1]]
+                self._hazard_slots[w] = -1
+                self._hazard_slots[w, : len(slots)] = slots
             ego = self.core.floats[w, 0]
             self.fframes[w] = ego[K.FX], ego[K.FY], ego[K.FH]  # the field frame: the ego (and its LiDAR) at reset
             light = Lighting.for_time_of_day("day", stream(world_seed, "scenery"))
@@ -198,14 +214,17 @@ class ObjectWorlds:
             self.steps[w] = 0
             self.prev_present[w] = False
             active[w] = True
-        self._perceive(active)
+        if perceive:
+            self._perceive(active)
 
-    def step(self, actions: np.ndarray, active: np.ndarray) -> None:
+    def step(self, actions: np.ndarray, active: np.ndarray, also: np.ndarray | None = None) -> None:
+        """Step the ``active`` worlds and perceive them (with ``also``: worlds just reset without perceiving, in the
+        same call)."""
         self.core.step(actions, active)
         self.steps[active] += 1
         for w in np.flatnonzero(active & self.fdrift):  # a drifting bank moves with the episode's time
             self.fterms[w, : self.frows[w]] = self.levels[w].pack(self.steps[w] / self.keyframe_frequency)
-        self._perceive(active)
+        self._perceive(active if also is None else active | also)
 
     def _perceive(self, active: np.ndarray) -> None:
         c = self.core
@@ -216,6 +235,61 @@ class ObjectWorlds:
                            self._cam, self._rad, self._mask, self._rules, 1.0 / self.keyframe_frequency, c.lanes,
                            self.present, self.pos, self.vel, self.prev_present, self.prev_pos, self.prev_vel,
                            self.obs, self.fterms, self.frows, self.fframes, self.fbeta, *self._pulse)  # fmt: skip
+
+    # -- every world at once (fog_gym.envs.batched) --------------------------------------------------------
+    def rewards(self, active: np.ndarray) -> np.ndarray:
+        """:meth:`NativeTraffic.reward` of every active world (0 elsewhere)."""
+        c = self.core
+        return B.batch_rewards(c.floats, c.ints, c.lanes, *self._reward_args, active, np.zeros(self.n))
+
+    def terminations(self) -> np.ndarray:
+        return self.core.ints[:, 0, K.ICRASH] != 0
+
+    def truncations(self) -> np.ndarray:
+        return (self.steps >= self.episode_steps) & ~self.terminations()
+
+    def batched_infos(self, mask: np.ndarray, detections: bool = True) -> dict[str, Any]:
+        """The infos Gymnasium's ``_add_info`` builds from :meth:`info` of each world in ``mask`` (in world order),
+        assembled from arrays over all worlds (see :mod:`fog_gym.envs.batched`)."""
+        c = self.core
+        out: dict[str, Any] = {}
+        B.put(out, "speed", c.floats[:, 0, K.FS], mask, np.float64)
+        B.put(out, "crashed", self.terminations(), mask, np.bool_)
+        if mask.all():  # the fog's descriptions change only at resets: batched once per change
+            if self._fog_batch is None:
+                self._fog_batch = B.add_infos({}, {w: {"fog": self._fog_infos[w]} for w in range(self.n)}, self.n)
+            out.update(B.copy_infos(self._fog_batch))
+        else:
+            out.update(B.add_infos({}, {w: {"fog": self._fog_infos[w]} for w in np.flatnonzero(mask)}, self.n))
+        B.put(out, "step", self.steps, mask, np.int64)
+        fields = np.flatnonzero(mask & (self.frows > 0))
+        if len(fields):  # where each ego stands in its fog field
+            u = np.zeros(self.n)
+            for w in fields:
+                u[w] = along_axis(self.fframes[w], c.floats[w, 0, K.FX], c.floats[w, 0, K.FY])
+            B.put(out, "fog_u", u, mask & (self.frows > 0), np.float64)
+        if c.hazards is not None:
+            rows = np.zeros((self.n, c.hazards.capacity, 4))
+            counts = B.batch_hazards(c.floats, self._hazard_slots, rows)
+            B.put(out, "hazards", rows, mask, np.float64)
+            B.put(out, "hazard_count", counts, mask, np.int64)
+        if detections:
+            det: dict[str, Any] = {}
+            cap = c.capacity
+            for s, name in ((PO.CAM, "camera"), (PO.LID, "lidar"), (PO.RAD, "radar"), (PO.FUSED, "fused")):
+                if name != "fused" and name not in self.objects.sensors:
+                    continue
+                count, ids = np.zeros(self.n, np.int64), np.empty((self.n, cap), np.int64)
+                pos, true, dist = np.empty((self.n, cap, 2)), np.empty((self.n, cap, 2)), np.empty((self.n, cap))
+                B.batch_detections(c.floats, c.counts, c.ids, self.present, self.pos, s, count, ids, pos, true, dist)
+                one: dict[str, Any] = {}
+                for key, arr, dtype in (("count", count, np.int64), ("vehicle_ids", ids, np.int64),
+                                        ("position", pos, np.float64), ("true_position", true, np.float64),
+                                        ("distance", dist, np.float64)):  # fmt: skip
+                    B.put(one, key, arr, mask, dtype)
+                det[name], det[f"_{name}"] = one, mask.copy()
+            out["detections"], out["_detections"] = det, mask.copy()
+        return out
 
     # -- per-world results ----------------------------------------------------------------------------
     def terminated(self, w: int) -> bool:

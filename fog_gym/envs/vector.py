@@ -4,7 +4,9 @@
 shared :class:`~fog_gym.world.traffic.native.NativeTraffic`:
 
 * ``observation="objects"``: everything batched (:class:`~fog_gym.envs.objects.ObjectWorlds`: traffic, detection and
-  fusion in one call per step; no Python per world except the resets and ``info``);
+  fusion in one call per step, the resets' perception in the same call; rewards, terminations and every info entry as
+  arrays over all worlds, the Gymnasium-shaped infos assembled from them, :mod:`fog_gym.envs.batched`; no Python per
+  world but the resets and, in ``SAME_STEP`` mode, an ended world's final info);
 * ``observation="pixels"``: the traffic batched, then each world's own env (the preset's ``FogDriveEnv`` and its
   wrappers, on a view of the shared traffic) renders its camera, LiDAR, fog and bird's-eye image. The worlds render
   on ``threads`` Python threads (default: 2, or fewer cores or worlds): every kernel releases the GIL, so one world's
@@ -201,8 +203,7 @@ class FogDriveVectorEnv(gym.vector.VectorEnv):
             self.worlds.reset_many(which, [seeds[i] for i in which])
             for i in which:
                 self.envs[i]._started = True
-                infos = self._add_info(infos, self.envs[i].info(), i)
-            return self.worlds.observation(), infos
+            return self.worlds.observation(), self.worlds.batched_infos(mask, self.info_detections)
         results = self._map(lambda i: self.envs[i].reset(seed=seeds[i], options=options), which)
         for i, (self._obs[i], info) in zip(which, results):
             infos = self._add_info(infos, info, i)
@@ -235,22 +236,19 @@ class FogDriveVectorEnv(gym.vector.VectorEnv):
 
     def _step_objects(self, actions, resetting, stepping, same_step, rewards, terminated, truncated) -> dict:
         w = self.worlds
-        if resetting.any():
-            w.reset_many(list(np.flatnonzero(resetting)), [None] * int(resetting.sum()))
-        w.step(actions, stepping)
-        for i in np.flatnonzero(stepping):
-            rewards[i] = w.core.reward(i)
-            terminated[i] = w.terminated(i)
-            truncated[i] = w.truncated(i)
+        if resetting.any():  # their traffic now, their perception with the stepped worlds' (one kernel call)
+            w.reset_many(list(np.flatnonzero(resetting)), [None] * int(resetting.sum()), perceive=False)
+        w.step(actions, stepping, also=resetting)
+        rewards[:] = w.rewards(stepping)
+        terminated[:] = w.terminations() & stepping
+        truncated[:] = w.truncations() & stepping
         ended = np.flatnonzero((terminated | truncated) & same_step)
         finals = {i: (w.observation(i), self.envs[i].info()) for i in ended}
         if len(ended):
             w.reset_many(list(ended), [None] * len(ended))
-        infos: dict[str, Any] = {}
-        for i in range(self.num_envs):
-            if i in finals:
-                infos = self._add_info(infos, {"final_obs": finals[i][0], "final_info": finals[i][1]}, i)
-            infos = self._add_info(infos, self.envs[i].info(), i)
+        infos = w.batched_infos(np.ones(self.num_envs, bool), self.info_detections)
+        for i in ended:  # SAME_STEP: the ended worlds' last observation and info (Gymnasium's own merge)
+            infos = self._add_info(infos, {"final_obs": finals[i][0], "final_info": finals[i][1]}, i)
         return infos
 
     def _step_pixels(self, actions, resetting, same_step, rewards, terminated, truncated) -> dict:

@@ -232,11 +232,12 @@ def lidar_detect(n, bx, by, byaw, bl, bw, bh, ex, ey, eyaw, sz, elev, az_cos, az
                 fx, fy, fz = ce * az_cos[k % n_az], ce * az_sin[k % n_az], se
                 dx = c0 * fx - s0 * fy
                 dy = s0 * fx + c0 * fy
+                if uniform(key, tick, 1, ci, k) < drop_general:
+                    continue  # dropped before tracing (the draw does not depend on the hit: tested first, it saves
+                    # the trace of the rays CARLA's general drop-off removes anyway)
                 t, hit, _, _ = nearest(ex, ey, sz, dx, dy, fz, n, bx, by, byaw, bl, bw, bh, amin, amax, emin, emax, rmin,
                                       order, a, elev[ci], rng_max)  # fmt: skip
                 if hit != j:
-                    continue
-                if uniform(key, tick, 1, ci, k) < drop_general:
                     continue
                 inten = math.exp(-0.004 * t)
                 if inten <= drop_limit and uniform(key, tick, 2, ci, k) >= inten * drop_zero / drop_limit + 1 - drop_zero:
