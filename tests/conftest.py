@@ -45,3 +45,19 @@ def pytest_sessionstart(session):
     from fog_gym.envs.warmup import PATHS, ensure_compiled
 
     ensure_compiled(*PATHS)
+
+
+def pytest_collection_modifyitems(session, config, items):
+    """``FOG_GYM_TEST_ORDER=reverse`` or ``shuffle:<seed>`` runs the suite in another order (the hunt for tests that
+    depend on order or shared state: ``docs/contributing.md``); unset, pytest's order."""
+    order = os.environ.get("FOG_GYM_TEST_ORDER", "")
+    if not order:
+        return
+    if order == "reverse":
+        items.reverse()
+    elif order.startswith("shuffle:"):
+        import random
+
+        random.Random(int(order.split(":", 1)[1])).shuffle(items)
+    else:
+        raise pytest.UsageError(f"FOG_GYM_TEST_ORDER must be 'reverse' or 'shuffle:<seed>', got {order!r}")

@@ -1,0 +1,264 @@
+"""Speed: the vector envs, sums of fog fields and scaling over cores, each against another install in one run.
+
+* **vector envs** (16 worlds): ``FogDriveRLHazard-v0`` with perceived objects, ``FogDriveRLObjects-v0``, and
+  ``FogDriveRL-v0`` with pixels in dense fog on the mesh world — steps per second (world-steps);
+* **sums of fog fields**: a ``FogDrive-v0`` step (the RL preset's rig: one 64 × 64 camera and a 32-channel LiDAR)
+  fogged by ``HeightFog + FogBank`` and by two banks, against the same step in homogeneous fog; the LiDAR fog of
+  100 k points likewise;
+* **scaling**: ``fog-gym generate`` with 1 … N workers and the sharded objects vector env with 1 … N shards
+  (N: this machine's cores, powers of two).
+
+With ``--previous DIR`` (a checkout of another release, e.g. ``git worktree add ../fog-gym-prev 3c4c6c8``) each
+vector-env and fog figure runs in child processes of both installs in turn (``PYTHONPATH`` picks the tree; a warm-up
+round first), ``--rounds`` times, and the ratio is the median of the per-round ratios. Prints Markdown; asserts no
+timing.
+
+Usage::
+
+    python -m fog_gym.experiments.bench.speed --previous ../fog-gym-prev
+    python -m fog_gym.experiments.bench.speed --quick --no-scaling
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from fog_gym.experiments.bench.common import finish_meta, markdown_table, meta_line, run_meta, write_json
+
+#: The issue's targets: this tree's figure over the previous release's (vector envs: steps/s, higher is better) and
+#: the cost of a sum of fields over homogeneous fog (lower is better).
+TARGETS = {"objects (FogDriveRLHazard-v0)": 1.8, "objects (FogDriveRLObjects-v0)": 1.8, "pixels (FogDriveRL-v0)": 1.5,
+           "step, HeightFog + FogBank": 1.5, "step, two banks": 1.5, "LiDAR fog, HeightFog + FogBank": 2.0,
+           "LiDAR fog, two banks": 2.0}  # fmt: skip
+
+#: The child's program: one figure, printed as JSON (it uses only what both installs have).
+CHILD = r"""
+import json, sys, time
+import numpy as np
+import gymnasium as gym
+import fog_gym
+what, steps = sys.argv[1], int(sys.argv[2])
+def rate(envs, n):
+    envs.reset(seed=0)
+    a = np.ones(n, np.int64)
+    for _ in range(5):
+        envs.step(a)
+    t = time.perf_counter()
+    for _ in range(steps):
+        envs.step(a)
+    return steps * n / (time.perf_counter() - t)
+n = 16
+if what == "hazard-objects":
+    out = rate(gym.make_vec("FogDriveRLHazard-v0", num_envs=n, vectorization_mode="vector_entry_point",
+                            observation="objects", fog="dense"), n)
+elif what == "objects":
+    out = rate(gym.make_vec("FogDriveRLObjects-v0", num_envs=n, vectorization_mode="vector_entry_point", fog="dense"), n)
+elif what == "pixels":
+    out = rate(gym.make_vec("FogDriveRL-v0", num_envs=n, vectorization_mode="vector_entry_point", fog="dense",
+                            geometry="meshes"), n)
+else:
+    from fog_gym.fog.fields import FogBank, HeightFog
+    fields = {"homogeneous": "dense", "height+bank": HeightFog(50.0, 4.0) + FogBank(50.0, 40.0, 80.0),
+              "two banks": FogBank(50.0, 20.0, 40.0) + FogBank(80.0, 90.0, 60.0)}
+    kind, field = what.split(":")
+    if kind == "step":
+        env = gym.make("FogDriveRL-v0", fog=fields[field])
+        env.reset(seed=0)
+        for _ in range(3):
+            env.step(1)
+        t = time.perf_counter()
+        for _ in range(steps):
+            env.step(1)
+        out = (time.perf_counter() - t) / steps * 1000.0
+    else:
+        from fog_gym.fog.depth import field_pose
+        from fog_gym.fog.lidar import fog_lidar
+        from fog_gym.fog.lidar_field import fog_lidar_field
+        from fog_gym.fog.physics import parse_fog
+        rng = np.random.default_rng(0)
+        r = rng.uniform(2.0, 120.0, 100_000)
+        az = rng.uniform(-np.pi, np.pi, r.size)
+        el = rng.choice(np.radians(np.linspace(-20.0, 5.0, 64)), r.size)
+        pts = np.c_[r * np.cos(el) * np.cos(az), r * np.cos(el) * np.sin(az), r * np.sin(el),
+                    rng.uniform(0.05, 1.0, r.size)].astype(np.float32)
+        pose = field_pose(np.r_[np.c_[np.eye(3), [0.0, 0.0, 2.0]], [[0, 0, 0, 1]]], (0.0, 0.0, 0.0))
+        if field == "homogeneous":
+            call = lambda: fog_lidar(pts, parse_fog("dense"), rng)
+        else:
+            call = lambda: fog_lidar_field(pts, fields[field], rng, pose)
+        call()
+        ts = []
+        for _ in range(steps):
+            t = time.perf_counter(); call(); ts.append(time.perf_counter() - t)
+        out = float(np.median(ts)) * 1000.0
+print(json.dumps({"value": out}))
+"""
+
+#: What each figure runs in the child, its unit, and whether higher is better.
+FIGURES = {
+    "objects (FogDriveRLHazard-v0)": ("hazard-objects", 300, "steps/s"),
+    "objects (FogDriveRLObjects-v0)": ("objects", 300, "steps/s"),
+    "pixels (FogDriveRL-v0)": ("pixels", 40, "steps/s"),
+    "step, homogeneous": ("step:homogeneous", 60, "ms"),
+    "step, HeightFog + FogBank": ("step:height+bank", 60, "ms"),
+    "step, two banks": ("step:two banks", 60, "ms"),
+    "LiDAR fog, homogeneous": ("lidar:homogeneous", 10, "ms"),
+    "LiDAR fog, HeightFog + FogBank": ("lidar:height+bank", 10, "ms"),
+    "LiDAR fog, two banks": ("lidar:two banks", 10, "ms"),
+}
+
+
+def child(tree: str, what: str, steps: int) -> float:
+    """One figure measured by a child process of the install at ``tree`` (working folder outside it)."""
+    with tempfile.TemporaryDirectory() as tmp:
+        env = {**os.environ, "PYTHONPATH": tree}
+        out = subprocess.run([sys.executable, "-c", CHILD, what, str(steps)], cwd=tmp, env=env, capture_output=True,
+                             text=True, check=True).stdout  # fmt: skip
+    return float(json.loads(out.strip().splitlines()[-1])["value"])
+
+
+def bench_figures(trees: dict[str, str], rounds: int, quick: bool) -> dict[str, Any]:
+    """Every figure of :data:`FIGURES` for each install in ``trees``, in turn, ``rounds`` times after a warm-up."""
+    from tqdm import tqdm
+
+    res: dict[str, Any] = {}
+    for name, (what, steps, unit) in tqdm(FIGURES.items(), desc="speed figures", unit="figure", file=sys.stderr):
+        steps = max(2, steps // 5) if quick else steps
+        runs: dict[str, list[float]] = {k: [] for k in trees}
+        for k in range(rounds + 1):
+            for side, tree in trees.items():
+                v = child(tree, what, max(2, steps // 4) if k == 0 else steps)
+                if k:
+                    runs[side].append(v)
+        res[name] = {"unit": unit, "runs": runs, "median": {s: float(np.median(v)) for s, v in runs.items()}}
+        if len(trees) == 2:
+            a, b = runs["this tree"], runs["previous"]
+            per_round = [x / y if unit == "steps/s" else y / x for x, y in zip(a, b)]
+            res[name]["ratio"] = float(np.median(per_round))  # this tree's speed-up
+    return res
+
+
+def bench_scaling(cores: list[int], quick: bool) -> dict[str, Any]:
+    """``fog-gym generate`` (4 scenes × 2 s, 640 × 480, full rig) with 1 … N workers and the sharded objects vector
+    env (16 worlds) with 1 … N shards: seconds and samples/s, steps/s."""
+    import gymnasium as gym
+
+    from fog_gym.generate import generate, plan_scenes
+
+    out: dict[str, Any] = {"generate": {}, "sharded": {}}
+    seconds = 1.0 if quick else 2.0
+    with tempfile.TemporaryDirectory() as tmp:
+        for k in cores:
+            plan = plan_scenes(max(2, 2 * k), towns=("merge",), resolution=(640, 480), seconds=seconds)
+            t = time.perf_counter()
+            generate(Path(tmp) / f"w{k}", plan, workers=k, progress=False)
+            wall = time.perf_counter() - t
+            samples = sum(s.expected_samples for s in plan)
+            out["generate"][k] = {"scenes": len(plan), "seconds": wall, "samples_per_s": samples / wall}
+    for k in cores:
+        envs = gym.make_vec("FogDriveRLHazard-v0", num_envs=16, vectorization_mode="vector_entry_point",
+                            observation="objects", fog="dense", shards=k)  # fmt: skip
+        try:
+            envs.reset(seed=0)
+            a = np.ones(16, np.int64)
+            for _ in range(5):
+                envs.step(a)
+            steps = 50 if quick else 300
+            t = time.perf_counter()
+            for _ in range(steps):
+                envs.step(a)
+            out["sharded"][k] = {"steps_per_s": steps * 16 / (time.perf_counter() - t)}
+        finally:
+            envs.close()
+    return out
+
+
+def render_figures(res: dict[str, Any], rounds: int) -> list[str]:
+    two = any("ratio" in r for r in res.values())
+    rows = []
+    for name, r in res.items():
+        m = r["median"]
+        row = [name, f"{m['this tree']:.1f} {r['unit']}"]
+        if two:
+            row.append(f"{m['previous']:.1f} {r['unit']}")
+            row.append(f"**{r['ratio']:.2f}×**" if "ratio" in r else "")
+            target = TARGETS.get(name)
+            row.append("" if target is None or not name.startswith(("objects", "pixels")) else
+                       f"≥ {target:g}×: {'met' if r['ratio'] >= target else 'not met'}")  # fmt: skip
+        rows.append(row)
+    # the sums' cost over homogeneous fog, in this tree
+    for kind in ("step", "LiDAR fog"):
+        base = res.get(f"{kind}, homogeneous")
+        for field in ("HeightFog + FogBank", "two banks"):
+            r = res.get(f"{kind}, {field}")
+            if base and r:
+                ratio = r["median"]["this tree"] / base["median"]["this tree"]
+                target = TARGETS[f"{kind}, {field}"]
+                rows.append([f"{kind}, {field} / homogeneous (this tree)", f"**{ratio:.2f}×**"]
+                            + ([""] * 2 if two else []) + ([f"≤ {target:g}×: {'met' if ratio <= target else 'not met'}"]
+                                                          if two else []))  # fmt: skip
+    header = ["figure", "this tree"] + (["previous", "this / previous", "target"] if two else [])
+    return [f"**Speed** ({rounds} rounds, child processes in turn; medians)", "", markdown_table(header, rows)]
+
+
+def render_scaling(res: dict[str, Any]) -> list[str]:
+    rows = []
+    g1 = res["generate"][min(res["generate"])]["samples_per_s"]
+    s1 = res["sharded"][min(res["sharded"])]["steps_per_s"]
+    for k in sorted(res["generate"]):
+        g, s = res["generate"][k], res["sharded"][k]
+        rows.append([str(k), f"{g['samples_per_s']:.2f} ({g['samples_per_s'] / g1:.2f}×)",
+                     f"{s['steps_per_s']:.0f} ({s['steps_per_s'] / s1:.2f}×)"])  # fmt: skip
+    return ["**Scaling over cores**", "", markdown_table(
+        ["cores", "generate: samples/s (640 × 480, full rig)", "sharded objects vector env: steps/s (16 worlds)"], rows)]
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(prog="python -m fog_gym.experiments.bench.speed", description=__doc__.split("\n\n")[0],
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
+    parser.add_argument("--previous", metavar="DIR", help="a checkout of another release to compare against")
+    parser.add_argument("--rounds", type=int, default=3, help="rounds of each figure per install (default 3)")
+    parser.add_argument("--quick", action="store_true", help="smoke run: fewer steps, one round")
+    parser.add_argument("--no-scaling", action="store_true", help="skip the scaling over cores")
+    parser.add_argument("--no-figures", action="store_true", help="only the scaling over cores")
+    parser.add_argument("--json", type=Path, default=None, metavar="PATH", help="also write every figure as JSON")
+    args = parser.parse_args(argv)
+    if args.rounds < 1:
+        parser.error("--rounds must be >= 1")
+    rounds = 1 if args.quick else args.rounds
+    here = str(Path(__file__).resolve().parents[3])
+    trees = {"this tree": here}
+    if args.previous is not None:
+        from fog_gym.experiments.bench.geometry import _checkout
+
+        try:
+            trees["previous"] = _checkout(args.previous)
+        except ValueError as e:
+            parser.error(str(e))
+    meta = run_meta(rounds=rounds, quick=args.quick, previous=args.previous)
+    t0 = time.perf_counter()
+    figures = None if args.no_figures else bench_figures(trees, rounds, args.quick)
+    cores = [k for k in (1, 2, 4, 8, 16, 32, 64) if k <= (os.cpu_count() or 1)]
+    scaling = None if args.no_scaling else bench_scaling(cores, args.quick)
+    finish_meta(meta, t0)
+    print(meta_line(meta))
+    if figures:
+        print("\n".join(render_figures(figures, rounds)))
+    if scaling:
+        print("\n" + "\n".join(render_scaling(scaling)))
+    write_json(args.json, {"meta": meta, "figures": figures, "scaling": scaling})
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
