@@ -30,10 +30,11 @@ from fog_gym._numba import launch
 from fog_gym.fog.depth import BANK, point_extinction, segment_depth
 from fog_gym.fog.lidar import GAMMA, XI_R1, XI_R2, _checked_points, fog_lidar
 from fog_gym.fog.lidar_bank import fog_lidar_bank
+from fog_gym.fog.lidar_grid import fog_lidar_grid
 from fog_gym.fog.lidar_height import fog_lidar_height
 from fog_gym.fog.lidar_pulse import (  # noqa: F401  (FIELD_STEP … KAPPA: the field path's constants, re-exported)
-    FIELD_COARSE, FIELD_STEP, KAPPA, NEAR_FIELD_NODES, _clear_node, _field_rule, _soft_bound, field_pulse_weights,
-    peak_extinction,
+    FIELD_COARSE, FIELD_STEP, KAPPA, NEAR_FIELD_NODES, _clear_node, _field_rule, _soft_bound, beam_soft_maximum,
+    field_pulse_weights, peak_extinction,
 )  # fmt: skip
 from fog_gym.fog.physics import FogLevel
 
@@ -53,57 +54,6 @@ def _beam(pts, n, pose, terms, out):
         for c in range(pts.shape[1]):
             out[n, c] = pts[n, c]
     return r0, du, dz, tau0, i_orig, np.round(i_orig * np.exp(-2.0 * tau0))
-
-
-@njit(cache=True, inline="always")
-def _transmittance(trans, j, terms, u0, z0, du, dz, step):
-    # E_j = e^{−2τ(j·step)} on the ray, cached in trans (−1: not yet computed)
-    if trans[j] < 0.0:
-        trans[j] = np.exp(-2.0 * segment_depth(terms, u0, z0, du, dz, j * step))
-    return trans[j]
-
-
-@njit(cache=True, inline="always")
-def beam_soft_maximum(terms, u0, z0, du, dz, r0, weights, ramp, weights5, ramp5, coarse, step, beta_max):
-    """The soft return's maximum ``max_{R ≤ R0} F(R)`` (s/m², with the backscatter) on a beam from ``(u0, z0)`` with
-    unit-direction components ``du`` (along u) and ``dz`` (up) to range ``r0``, and the range node where it lies:
-    ``E_j = e^{−2τ(jΔ)}`` on the ray, ``F_k = Σ_n W[k, n]·E_{k−n}`` (:func:`field_pulse_weights`) on coarse ranges every
-    ``coarse`` nodes (their own weights ``weights5``), stopped by the bound, then on every node near the sensor (where
-    1/R′² varies fast) and around the coarse maximum."""
-    n_nodes = weights.shape[1]
-    top = min(int(np.round(min(r0, 200.0) / step)), weights.shape[0] - 1)
-    trans = np.full(top + 1, -1.0)  # E_j, computed when a window first needs it
-    clear = _clear_node(terms, u0, z0, du, dz, step, top)
-    one = int(np.round(XI_R2 / step))  # the node 1 m out, and the extinction there
-    beta1 = point_extinction(terms, u0 + du * XI_R2, z0 + dz * XI_R2)
-    near = 0.0 if one > top else _transmittance(trans, one, terms, u0, z0, du, dz, step)
-    lift = beta1 * near * np.exp(beta1 * (XI_R2 - XI_R1))
-    best5, best5_k, near5, near5_k = -1.0, -1, -1.0, -1  # the coarse maximum, and the one near the sensor
-    for k5 in range((max(one, clear) + coarse - 1) // coarse, top // coarse + 1):
-        back = k5 * coarse - (n_nodes - 1)  # where the pulse's window begins (the bound takes E there)
-        if best5 > 0.0 and back >= 0 and _soft_bound(k5 * coarse * step, beta_max, _transmittance(
-                trans, back, terms, u0, z0, du, dz, step)) < 0.95 * best5:  # fmt: skip
-            break  # no farther range can beat the maximum so far (a margin for the coarse weights)
-        f = ramp5[k5] * lift
-        for m in range(min(weights5.shape[1], k5 + 1)):
-            f += weights5[k5, m] * _transmittance(trans, coarse * (k5 - m), terms, u0, z0, du, dz, step)
-        if f > best5:
-            best5, best5_k = f, k5 * coarse
-        if f > near5 and k5 * coarse <= NEAR_FIELD_NODES:
-            near5, near5_k = f, k5 * coarse
-    best, best_k = 0.0, 0
-    start = max(one, clear)
-    for part in range(2):
-        centre = near5_k if part == 0 else best5_k
-        if centre < 0 or (part == 1 and centre == near5_k):
-            continue
-        for k in range(max(start, centre - 2 * coarse), min(centre + 2 * coarse, top) + 1):
-            f = ramp[k] * lift
-            for m in range(min(n_nodes, k + 1)):
-                f += weights[k, m] * _transmittance(trans, k - m, terms, u0, z0, du, dz, step)
-            if f > best:
-                best, best_k = f, k
-    return best, best_k
 
 
 @njit(cache=True, nogil=True)
@@ -170,6 +120,5 @@ def fog_lidar_field(points: np.ndarray, field, rng: np.random.Generator, pose: n
         return out
     if fog_lidar_bank(pts, terms, pose, log_noise, u, out, attenuation):  # one bank: curves per run, face-aligned
         return out
-    launch(_hahner_field)(pts, pose, terms, *field_pulse_weights(), *field_pulse_weights(FIELD_STEP * FIELD_COARSE),
-                  FIELD_COARSE, FIELD_STEP, log_noise, u, out, attenuation, peak_extinction(terms))  # fmt: skip
+    fog_lidar_grid(pts, terms, pose, log_noise, u, out, attenuation)  # sums: curves on a grid of directions
     return out

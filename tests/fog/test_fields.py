@@ -317,3 +317,36 @@ def test_a_banks_run_table_finds_the_node_below_each_run_as_a_sorted_search_does
         got = _run_node(g, nodes, off, len(runs), lut, inv_width)
         # (at a bin's edge the table may pick the node just above g, where g lies within rounding of it)
         assert got == want or (got == want + 1 and runs[got] == pytest.approx(g, rel=1e-12))
+
+
+@pytest.mark.parametrize("field, ego_u", [
+    (HeightFog(50.0, 4.0) + FogBank(50.0, 40.0, 80.0), 0.0),  # ground fog under a bank (the bench's)
+    (FogBank(50.0, 20.0, 40.0) + FogBank(80.0, 90.0, 60.0), 0.0),  # two banks ahead (the bench's)
+    (FogBank(40.0, -30.0, 60.0) + FogBank(60.0, 50.0, 30.0) + Homogeneous(300.0), 0.0),  # inside one, another ahead
+    (HeightFog(30.0, 2.0) + FogBank(60.0, -80.0, 60.0, edge=0.0), 10.0),  # past a wall, ground fog
+    (FogBank(40.0, 40.0, 60.0, velocity=3.0) + HeightFog(80.0, 6.0) + FogBank(100.0, -60.0, 40.0), 25.0),
+])  # fmt: skip
+def test_sums_of_fields_read_a_grid_of_curves_and_decide_as_each_beam_alone(field, ego_u):
+    from fog_gym.fog.lidar_field import FIELD_COARSE, FIELD_STEP, _hahner_field, field_pulse_weights, peak_extinction
+    from fog_gym.fog.lidar_grid import fog_lidar_grid
+
+    rng = np.random.default_rng(7)
+    r = rng.uniform(1.5, 120.0, 20_000)
+    az = rng.uniform(-np.pi, np.pi, r.size)
+    el = rng.choice(np.linspace(-0.35, 0.09, 64), r.size)
+    pts = np.c_[r * np.cos(el) * np.cos(az), r * np.cos(el) * np.sin(az), r * np.sin(el), rng.uniform(0.02, 1, r.size)]
+    pts = pts.astype(np.float32)
+    pose = field_pose(LIDAR @ np.r_[np.c_[np.eye(3), [ego_u, 0.0, 0.0]], [[0, 0, 0, 1]]], (0.0, 0.0, 0.0))
+    terms = field.pack(1.5)
+    grid = np.empty_like(pts)
+    exact = fog_lidar_grid(pts, terms, pose, 0.0, np.zeros(len(pts)), grid, -1.0)
+    alone = np.empty_like(pts)
+    _hahner_field(pts, pose, terms, *field_pulse_weights(), *field_pulse_weights(FIELD_STEP * FIELD_COARSE),
+                  FIELD_COARSE, FIELD_STEP, 0.0, np.zeros(len(pts)), alone, -1.0, peak_extinction(terms))  # fmt: skip
+    moved = lambda out: np.any(out[:, :3] != pts[:, :3], axis=1)  # noqa: E731
+    assert np.array_equal(moved(grid), moved(alone)) and moved(alone).mean() > 0.005
+    assert exact < 0.05 * len(pts)  # the grid decides nearly every point
+    assert np.abs(grid[:, 3] - alone[:, 3]).max() * 255 < 0.05  # the fog returns' intensity: a 20th of a level
+    assert np.abs(np.linalg.norm(grid[:, :3], axis=1) - np.linalg.norm(alone[:, :3], axis=1)).max() < 5.0
+    full = fog_lidar_field(pts, field, np.random.default_rng(1), pose, time=1.5, noise=0.0)  # the entry takes this path
+    assert np.array_equal(full, grid)

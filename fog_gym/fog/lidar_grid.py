@@ -1,0 +1,153 @@
+"""The LiDAR fog of any other field — sums of banks, ground fog under a bank — from soft-return curves on a grid of
+beam directions, each point checked against its neighbours' and integrated on its own where they disagree
+(:mod:`fog_gym.fog.lidar_field` calls :func:`fog_lidar_grid`).
+
+A field's extinction depends on the run along its axis ``u`` and the height ``z``, so a beam's soft return depends on
+its direction only through ``du`` (its run along ``u`` per metre) and ``dz`` (its rise per metre). The points' directions
+span a small rectangle of that plane: a grid of :data:`DU_NODES` × (up to :data:`DZ_NODES`) directions over it (one row
+of ``dz`` when no term depends on height), each with the running maximum of its soft return over every range node
+(:func:`fog_gym.fog.lidar_pulse._curves`). A point reads the curves of the grid cell around its direction at its range:
+when the cell's corners all make the same decision (fog return or hard target), the point takes it, with the soft
+return interpolated in the cell and, for a fog return, the range of the nearest corner's maximum (where two banks'
+faces hold nearly equal maxima, it may lie at the other face than the point's own beam puts it: a few metres, well
+within the model's range noise); where they disagree — near a bank's face, where the maximum jumps with the
+direction — the point's own beam is integrated (``beam_soft_maximum``, the per-beam path). The decisions are the
+per-beam path's (tested on random scenes and fields); the cost is the grid's curves plus the few points near a face.
+
+Example:
+    >>> from fog_gym.fog.fields import FogBank
+    >>> from fog_gym.fog.depth import field_pose
+    >>> pts = np.array([[30.0, 0, 0, 0.5], [120.0, 0, 0, 0.5]], np.float32)
+    >>> out = np.empty_like(pts)
+    >>> n_exact = fog_lidar_grid(pts, (FogBank(20.0, 60.0, 30.0) + FogBank(90.0, 100.0, 40.0)).pack(0.0),
+    ...                          field_pose(np.eye(4), (0, 0, 0)), 0.0, np.zeros(2), out, -1.0)
+    >>> out[0].tolist() == pts[0].tolist(), bool(50.0 < out[1, 0] < 70.0)  # kept before the first bank; behind: its face
+    (True, True)
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit, prange
+
+import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
+from fog_gym._numba import launch
+from fog_gym.fog.depth import segment_depth
+from fog_gym.fog.lidar import GAMMA, REFERENCE_REFLECTIVITY
+from fog_gym.fog.lidar_pulse import (FIELD_COARSE, FIELD_STEP, _curves, _field_rule, beam_soft_maximum,
+                                     field_pulse_weights, peak_extinction)  # fmt: skip
+
+#: Grid nodes along ``du`` and (for fields that depend on height) along ``dz`` over the points' directions.
+DU_NODES, DZ_NODES = 64, 8
+#: Height terms of a packed field (fog_gym.fog.fields): a field without them depends on ``u`` only.
+HEIGHT = 1.0
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _directions(pts, pose, step, last, r0s, dus, dzs, ks, spans):
+    # Per point: range, run along u and rise per metre and range node; per chunk of the points (a row of spans): the
+    # least and greatest run and rise and the farthest node.
+    n, chunks = pts.shape[0], spans.shape[0]
+    for c in prange(chunks):
+        lo_u, hi_u, lo_z, hi_z, top = np.inf, -np.inf, np.inf, -np.inf, 0
+        for i in range(c * n // chunks, (c + 1) * n // chunks):
+            x, y, z = np.float64(pts[i, 0]), np.float64(pts[i, 1]), np.float64(pts[i, 2])
+            r0 = np.sqrt(x * x + y * y + z * z)
+            inv = 1.0 / max(r0, 1e-12)
+            du = (pose[2] * x + pose[3] * y + pose[4] * z) * inv
+            dz = (pose[5] * x + pose[6] * y + pose[7] * z) * inv
+            k = min(int(np.round(min(r0, 200.0) * (1.0 / step))), last)
+            r0s[i], dus[i], dzs[i], ks[i] = r0, du, dz, k
+            lo_u, hi_u, lo_z, hi_z, top = min(lo_u, du), max(hi_u, du), min(lo_z, dz), max(hi_z, dz), max(top, k)
+        spans[c, 0], spans[c, 1], spans[c, 2], spans[c, 3], spans[c, 4] = lo_u, hi_u, lo_z, hi_z, top
+
+
+@njit(cache=True, inline="always")
+def _i_soft(best, i_orig, r0, ratio):
+    return min(255.0, best * i_orig * r0 * r0 * ratio)
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _hahner_grid(pts, pose, terms, r0s, dus, dzs, ks, du0, du_inv, n_du, dz0, dz_inv, n_dz, best, where, stops,
+                 weights, ramp, weights5, ramp5, coarse, step, beta_max, log_noise, u, out, attenuation, exact):  # fmt: skip
+    # Each point from its grid cell's four curves where their decisions agree, else from its own beam (exact[n] = 1).
+    for n in prange(pts.shape[0]):
+        r0 = r0s[n]
+        tau0 = segment_depth(terms, pose[0], pose[1], dus[n], dzs[n], r0)
+        if tau0 == 0.0:  # no fog on the ray: the point as in clear air
+            for c in range(pts.shape[1]):
+                out[n, c] = pts[n, c]
+            continue
+        k = ks[n]
+        i_orig = np.round(np.float64(pts[n, 3]) * 255.0)
+        i_hard = np.round(i_orig * np.exp(-2.0 * tau0))
+        ratio = np.pi / GAMMA
+        if attenuation >= 0.0:
+            rho = min(max(np.float64(pts[n, 3]) / np.exp(-attenuation * r0), 1e-3), 1.0)
+            ratio = ratio * REFERENCE_REFLECTIVITY / rho
+        a = min(max((dus[n] - du0) * du_inv, 0.0), n_du - 1.0)
+        ia = min(int(a), n_du - 2) if n_du > 1 else 0
+        ta = a - ia if n_du > 1 else 0.0
+        b = min(max((dzs[n] - dz0) * dz_inv, 0.0), n_dz - 1.0)
+        ib = min(int(b), n_dz - 2) if n_dz > 1 else 0
+        tb = b - ib if n_dz > 1 else 0.0
+        soft = 0.0
+        wins = 0
+        corners = 0
+        near, near_w = -1, -1.0
+        for q in range(4):
+            da, db = q & 1, q >> 1
+            if (da and n_du == 1) or (db and n_dz == 1):
+                continue
+            i = (ib + db) * n_du + ia + da
+            kk = min(k, stops[i])
+            v = best[i, kk]
+            w = (ta if da else 1.0 - ta) * (tb if db else 1.0 - tb)
+            soft += w * v
+            corners += 1
+            if _i_soft(v, i_orig, r0, ratio) > i_hard:
+                wins += 1
+            if w > near_w:
+                near, near_w = i, w
+        if wins == 0 or wins == corners:  # the cell agrees: its interpolated soft return decides as each corner does
+            r_tmp = where[near, min(k, stops[near])] * step
+        else:  # near a face: the point's own beam (the per-beam path)
+            soft, kk = beam_soft_maximum(terms, pose[0], pose[1], dus[n], dzs[n], r0, weights, ramp, weights5, ramp5,
+                                         coarse, step, beta_max)  # fmt: skip
+            r_tmp = kk * step
+            exact[n] = 1
+        _field_rule(pts, n, out, r0, i_orig, i_hard, soft, r_tmp, log_noise, u, attenuation)
+
+
+def fog_lidar_grid(pts: np.ndarray, terms: np.ndarray, pose: np.ndarray, log_noise: float, u: np.ndarray,
+                   out: np.ndarray, attenuation: float) -> int:
+    """Hahner et al. with any packed field on ``pts`` into ``out`` (``fog_gym.fog.lidar_field.fog_lidar_field``'s
+    arguments): the module docstring's grid of curves; returns how many points were integrated on their own beam."""
+    import numba
+
+    n = len(pts)
+    last = int(round(200.0 / FIELD_STEP))
+    r0s, dus, dzs = np.empty((3, n))
+    ks = np.empty(n, np.int64)
+    spans = np.empty((max(1, min(numba.get_num_threads(), n)), 5))
+    launch(_directions)(pts, pose, FIELD_STEP, last, r0s, dus, dzs, ks, spans)
+    du_lo, du_hi = float(spans[:, 0].min()), float(spans[:, 1].max())
+    n_du = DU_NODES if du_hi > du_lo else 1
+    heights = bool(np.any(terms[:, 0] == HEIGHT))
+    dz_lo, dz_hi = (float(spans[:, 2].min()), float(spans[:, 3].max())) if heights else (0.0, 0.0)
+    n_dz = DZ_NODES if heights and dz_hi > dz_lo else 1
+    grid_du = np.linspace(du_lo, du_hi, n_du)
+    grid_dz = np.linspace(dz_lo, dz_hi, n_dz) if heights else np.zeros(1)
+    node_du = np.tile(grid_du, n_dz)
+    node_dz = np.repeat(grid_dz, n_du)
+    tops = np.full(len(node_du), int(spans[:, 4].max()), np.int64)
+    best, where, stops = _curves(terms, pose, node_du, node_dz, tops)
+    weights, ramp = field_pulse_weights()
+    weights5, ramp5 = field_pulse_weights(FIELD_STEP * FIELD_COARSE)
+    exact = np.zeros(n, np.uint8)
+    launch(_hahner_grid)(pts, pose, terms, r0s, dus, dzs, ks, du_lo,
+                         (n_du - 1) / (du_hi - du_lo) if n_du > 1 else 0.0, n_du, dz_lo,
+                         (n_dz - 1) / (dz_hi - dz_lo) if n_dz > 1 else 0.0, n_dz, best, where, stops, weights, ramp,
+                         weights5, ramp5, FIELD_COARSE, FIELD_STEP, peak_extinction(terms), log_noise, u, out,
+                         attenuation, exact)  # fmt: skip
+    return int(exact.sum())
