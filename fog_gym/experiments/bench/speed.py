@@ -5,8 +5,8 @@
 * **sums of fog fields**: a ``FogDrive-v0`` step (the RL preset's rig: one 64 × 64 camera and a 32-channel LiDAR)
   fogged by ``HeightFog + FogBank`` and by two banks, against the same step in homogeneous fog; the LiDAR fog of
   100 k points likewise;
-* **scaling**: ``fog-gym generate`` with 1 … N workers and the sharded objects vector env with 1 … N shards
-  (N: this machine's cores, powers of two).
+* **scaling**: ``fog-gym generate`` with 1 … N workers and the sharded vector env (``FogDriveRLHazard-v0``, 16 worlds,
+  objects and pixels) with 1 … N shards (N: this machine's cores, powers of two).
 
 With ``--previous DIR`` (a checkout of another release, e.g. ``git worktree add ../fog-gym-prev 3c4c6c8``) each
 vector-env and fog figure runs in child processes of both installs in turn (``PYTHONPATH`` picks the tree; a warm-up
@@ -149,37 +149,39 @@ def bench_figures(trees: dict[str, str], rounds: int, quick: bool) -> dict[str, 
 
 
 def bench_scaling(cores: list[int], quick: bool) -> dict[str, Any]:
-    """``fog-gym generate`` (4 scenes × 2 s, 640 × 480, full rig) with 1 … N workers and the sharded objects vector
-    env (16 worlds) with 1 … N shards: seconds and samples/s, steps/s."""
+    """``fog-gym generate`` (the same 4 scenes × 2 s, 640 × 480, full rig, after a warm-up run) with 1 … N workers, and
+    the sharded vector env (16 worlds; perceived objects and pixels) with 1 … N shards: samples/s, steps/s."""
     import gymnasium as gym
 
     from fog_gym.generate import generate, plan_scenes
 
-    out: dict[str, Any] = {"generate": {}, "sharded": {}}
-    seconds = 1.0 if quick else 2.0
+    out: dict[str, Any] = {"generate": {}, "sharded objects": {}, "sharded pixels": {}}
+    plan = plan_scenes(4, towns=("merge",), resolution=(640, 480), seconds=1.0 if quick else 2.0)
+    samples = sum(s.expected_samples for s in plan)
     with tempfile.TemporaryDirectory() as tmp:
+        generate(Path(tmp) / "warm", plan[:2], workers=max(cores), progress=False)  # kernels compiled and cached
         for k in cores:
-            plan = plan_scenes(max(2, 2 * k), towns=("merge",), resolution=(640, 480), seconds=seconds)
             t = time.perf_counter()
             generate(Path(tmp) / f"w{k}", plan, workers=k, progress=False)
             wall = time.perf_counter() - t
-            samples = sum(s.expected_samples for s in plan)
             out["generate"][k] = {"scenes": len(plan), "seconds": wall, "samples_per_s": samples / wall}
-    for k in cores:
-        envs = gym.make_vec("FogDriveRLHazard-v0", num_envs=16, vectorization_mode="vector_entry_point",
-                            observation="objects", fog="dense", shards=k)  # fmt: skip
-        try:
-            envs.reset(seed=0)
-            a = np.ones(16, np.int64)
-            for _ in range(5):
-                envs.step(a)
-            steps = 50 if quick else 300
-            t = time.perf_counter()
-            for _ in range(steps):
-                envs.step(a)
-            out["sharded"][k] = {"steps_per_s": steps * 16 / (time.perf_counter() - t)}
-        finally:
-            envs.close()
+    for key, kwargs, steps in (("sharded objects", {"observation": "objects"}, 300),
+                               ("sharded pixels", {"geometry": "meshes"}, 30)):  # fmt: skip
+        for k in cores:
+            envs = gym.make_vec("FogDriveRLHazard-v0", num_envs=16, vectorization_mode="vector_entry_point",
+                                fog="dense", shards=k, **kwargs)  # fmt: skip
+            try:
+                envs.reset(seed=0)
+                a = np.ones(16, np.int64)
+                for _ in range(5):
+                    envs.step(a)
+                n = max(5, steps // 6) if quick else steps
+                t = time.perf_counter()
+                for _ in range(n):
+                    envs.step(a)
+                out[key][k] = {"steps_per_s": n * 16 / (time.perf_counter() - t)}
+            finally:
+                envs.close()
     return out
 
 
@@ -213,14 +215,16 @@ def render_figures(res: dict[str, Any], rounds: int) -> list[str]:
 
 def render_scaling(res: dict[str, Any]) -> list[str]:
     rows = []
-    g1 = res["generate"][min(res["generate"])]["samples_per_s"]
-    s1 = res["sharded"][min(res["sharded"])]["steps_per_s"]
+    first = {key: res[key][min(res[key])] for key in res}
     for k in sorted(res["generate"]):
-        g, s = res["generate"][k], res["sharded"][k]
-        rows.append([str(k), f"{g['samples_per_s']:.2f} ({g['samples_per_s'] / g1:.2f}×)",
-                     f"{s['steps_per_s']:.0f} ({s['steps_per_s'] / s1:.2f}×)"])  # fmt: skip
+        row = [str(k)]
+        for key, unit in (("generate", "samples_per_s"), ("sharded objects", "steps_per_s"), ("sharded pixels", "steps_per_s")):
+            v = res[key][k][unit]
+            row.append(f"{v:.1f} ({v / first[key][unit]:.2f}×)")
+        rows.append(row)
     return ["**Scaling over cores**", "", markdown_table(
-        ["cores", "generate: samples/s (640 × 480, full rig)", "sharded objects vector env: steps/s (16 worlds)"], rows)]
+        ["cores", "generate: samples/s (4 scenes, 640 × 480, full rig)", "sharded vector env, objects: steps/s",
+         "sharded vector env, pixels: steps/s"], rows)]  # fmt: skip
 
 
 def main(argv: list[str] | None = None) -> int:
