@@ -21,7 +21,7 @@ vehicles did meanwhile stays (as in real data).
 
 Example:
     >>> slices, times = sweep_slices(np.arange(8), 8, 20.0, n_slices=4)
-    >>> [s.tolist() for s in slices], times.tolist()
+    >>> [s.tolist() for s in slices], times.round(6).tolist()
     ([[0, 1], [2, 3], [4, 5], [6, 7]], [-0.04375, -0.03125, -0.01875, -0.00625])
     >>> pts = np.array([[10.0, 0.0, 0.0, 0.5, -0.05]], np.float32)  # fired 50 ms before the keyframe
     >>> poses = np.array([[-0.05, 0.0, 0.0, 0.0], [0.0, 1.5, 0.0, 0.0]])  # the ego drove 1.5 m along x meanwhile

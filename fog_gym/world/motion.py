@@ -14,9 +14,9 @@ Example:
     ...     return VehicleState(np.array([1]), np.zeros(1, np.int8), np.array([[x, 0.0, 0.75]]), np.array([[4.5, 1.8, 1.5]]),
     ...                         np.array([yaw]), np.array([[30.0, 0, 0]]), np.full((1, 3), 0.5))
     >>> m = SceneMotion(state(13.0, 0.1), previous=(-0.1, state(10.0, 0.0)))
-    >>> m.ego_pose_at(-0.05, ego_id=1)
+    >>> tuple(round(v, 6) for v in m.ego_pose_at(-0.05, ego_id=1))
     (11.5, 0.0, 0.05)
-    >>> SceneMotion(state(13.0, 0.0)).ego_pose_at(-0.05, ego_id=1)  # no previous keyframe: constant velocity
+    >>> tuple(round(v, 6) for v in SceneMotion(state(13.0, 0.0)).ego_pose_at(-0.05, ego_id=1))  # constant velocity
     (11.5, 0.0, 0.0)
 """
 

@@ -57,9 +57,9 @@ def test_training_lowers_the_l1_loss_on_fogged_pairs_and_dehaze_returns_uint8():
     rng = np.random.default_rng(0)
     clean = rng.integers(0, 255, (6, 32, 32, 3), dtype=np.uint8)
     foggy = (0.6 * clean + 0.4 * 200).astype(np.uint8)  # a uniform haze
-    model, losses = train_dehazeformer(clean, foggy, "T", steps=40, batch_size=2, crop=16, lr=2e-3, seed=0,
+    model, losses = train_dehazeformer(clean, foggy, "T", steps=100, batch_size=2, crop=16, lr=2e-3, seed=0,
                                        progress=False)  # fmt: skip
-    assert losses[-1] < 0.7 * losses[0]
+    assert len(losses) == 2 and losses[-1] < 0.7 * losses[0]  # means of steps 0-49 and 50-99
     out = dehaze(model, foggy[0])
     assert out.shape == (32, 32, 3) and out.dtype == np.uint8
     with pytest.raises(ValueError, match="crop"):
