@@ -10,7 +10,9 @@ how to turn the finished units into a report. :func:`run` does the rest, the sam
 * **resume**: ``<out>/study.json`` records the study and its settings before any unit runs; a finished unit is
   kept as ``<out>/<stage>/<key>.json`` (with the files it wrote) and never runs again; a run with other settings
   into the same folder is refused with :class:`StudyError` before any work (which seeds, rows or conditions run
-  is not a setting: a later run may add some);
+  is not a setting: a later run may add some); a training unit keeps its state after every epoch
+  (:class:`EpochCheckpoint`, ``<out>/checkpoints/<key>.pt``), so a killed run resumes inside a unit, from its
+  last finished epoch, to the weights an uninterrupted run reaches;
 * **progress**: one bar per stage over its units (the units show their own bars beneath);
 * **wall times**: of every unit (kept in its record) and of the whole run, in the Markdown and the JSON;
 * **the report**: Markdown, JSON and PNG files, each written atomically (a temporary file, then ``os.replace``);
@@ -214,6 +216,41 @@ def atomic_path(path: Path):
         os.replace(tmp, path)
     finally:
         tmp.unlink(missing_ok=True)
+
+
+class EpochCheckpoint:
+    """A training unit's state after its last finished epoch (``torch.save`` of a dict, written atomically).
+
+    ``signature`` names what the state belongs to (the unit's settings and its number of steps per epoch): a
+    checkpoint with another signature is ignored, never loaded. ``path=None`` keeps nothing (tests, one-off fits).
+    The trainer saves the model, optimiser, schedule, data-order generator and its own history after each epoch
+    and, when it starts, continues from :meth:`load`'s state; the study calls :meth:`clear` once the unit's files
+    are written.
+    """
+
+    def __init__(self, path: Path | None, signature: Mapping[str, Any]) -> None:
+        self.path = None if path is None else Path(path)
+        self.signature = dict(signature)
+
+    def load(self) -> dict[str, Any] | None:
+        """The saved state, or None when there is none (or it belongs to other settings)."""
+        import torch
+
+        if self.path is None or not self.path.exists():
+            return None
+        state = torch.load(self.path, map_location="cpu", weights_only=False)
+        return state if state.get("signature") == self.signature else None
+
+    def save(self, state: Mapping[str, Any]) -> None:
+        import torch
+
+        if self.path is not None:
+            with atomic_path(self.path) as tmp:
+                torch.save(dict(state) | {"signature": self.signature}, tmp)
+
+    def clear(self) -> None:
+        if self.path is not None:
+            self.path.unlink(missing_ok=True)
 
 
 def save_figure(fig: Any, path: Path, **kwargs: Any) -> None:

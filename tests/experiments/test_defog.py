@@ -179,3 +179,43 @@ def test_the_gpu_configuration_runs_at_toy_size_on_the_cpu(camera_set, tmp_path)
     config = Exp2Config.gpu(**{**TINY, "dehazeformer_steps": 1})
     r = run_experiment2(camera_set, tmp_path / "gpu", config, progress=False, log=lambda *_: None)
     assert r["config"]["profile"] == "gpu" and r["config"]["dehazeformer"] == "S" and "A" in r["detection"]
+
+
+class _Killed(Exception):
+    pass
+
+
+def test_a_detector_killed_after_an_epoch_resumes_from_its_checkpoint_to_the_uninterrupted_weights(camera_set, tmp_path,
+                                                                                                  monkeypatch):  # fmt: skip
+    import torch
+
+    from fog_gym.experiments.defog.data import eval_set
+    from fog_gym.experiments.defog.train import DetectionSet, train_detector
+    from fog_gym.experiments.runner import EpochCheckpoint
+
+    c = Exp2Config(**{**TINY, "epochs": 2})
+    ds = FogDrive(camera_set)
+    train_f, val_f = (frames(ds, ds.splits[s], 2, c.cameras) for s in ("train", "val"))
+    val = eval_set(ds, val_f, "clean", tuple(c.input_size), min_height=c.min_height)
+
+    def fit(checkpoint):
+        data = DetectionSet(ds, train_f, "clean", tuple(c.input_size), augment=True, seed=0, hsv=c.hsv)
+        return train_detector(data, *val, c, 0, torch.device("cpu"), "t", None, False, checkpoint=checkpoint)
+
+    whole, whole_summary = fit(None)
+    save = EpochCheckpoint.save
+
+    def save_then_die(self, state):
+        save(self, state)
+        if state["epoch"] == 1:
+            raise _Killed
+
+    monkeypatch.setattr(EpochCheckpoint, "save", save_then_die)
+    with pytest.raises(_Killed):
+        fit(tmp_path / "t.pt")
+    monkeypatch.setattr(EpochCheckpoint, "save", save)
+    resumed, summary = fit(tmp_path / "t.pt")
+    assert summary["resumed_at_epoch"] == 1 and summary["history"] == whole_summary["history"]
+    a, b = whole.state_dict(), resumed.state_dict()
+    assert all(torch.equal(a[k], b[k]) for k in a)
+    assert EpochCheckpoint(tmp_path / "t.pt", {"other": 1}).load() is None  # another unit's state is never loaded

@@ -275,3 +275,34 @@ def test_gpu_flag_selects_the_gpu_configuration_at_toy_size(lidar_set, tmp_path)
     assert cfg.profile == "gpu" and Exp1Config.gpu().pillar_m == 0.2 and Exp1Config.gpu().pillar_widths == (64, 128, 256)
     res = run_experiment1(lidar_set, tmp_path / "out", cfg, progress=False, log=lambda *_: None)
     assert res["config"]["profile"] == "gpu" and "pillars_Light_s0" in res["units"]
+
+
+class _Killed(Exception):
+    pass
+
+
+def test_a_unit_killed_after_an_epoch_resumes_from_its_checkpoint_to_the_uninterrupted_weights(lidar_set, tmp_path,
+                                                                                              monkeypatch):  # fmt: skip
+    from fog_gym.experiments.runner import EpochCheckpoint
+
+    cfg = Exp1Config(epochs=2, batch_size=4, every=1, test_every=1, rows=("Dense",), detectors=("bev",), **TOY)
+    whole = run_experiment1(lidar_set, tmp_path / "whole", cfg, progress=False, log=lambda *_: None)
+    save = EpochCheckpoint.save
+
+    def save_then_die(self, state):
+        save(self, state)
+        if state["epoch"] == 1:
+            raise _Killed
+
+    monkeypatch.setattr(EpochCheckpoint, "save", save_then_die)
+    with pytest.raises(_Killed):
+        run_experiment1(lidar_set, tmp_path / "out", cfg, progress=False, log=lambda *_: None)
+    assert (tmp_path / "out" / "checkpoints" / "bev_Dense_s0.pt").exists()
+    monkeypatch.setattr(EpochCheckpoint, "save", save)
+    resumed = run_experiment1(lidar_set, tmp_path / "out", cfg, progress=False, log=lambda *_: None)
+    record = resumed["units"]["bev_Dense_s0"]["result"]
+    assert record["resumed_at_epoch"] == 1 and record["steps"] == whole["units"]["bev_Dense_s0"]["result"]["steps"]
+    assert record["curve"] == whole["units"]["bev_Dense_s0"]["result"]["curve"]
+    a, b = (torch.load(tmp_path / d / "models" / "bev_Dense_s0.pt") for d in ("whole", "out"))
+    assert all(torch.equal(a[k], b[k]) for k in a)
+    assert not (tmp_path / "out" / "checkpoints" / "bev_Dense_s0.pt").exists()  # cleared once the unit's files exist

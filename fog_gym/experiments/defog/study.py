@@ -192,7 +192,7 @@ class Exp2Study(DatasetStudy):
         import torch
 
         from fog_gym.dataset.access import FogDrive
-        from fog_gym.experiments.runner import atomic_path
+        from fog_gym.experiments.runner import EpochCheckpoint, atomic_path
 
         ds, c, device = FogDrive(self.root), self.config, torch_device(self.config.device)
         if unit.stage == "evaluate":
@@ -214,9 +214,11 @@ class Exp2Study(DatasetStudy):
             level, size = unit.params["level"], tuple(c.input_size)
             val = eval_set(ds, self._frames(ds, "val"), level, size, min_height=c.min_height)
             data = DetectionSet(ds, train_f, level, size, augment=True, seed=unit.seed, hsv=c.hsv)
-            model, summary = train_detector(data, *val, c, unit.seed, device, unit.key, out / "tb" / unit.key, progress)
+            model, summary = train_detector(data, *val, c, unit.seed, device, unit.key, out / "tb" / unit.key, progress,
+                                            checkpoint=out / "checkpoints" / f"{unit.key}.pt")  # fmt: skip
         with atomic_path(out / "models" / f"{unit.key}.pt") as tmp:
             torch.save(model.state_dict(), tmp)
+        EpochCheckpoint(out / "checkpoints" / f"{unit.key}.pt", {}).clear()
         return summary
 
     def load_models(self, out: Path, seed: int, device: Any) -> tuple[Any, dict[str, Any], Any, Any]:

@@ -20,6 +20,7 @@ from fog_gym.dataset.access import FogDrive
 from fog_gym.experiments.defog.data import LEVELS, Frame, load_boxes, load_image, resize
 from fog_gym.experiments.defog.evaluate import detect
 from fog_gym.experiments.detection3d.model import optimizer_step
+from fog_gym.experiments.runner import EpochCheckpoint
 
 
 def augment_hsv(image: np.ndarray, gains: Sequence[float], rng: np.random.Generator) -> np.ndarray:
@@ -116,12 +117,13 @@ class EMA:
 
 def train_detector(train: Any, val_images: list[np.ndarray], val_gt: list[dict], val_scale: list, config: Any,
                    seed: int, device: torch.device, name: str, tb_dir: Path | None = None,
-                   progress: bool = True) -> tuple[torch.nn.Module, dict[str, Any]]:  # fmt: skip
+                   progress: bool = True, checkpoint: Path | None = None) -> tuple[torch.nn.Module, dict[str, Any]]:  # fmt: skip
     """Train the YOLO-style detector on ``train`` (a :class:`~fog_gym.experiments.defog.data.DetectionSet`;
     weights, shuffling and augmentation from ``seed``) with AdamW and a one-cycle learning rate, keeping an EMA of
     the weights; evaluate the EMA on the validation set every ``eval_every`` epochs and keep the epoch with the
     best validation mAP@0.5 (early stopping's selection). Returns the model and a summary with the validation
-    history (the learning curve)."""
+    history (the learning curve). With ``checkpoint`` the state after every epoch is kept there and a later call
+    continues from it (:class:`~fog_gym.experiments.runner.EpochCheckpoint`)."""
     from tqdm import tqdm
 
     from fog_gym.experiments.defog.yolo import YoloDetector
@@ -133,9 +135,10 @@ def train_detector(train: Any, val_images: list[np.ndarray], val_gt: list[dict],
     torch.manual_seed(seed)
     model = YoloDetector(config.yolo).to(device).to(memory_format=torch.channels_last)
     ema = EMA(model)
+    order = torch.Generator().manual_seed(seed)
     loader = torch.utils.data.DataLoader(train, config.batch_size, shuffle=True, collate_fn=collate_detection,
                                          drop_last=len(train) > config.batch_size, num_workers=config.workers,
-                                         generator=torch.Generator().manual_seed(seed))  # fmt: skip
+                                         generator=order)  # fmt: skip
     opt = torch.optim.AdamW(model.parameters(), lr=config.lr, weight_decay=config.weight_decay)
     sched = torch.optim.lr_scheduler.OneCycleLR(opt, config.lr, total_steps=config.epochs * len(loader), pct_start=0.15)
     tb = None
@@ -143,10 +146,22 @@ def train_detector(train: Any, val_images: list[np.ndarray], val_gt: list[dict],
         from torch.utils.tensorboard import SummaryWriter
 
         tb = SummaryWriter(str(tb_dir))
-    best, best_state, history, step, t0 = -1.0, None, [], 0, time.perf_counter()
-    bar = tqdm(total=config.epochs * len(loader), desc=f"train {name} ({len(train)} images)", unit="batch",
-               disable=not progress)  # fmt: skip
-    for epoch in range(config.epochs):
+    best, best_state, history, step, t0, start, before = -1.0, None, [], 0, time.perf_counter(), 0, 0.0
+    keep = EpochCheckpoint(checkpoint, {"config": repr(config), "seed": seed, "images": len(train),
+                                        "batches": len(loader)})  # fmt: skip
+    if (state := keep.load()) is not None:
+        model.load_state_dict(state["model"])
+        ema.model.load_state_dict(state["ema"])
+        ema.updates = state["ema_updates"]
+        opt.load_state_dict(state["opt"])
+        sched.load_state_dict(state["sched"])
+        order.set_state(state["order"])
+        torch.set_rng_state(state["rng"])
+        best, best_state, history = state["best"], state["best_state"], state["history"]
+        step, start, before = state["step"], state["epoch"], state["seconds"]
+    bar = tqdm(total=config.epochs * len(loader), initial=step, desc=f"train {name} ({len(train)} images)",
+               unit="batch", disable=not progress)  # fmt: skip
+    for epoch in range(start, config.epochs):
         model.train()
         train.epoch = epoch
         for imgs, boxes, classes, mask in loader:
@@ -162,24 +177,30 @@ def train_detector(train: Any, val_images: list[np.ndarray], val_gt: list[dict],
                 tb.add_scalar("loss/total", value, step)
                 for k, v in parts.items():
                     tb.add_scalar(f"loss/{k}", v, step)
-        if (epoch + 1) % config.eval_every and epoch + 1 != config.epochs:
-            continue
-        with autocast(device, precision):
-            r = evaluate_coco(val_gt, detect(ema.model, val_images, val_scale, device, config.threshold))
-        score = r["mAP50"] if not math.isnan(r["mAP50"]) else -1.0
-        history.append({"epoch": epoch + 1, "images_seen": (epoch + 1) * len(loader) * config.batch_size,
-                        "val_mAP50": score, "val_mAP50_95": r["mAP50_95"]})  # fmt: skip
-        if tb is not None:
-            tb.add_scalar("val/mAP50", score, epoch + 1)
-        if score > best:
-            best, best_state = score, copy.deepcopy(ema.model.state_dict())
+        if (epoch + 1) % config.eval_every == 0 or epoch + 1 == config.epochs:
+            with autocast(device, precision):
+                r = evaluate_coco(val_gt, detect(ema.model, val_images, val_scale, device, config.threshold))
+            score = r["mAP50"] if not math.isnan(r["mAP50"]) else -1.0
+            history.append({"epoch": epoch + 1, "images_seen": (epoch + 1) * len(loader) * config.batch_size,
+                            "val_mAP50": score, "val_mAP50_95": r["mAP50_95"]})  # fmt: skip
+            if tb is not None:
+                tb.add_scalar("val/mAP50", score, epoch + 1)
+            if score > best:
+                best, best_state = score, copy.deepcopy(ema.model.state_dict())
+        keep.save({"model": model.state_dict(), "ema": ema.model.state_dict(), "ema_updates": ema.updates,
+                   "opt": opt.state_dict(), "sched": sched.state_dict(), "order": order.get_state(),
+                   "rng": torch.get_rng_state(), "best": best, "best_state": best_state, "history": history,
+                   "step": step, "epoch": epoch + 1, "seconds": before + time.perf_counter() - t0})  # fmt: skip
     bar.close()
     if tb is not None:
         tb.close()
     model.load_state_dict(best_state)
     best_epoch = max(history, key=lambda h: h["val_mAP50"])["epoch"]
-    return model.eval(), {"images": len(train), "seconds": time.perf_counter() - t0, "best_epoch": best_epoch,
-                          "val_mAP50": best, "history": history, "precision": precision, "steps": step}  # fmt: skip
+    summary = {"images": len(train), "seconds": before + time.perf_counter() - t0, "best_epoch": best_epoch,
+               "val_mAP50": best, "history": history, "precision": precision, "steps": step}  # fmt: skip
+    if start:
+        summary["resumed_at_epoch"] = start
+    return model.eval(), summary
 
 
 def training_pairs(ds: FogDrive, train_f: list[Frame], n: int, crop: tuple[int, int], seed: int,

@@ -231,7 +231,7 @@ class Exp1Study(DatasetStudy):
 
         from fog_gym.dataset.access import FogDrive
         from fog_gym.experiments.detection3d.train import save_predictions, train_row
-        from fog_gym.experiments.runner import atomic_path
+        from fog_gym.experiments.runner import EpochCheckpoint, atomic_path
 
         ds = FogDrive(self.root)
         trains, tests = self._subsets(ds)
@@ -240,8 +240,9 @@ class Exp1Study(DatasetStudy):
         cache = self._cache(out)
         data = self._train_set(ds, trains, row, cache, det, unit.seed)
         test_sets = self._test_sets(ds, tests, cache, det)
+        checkpoint = out / "checkpoints" / f"{unit.key}.pt"
         model, record, preds = train_row(data, test_sets, config, det, unit.seed, torch_device(config.device),
-                                         out / "tb" / unit.key, progress)  # fmt: skip
+                                         out / "tb" / unit.key, progress, checkpoint)  # fmt: skip
         record["train_scenes"] = len({n for n, _ in trains[row]})
         with atomic_path(out / "models" / f"{unit.key}.pt") as tmp:
             torch.save(model.state_dict(), tmp)
@@ -249,6 +250,7 @@ class Exp1Study(DatasetStudy):
         scenes = {lv: [it[3] for it in t.items] for lv, t in test_sets.items()}
         with atomic_path(out / "preds" / f"{unit.key}.npz") as tmp:
             save_predictions(tmp, preds, gts, scenes)
+        EpochCheckpoint(checkpoint, {}).clear()
         return record
 
     def describe(self, unit: Unit, result: dict[str, Any]) -> str:

@@ -23,6 +23,7 @@ import torch
 from fog_gym.experiments.detection3d.data import SweepDataset, collate, to_device
 from fog_gym.experiments.detection3d.evaluate import METRICS, evaluate_levels, fds
 from fog_gym.experiments.detection3d.model import BEVCenterNet, detection_loss, optimizer_step
+from fog_gym.experiments.runner import EpochCheckpoint
 
 #: The L1 regression weight of each detector's loss: CenterPoint's 0.25 for the pillar detector, 2 for the BEV one.
 REG_WEIGHT = {"pillars": 0.25, "bev": 2.0}
@@ -69,19 +70,23 @@ def build_model(detector: str, config: Any) -> torch.nn.Module:
 
 
 def train_row(data: SweepDataset, test_sets: dict[str, SweepDataset], config: Any, detector: str, seed: int,
-              device: torch.device, tb_dir: Path, progress: bool = True) -> tuple[torch.nn.Module, dict[str, Any], dict[str, list]]:  # fmt: skip
+              device: torch.device, tb_dir: Path, progress: bool = True,
+              checkpoint: Path | None = None) -> tuple[torch.nn.Module, dict[str, Any], dict[str, list]]:  # fmt: skip
     """Train ``detector`` on ``data`` (a training :class:`~.data.SweepDataset`) with ``seed`` (weights, shuffling,
     augmentation: ``data.seed`` should be ``seed``); returns the last model, the unit's record (sweeps, seconds,
-    the best-FDS epoch's metrics per test level, the learning curve) and the best epoch's predictions per level."""
+    the best-FDS epoch's metrics per test level, the learning curve) and the best epoch's predictions per level.
+    With ``checkpoint`` the state after every epoch is kept there and a later call continues from it
+    (:class:`~fog_gym.experiments.runner.EpochCheckpoint`): the same weights as a run that was never stopped."""
     from torch.utils.tensorboard import SummaryWriter
     from tqdm import tqdm
 
     precision = resolve_precision(config.precision, device)
     grid = config.grid(detector)
     torch.manual_seed(seed)  # each unit from its seed: a unit never depends on which units ran before
+    order = torch.Generator().manual_seed(seed)
     loader = torch.utils.data.DataLoader(data, config.batch_size, shuffle=True, collate_fn=collate,
                                          drop_last=len(data) > config.batch_size, num_workers=config.workers,
-                                         generator=torch.Generator().manual_seed(seed))  # fmt: skip
+                                         generator=order)  # fmt: skip
     loaders = {lv: torch.utils.data.DataLoader(d, config.batch_size, collate_fn=collate, num_workers=config.workers)
                for lv, d in test_sets.items()}  # fmt: skip
     model = build_model(detector, config).to(device)
@@ -91,10 +96,20 @@ def train_row(data: SweepDataset, test_sets: dict[str, SweepDataset], config: An
     best: dict[str, dict[str, Any]] = {}
     best_preds: dict[str, list] = {}
     curve: list[dict[str, Any]] = []
-    t0, step = time.perf_counter(), 0
-    bar = tqdm(total=config.epochs * len(loader), desc=f"train {tb_dir.name} ({len(data)} sweeps)", unit="batch",
-               disable=not progress)  # fmt: skip
-    for epoch in range(config.epochs):
+    t0, step, start, before = time.perf_counter(), 0, 0, 0.0
+    keep = EpochCheckpoint(checkpoint, {"config": repr(config), "detector": detector, "seed": seed,
+                                        "sweeps": len(data), "batches": len(loader)})  # fmt: skip
+    if (state := keep.load()) is not None:
+        model.load_state_dict(state["model"])
+        opt.load_state_dict(state["opt"])
+        sched.load_state_dict(state["sched"])
+        order.set_state(state["order"])
+        torch.set_rng_state(state["rng"])
+        best, best_preds, curve = state["best"], state["best_preds"], state["curve"]
+        step, start, before = state["step"], state["epoch"], state["seconds"]
+    bar = tqdm(total=config.epochs * len(loader), initial=step, desc=f"train {tb_dir.name} ({len(data)} sweeps)",
+               unit="batch", disable=not progress)  # fmt: skip
+    for epoch in range(start, config.epochs):
         model.train()
         data.epoch = epoch
         for batch in loader:
@@ -111,27 +126,41 @@ def train_row(data: SweepDataset, test_sets: dict[str, SweepDataset], config: An
                 tb.add_scalar("loss/total", value, step)
                 for k, v in parts.items():
                     tb.add_scalar(f"loss/{k}", v, step)
-        if (epoch + 1) % config.eval_every and epoch + 1 != config.epochs:
-            continue
-        with autocast(device, precision):
-            results = evaluate_levels(model, loaders, device, grid, config.threshold)
-        point = {"epoch": epoch + 1, "sweeps_seen": (epoch + 1) * len(loader) * config.batch_size}
-        for lv, (r, preds) in results.items():
-            point[lv] = {k: float(r[k]) for k in METRICS}
-            for k in METRICS:
-                if not math.isnan(r[k]):
-                    tb.add_scalar(f"{lv}/{k}", r[k], epoch + 1)
-            if lv not in best or fds(r) > best[lv]["FDS"]:
-                best[lv] = {k: float(r[k]) for k in METRICS} | {
-                    "epoch": epoch + 1, "n_gt": r["n_gt"], "n_tp": r["n_tp"], "n_pred": r["n_pred"],
-                    "AP": {str(c): float(v) for c, v in r["AP"].items()}, "bands": r["bands"]}  # fmt: skip
-                best_preds[lv] = preds
-        curve.append(point)
+        if (epoch + 1) % config.eval_every == 0 or epoch + 1 == config.epochs:
+            _evaluate_epoch(model, loaders, device, grid, config, precision, epoch, len(loader), tb, best, best_preds,
+                            curve)  # fmt: skip
+        keep.save({"model": model.state_dict(), "opt": opt.state_dict(), "sched": sched.state_dict(),
+                   "order": order.get_state(), "rng": torch.get_rng_state(), "best": best, "best_preds": best_preds,
+                   "curve": curve, "step": step, "epoch": epoch + 1,
+                   "seconds": before + time.perf_counter() - t0})  # fmt: skip
     bar.close()
     tb.close()
-    record = {"detector": detector, "train_sweeps": len(data), "seconds": time.perf_counter() - t0, "precision": precision, "steps": step, "best": best,
-              "curve": curve}  # fmt: skip
+    record = {"detector": detector, "train_sweeps": len(data), "seconds": before + time.perf_counter() - t0,
+              "precision": precision, "steps": step, "best": best, "curve": curve}  # fmt: skip
+    if start:
+        record["resumed_at_epoch"] = start
     return model, record, best_preds
+
+
+def _evaluate_epoch(model: torch.nn.Module, loaders: dict, device: torch.device, grid: Any, config: Any,
+                    precision: str, epoch: int, batches: int, tb: Any, best: dict, best_preds: dict,
+                    curve: list) -> None:  # fmt: skip
+    """Evaluate after ``epoch`` on every test level; update the best-FDS epoch's metrics and predictions per level
+    and the learning curve in place."""
+    with autocast(device, precision):
+        results = evaluate_levels(model, loaders, device, grid, config.threshold)
+    point = {"epoch": epoch + 1, "sweeps_seen": (epoch + 1) * batches * config.batch_size}
+    for lv, (r, preds) in results.items():
+        point[lv] = {k: float(r[k]) for k in METRICS}
+        for k in METRICS:
+            if not math.isnan(r[k]):
+                tb.add_scalar(f"{lv}/{k}", r[k], epoch + 1)
+        if lv not in best or fds(r) > best[lv]["FDS"]:
+            best[lv] = {k: float(r[k]) for k in METRICS} | {
+                "epoch": epoch + 1, "n_gt": r["n_gt"], "n_tp": r["n_tp"], "n_pred": r["n_pred"],
+                "AP": {str(c): float(v) for c, v in r["AP"].items()}, "bands": r["bands"]}  # fmt: skip
+            best_preds[lv] = preds
+    curve.append(point)
 
 
 def save_predictions(path: Path, preds: dict[str, list], gts: dict[str, list], scenes: dict[str, list]) -> None:
