@@ -306,3 +306,15 @@ def test_a_unit_killed_after_an_epoch_resumes_from_its_checkpoint_to_the_uninter
     a, b = (torch.load(tmp_path / d / "models" / "bev_Dense_s0.pt") for d in ("whole", "out"))
     assert all(torch.equal(a[k], b[k]) for k in a)
     assert not (tmp_path / "out" / "checkpoints" / "bev_Dense_s0.pt").exists()  # cleared once the unit's files exist
+
+
+def test_a_claim_without_its_rows_reads_not_run_and_says_which_row_is_missing():
+    from fog_gym.experiments.detection3d.report import _verdict_lines, verdicts
+
+    iv = {"diff": -0.05, "lo": -0.1, "hi": -0.03, "verdict": "worse"}
+    comp = {"pillars": {"Mixed-S − Light": {lv: {"mAP": iv} for lv in ("light", "moderate", "dense")}}}
+    ver = verdicts(comp)
+    assert ver["pillars"]["claim1"] == "not run" and ver["pillars"]["claim2"] == "refuted"  # hi −0.03 < −margin
+    text = "\n".join(_verdict_lines({}, comp, ver))
+    assert "**not run** (the Mixed-L row has not been trained yet)." in text
+    assert "**refuted**. Mixed-S − Light mAP light -0.050 [-0.100, -0.030]" in text
