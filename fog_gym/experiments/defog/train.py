@@ -147,7 +147,7 @@ def train_detector(train: Any, val_images: list[np.ndarray], val_gt: list[dict],
 
         tb = SummaryWriter(str(tb_dir))
     best, best_state, history, step, t0, start, before = -1.0, None, [], 0, time.perf_counter(), 0, 0.0
-    keep = EpochCheckpoint(checkpoint, {"config": repr(config), "seed": seed, "images": len(train),
+    keep = EpochCheckpoint(checkpoint, {"config": config.settings(), "seed": seed, "images": len(train),
                                         "batches": len(loader)})  # fmt: skip
     if (state := keep.load()) is not None:
         model.load_state_dict(state["model"])

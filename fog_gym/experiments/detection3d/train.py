@@ -97,7 +97,7 @@ def train_row(data: SweepDataset, test_sets: dict[str, SweepDataset], config: An
     best_preds: dict[str, list] = {}
     curve: list[dict[str, Any]] = []
     t0, step, start, before = time.perf_counter(), 0, 0, 0.0
-    keep = EpochCheckpoint(checkpoint, {"config": repr(config), "detector": detector, "seed": seed,
+    keep = EpochCheckpoint(checkpoint, {"config": config.settings(), "detector": detector, "seed": seed,
                                         "sweeps": len(data), "batches": len(loader)})  # fmt: skip
     if (state := keep.load()) is not None:
         model.load_state_dict(state["model"])
