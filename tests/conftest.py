@@ -6,6 +6,14 @@ import pytest
 os.environ.setdefault("SDL_VIDEODRIVER", "offscreen")
 
 import fog_gym  # noqa: E402,F401  (registers FogDrive-v0)
+from hypothesis import settings  # noqa: E402
+
+# Property tests are deterministic by default: the same examples on every run (derandomize) and no per-example
+# deadline (a first example that loads a kernel, or a machine busy with other work, is not a failure).
+# HYPOTHESIS_PROFILE=explore draws new examples on every run, for finding cases rather than checking them.
+settings.register_profile("default", deadline=None, derandomize=True, print_blob=True)
+settings.register_profile("explore", deadline=None, derandomize=False, print_blob=True)
+settings.load_profile(os.environ.get("HYPOTHESIS_PROFILE", "default"))
 
 
 @pytest.fixture(scope="session")
@@ -49,7 +57,7 @@ def pytest_sessionstart(session):
 
 def pytest_collection_modifyitems(session, config, items):
     """``FOG_GYM_TEST_ORDER=reverse`` or ``shuffle:<seed>`` runs the suite in another order (the hunt for tests that
-    depend on order or shared state: ``docs/contributing.md``); unset, pytest's order."""
+    depend on order or shared state: ``docs/installation.md``); unset, pytest's order."""
     order = os.environ.get("FOG_GYM_TEST_ORDER", "")
     if not order:
         return

@@ -231,7 +231,9 @@ def test_killed_generation_resumes_to_a_valid_set(tmp_path):
     is byte for byte the uninterrupted run's. While the first run writes, a second writer on the root (``--resume``)
     exits 1 with one line naming the root and the holder; after the kill the lock it left is stale and taken over."""
     import hashlib
+    import os
     import re
+    import signal
     import socket
     import subprocess
     import sys
@@ -247,7 +249,10 @@ def test_killed_generation_resumes_to_a_valid_set(tmp_path):
     proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     deadline = time.time() + 120
     while time.time() < deadline and not list((root / PROGRESS_DIR).glob("*.json")):
-        time.sleep(0.05)
+        time.sleep(0.01)
+    # frozen at its first finished scene, so that the second writer meets a live holder and the kill finds the run
+    # unfinished however fast the machine (a running first writer could finish all four scenes meanwhile)
+    os.kill(proc.pid, signal.SIGSTOP)
     second = subprocess.run(cmd + ["--resume"], capture_output=True, text=True)
     proc.kill()
     proc.wait()
