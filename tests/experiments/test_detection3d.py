@@ -318,4 +318,5 @@ def test_a_claim_without_its_rows_reads_not_run_and_says_which_row_is_missing():
     assert ver["pillars"]["claim1"] == "not run" and ver["pillars"]["claim2"] == "refuted"  # hi −0.03 < −margin
     text = "\n".join(_verdict_lines({}, comp, ver))
     assert "**not run** (the Mixed-L row has not been trained yet)." in text
-    assert "**refuted**. Mixed-S − Light mAP light -0.050 [-0.100, -0.030]" in text
+    assert "**refuted**. Mixed-S − Light: mAP light -0.050 [-0.100, -0.030]" in text
+    assert "; Mixed-S − Dense: not run (no Dense row)." in text

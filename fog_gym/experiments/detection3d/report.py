@@ -335,22 +335,23 @@ def _verdict_lines(tabs: dict[str, Any], comp: dict[str, Any], ver: dict[str, An
             cells = [c.get(cmp, {}).get(lv, {}).get(metric) for lv in FOG_COLUMNS]
             return ", ".join(f"{lv} {_iv(x)}" for lv, x in zip(FOG_COLUMNS, cells, strict=True) if x)
 
+        def pair(cmp: str, metrics: tuple[str, ...]) -> str:
+            parts = [f"{m} {span(cmp, m)}" for m in metrics if span(cmp, m)]
+            return f"{cmp}: " + ("; ".join(parts) if parts else f"not run (no {cmp.split(' − ')[1]} row)")
+
         claim1 = f"**{name}** — claim 1 (mixing densities tightens geometry at no mAP cost): **{v['claim1']}**"
         if v["claim1"] == "not run":
             claim1 += " (the Mixed-L row has not been trained yet)."
         else:
-            claim1 += (f" ({v['claim1_better']} of {v['claim1_n']} ATE/ASE differences better, {v['claim1_map_worse']} of 6 "
-                       f"mAP differences worse). Mixed-L − Light: ATE {span('Mixed-L − Light', 'ATE')}; ASE "
-                       f"{span('Mixed-L − Light', 'ASE')}; mAP {span('Mixed-L − Light', 'mAP')}. Mixed-L − Dense: ATE "
-                       f"{span('Mixed-L − Dense', 'ATE')}; ASE {span('Mixed-L − Dense', 'ASE')}; mAP "
-                       f"{span('Mixed-L − Dense', 'mAP')}.")  # fmt: skip
+            claim1 += (f" ({v['claim1_better']} of {v['claim1_n']} ATE/ASE differences better, {v['claim1_map_worse']} of "
+                       f"6 mAP differences worse). " + ". ".join(pair(f"Mixed-L − {b}", ("ATE", "ASE", "mAP"))
+                                                          for b in ("Light", "Dense")) + ".")  # fmt: skip
         claim2 = (f"**{name}** — claim 2 (Mixed-S matches the single-density rows at equal sweeps, margin {MARGIN} mAP): "
                   f"**{v['claim2']}**")  # fmt: skip
         if v["claim2"] == "not run":
             claim2 += " (the Mixed-S row, or both single-density rows, have not been trained yet)."
         else:
-            claim2 += (f". Mixed-S − Light mAP {span('Mixed-S − Light', 'mAP')}; Mixed-S − Dense mAP "
-                       f"{span('Mixed-S − Dense', 'mAP')}.")  # fmt: skip
+            claim2 += ". " + "; ".join(pair(f"Mixed-S − {b}", ("mAP",)) for b in ("Light", "Dense")) + "."
         lines += [claim1, "", claim2, ""]
     return lines
 
