@@ -13,13 +13,18 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=2, help="training seeds per row (default 2)")
     args = parser.parse_args()
 
-    from fog_gym.experiments.detection3d.study import Exp1Config, Exp1Study
     from fog_gym.experiments.runner import run
 
-    data = args.out / "lidar"
+    print(run(study(args.out), args.out, seeds=args.seeds).markdown)
+
+
+def study(out: Path):
+    """The study at the example's budget, its data under ``out/lidar`` (generated on first use)."""
+    from fog_gym.experiments.detection3d.study import Exp1Config, Exp1Study
+
+    data = out / "lidar"
     config = Exp1Config(epochs=2, rows=("Light", "Mixed-L"))
-    study = Exp1Study(data, config, generate=0 if (data / "index").exists() else 10, seconds=2.0)
-    print(run(study, args.out, seeds=args.seeds).markdown)
+    return Exp1Study(data, config, generate=0 if (data / "index").exists() else 10, seconds=2.0)
 
 
 if __name__ == "__main__":

@@ -424,6 +424,9 @@ def build(study: Any, records: dict[str, dict[str, Any]], out: Path, seeds: list
         a = detection["A"]["clean"]["mAP50"]
         lines += [f"Pipeline A (clean → clean): mAP@0.5 {fmt_stat(a, '{:.3f}')} (the competence bar is {COMPETENCE}: "
                   f"{'met' if a['mean'] >= COMPETENCE else 'not met'}).", ""]  # fmt: skip
+        if a["mean"] < COMPETENCE and ver:
+            lines += ["Below the bar the verdicts describe this detector, not the paper's claims: a detector that finds "
+                      "little anywhere makes every pipeline alike.", ""]  # fmt: skip
     lines += table_markdown(detection, image_quality, len(seeds)) + [""] + comparison_markdown(comp) + [""]
     figures: dict[str, Any] = {}
     if detection:
