@@ -252,8 +252,10 @@ def curve_figure(records: dict[str, dict[str, Any]], path: Path) -> None:
         for p in res.get("curve", []):
             if "light" in p:
                 series.setdefault(key, {}).setdefault(p["epoch"], []).append((p["sweeps_seen"], p["light"]["mAP"]))
-    fig, axes = plt.subplots(1, 2, figsize=(12, 4), sharey=True)
-    for ax, det in zip(axes, ("pillars", "bev"), strict=True):
+    dets = [d for d in ("pillars", "bev") if any(k[0] == d for k in series) or (d == "pillars" and budget)]
+    dets = dets or ["pillars"]
+    fig, axes = plt.subplots(1, len(dets), figsize=(6 * len(dets), 4), sharey=True, squeeze=False)
+    for ax, det in zip(axes[0], dets, strict=True):
         for (d, row), epochs in sorted(series.items()):
             if d != det:
                 continue
@@ -270,7 +272,7 @@ def curve_figure(records: dict[str, dict[str, Any]], path: Path) -> None:
         ax.set_title(DETECTOR_NAMES[det])
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7)
-    axes[0].set_ylabel("mAP@0.5 (3D IoU), light test")
+    axes[0, 0].set_ylabel("mAP@0.5 (3D IoU), light test")
     fig.tight_layout()
     save_figure(fig, path, dpi=120)
 
