@@ -72,15 +72,18 @@ def namespaces(tmp_path_factory):
     """page → (its namespace, its working folder, [how many of its blocks ran in it]), made on the page's first
     block in this process."""
     spaces: dict[str, tuple[dict, Path, list[int]]] = {}
+    retired: list[tuple[dict, Path, list[int]]] = []
 
-    def get(page: str) -> tuple[dict, Path, list[int]]:
+    def get(page: str, fresh: bool = False) -> tuple[dict, Path, list[int]]:
+        if fresh and page in spaces:
+            retired.append(spaces.pop(page))
         if page not in spaces:
             folder = tmp_path_factory.mktemp(re.sub(r"\W+", "_", page))
             spaces[page] = ({"__name__": "__docs__"}, folder, [0])
         return spaces[page]
 
     yield get
-    for ns, _, _ in spaces.values():
+    for ns, _, _ in [*spaces.values(), *retired]:
         for value in list(ns.values()):
             if isinstance(value, gym.Env):  # environments the page made
                 value.close()
@@ -90,8 +93,11 @@ def namespaces(tmp_path_factory):
 def test_doc_block_runs(namespaces, monkeypatch, page, index, lang, code):
     """A block runs after the page's earlier blocks, in the page's namespace: where another test process ran some of
     them (pytest-xdist shares a page's blocks out), this one runs them first (all but slow ones and those whose
-    optional module is missing, as a run in one process does)."""
+    optional module is missing, as a run in one process does); where a later block already ran here (the suite in
+    another order, ``FOG_GYM_TEST_ORDER``), the page starts again in a fresh namespace and folder."""
     ns, folder, done = namespaces(page)
+    if index < done[0]:
+        ns, folder, done = namespaces(page, fresh=True)
     monkeypatch.chdir(folder)
     if done[0] < index:
         blocks = doc_blocks((ROOT / page).read_text())
