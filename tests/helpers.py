@@ -1,5 +1,6 @@
 """Helpers shared by test modules."""
 
+import contextlib
 import importlib.util
 from pathlib import Path
 
@@ -14,3 +15,26 @@ def load_module(relative: str):
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
+
+
+class Killed(Exception):
+    """Raised by :func:`killed_after_first_epoch` in place of a kill -9."""
+
+
+@contextlib.contextmanager
+def killed_after_first_epoch(monkeypatch):
+    """Within the block, a training unit dies (:class:`Killed`) right after its first epoch's checkpoint is saved."""
+    from fog_gym.experiments.runner import EpochCheckpoint
+
+    save = EpochCheckpoint.save
+
+    def save_then_die(self, state):
+        save(self, state)
+        if state["epoch"] == 1:
+            raise Killed
+
+    monkeypatch.setattr(EpochCheckpoint, "save", save_then_die)
+    try:
+        yield
+    finally:
+        monkeypatch.setattr(EpochCheckpoint, "save", save)

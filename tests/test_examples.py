@@ -27,14 +27,10 @@ def test_every_example_answers_help_without_starting_work(tmp_path):
 def test_the_experiment_examples_build_valid_studies_without_running_them(tmp_path):
     """The experiments' examples build their study at the example's budget (a config the study accepts), and
     building it starts no work; running one takes minutes (exp1 example: 3 min on 2 cores), so it is not run here."""
-    import importlib.util
-
     from fog_gym.experiments.runner import Study
+    from tests.helpers import load_module
 
     for name in ("exp1_detection3d", "exp2_defog_vs_fog"):
-        spec = importlib.util.spec_from_file_location(name, EXAMPLES[0].parent / f"{name}.py")
-        module = importlib.util.module_from_spec(spec)
-        spec.loader.exec_module(module)
-        study = module.study(tmp_path / name)
+        study = load_module(f"examples/{name}.py").study(tmp_path / name)
         assert isinstance(study, Study) and study.settings(), name
         assert not (tmp_path / name).exists(), name

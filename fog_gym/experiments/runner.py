@@ -252,6 +252,28 @@ class EpochCheckpoint:
         if self.path is not None:
             self.path.unlink(missing_ok=True)
 
+    def resume(self, model: Any, opt: Any, sched: Any, order: Any) -> dict[str, Any] | None:
+        """Load the saved state into the model, optimiser, schedule and data-order generator (and the global torch
+        generator); returns the trainer's own part of it (``epoch``, ``step``, ``seconds``, its history), or None."""
+        import torch
+
+        state = self.load()
+        if state is not None:
+            model.load_state_dict(state["model"])
+            opt.load_state_dict(state["opt"])
+            sched.load_state_dict(state["sched"])
+            order.set_state(state["order"])
+            torch.set_rng_state(state["rng"])
+        return state
+
+    def save_epoch(self, model: Any, opt: Any, sched: Any, order: Any, **extra: Any) -> None:
+        """Save the state after an epoch: what :meth:`resume` restores, and ``extra`` (the trainer's own part)."""
+        import torch
+
+        if self.path is not None:
+            self.save({"model": model.state_dict(), "opt": opt.state_dict(), "sched": sched.state_dict(),
+                       "order": order.get_state(), "rng": torch.get_rng_state(), **extra})  # fmt: skip
+
 
 def save_figure(fig: Any, path: Path, **kwargs: Any) -> None:
     """``fig.savefig`` atomically, then close the figure."""

@@ -10,6 +10,7 @@ import pytest
 
 pytest.importorskip("torch")
 
+from tests.helpers import Killed, killed_after_first_epoch  # noqa: E402
 from fog_gym.dataset.access import FogDrive  # noqa: E402
 from fog_gym.experiments.defog.data import LEVELS, choose_scenes, frames, intrinsic, load_boxes, load_image  # noqa: E402
 from fog_gym.experiments.defog.train import augment_hsv  # noqa: E402
@@ -183,10 +184,6 @@ def test_the_gpu_configuration_runs_at_toy_size_on_the_cpu(camera_set, tmp_path)
     assert r["config"]["profile"] == "gpu" and r["config"]["dehazeformer"] == "S" and "A" in r["detection"]
 
 
-class _Killed(Exception):
-    pass
-
-
 def test_a_detector_killed_after_an_epoch_resumes_from_its_checkpoint_to_the_uninterrupted_weights(camera_set, tmp_path,
                                                                                                   monkeypatch):  # fmt: skip
     import torch
@@ -205,17 +202,8 @@ def test_a_detector_killed_after_an_epoch_resumes_from_its_checkpoint_to_the_uni
         return train_detector(data, *val, c, 0, torch.device("cpu"), "t", None, False, checkpoint=checkpoint)
 
     whole, whole_summary = fit(None)
-    save = EpochCheckpoint.save
-
-    def save_then_die(self, state):
-        save(self, state)
-        if state["epoch"] == 1:
-            raise _Killed
-
-    monkeypatch.setattr(EpochCheckpoint, "save", save_then_die)
-    with pytest.raises(_Killed):
+    with killed_after_first_epoch(monkeypatch), pytest.raises(Killed):
         fit(tmp_path / "t.pt")
-    monkeypatch.setattr(EpochCheckpoint, "save", save)
     resumed, summary = fit(tmp_path / "t.pt")
     assert summary["resumed_at_epoch"] == 1 and summary["history"] == whole_summary["history"]
     a, b = whole.state_dict(), resumed.state_dict()

@@ -8,6 +8,7 @@ import pytest
 
 torch = pytest.importorskip("torch")  # the torch extra is part of the dev extra: never skipped in CI
 
+from tests.helpers import Killed, killed_after_first_epoch  # noqa: E402
 from fog_gym.dataset import FogDrive  # noqa: E402
 from fog_gym.generate import generate, plan_scenes  # noqa: E402
 from fog_gym.dataset.layout import MODALITIES  # noqa: E402
@@ -277,29 +278,14 @@ def test_gpu_flag_selects_the_gpu_configuration_at_toy_size(lidar_set, tmp_path)
     assert res["config"]["profile"] == "gpu" and "pillars_Light_s0" in res["units"]
 
 
-class _Killed(Exception):
-    pass
-
-
 def test_a_unit_killed_after_an_epoch_resumes_from_its_checkpoint_to_the_uninterrupted_weights(lidar_set, tmp_path,
                                                                                               monkeypatch):  # fmt: skip
-    from fog_gym.experiments.runner import EpochCheckpoint
-
     cfg = Exp1Config(epochs=2, batch_size=4, every=1, test_every=1, rows=("Dense",), detectors=("bev",), **TOY)
     whole = run_experiment1(lidar_set, tmp_path / "whole", cfg, progress=False, log=lambda *_: None)
-    save = EpochCheckpoint.save
-
-    def save_then_die(self, state):
-        save(self, state)
-        if state["epoch"] == 1:
-            raise _Killed
-
-    monkeypatch.setattr(EpochCheckpoint, "save", save_then_die)
-    with pytest.raises(_Killed):  # killed in its first unit; which rows a run asks for is not a setting
+    with killed_after_first_epoch(monkeypatch), pytest.raises(Killed):  # killed in its first unit; which rows a run asks for is not a setting
         run_experiment1(lidar_set, tmp_path / "out", Exp1Config(**{**cfg.__dict__, "rows": ("Dense", "Clear")}),
                         progress=False, log=lambda *_: None)  # fmt: skip
     assert (tmp_path / "out" / "checkpoints" / "bev_Dense_s0.pt").exists()
-    monkeypatch.setattr(EpochCheckpoint, "save", save)
     resumed = run_experiment1(lidar_set, tmp_path / "out", cfg, progress=False, log=lambda *_: None)
     record = resumed["units"]["bev_Dense_s0"]["result"]
     assert record["resumed_at_epoch"] == 1 and record["steps"] == whole["units"]["bev_Dense_s0"]["result"]["steps"]

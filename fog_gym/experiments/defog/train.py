@@ -149,14 +149,9 @@ def train_detector(train: Any, val_images: list[np.ndarray], val_gt: list[dict],
     best, best_state, history, step, t0, start, before = -1.0, None, [], 0, time.perf_counter(), 0, 0.0
     keep = EpochCheckpoint(checkpoint, {"config": config.settings(), "seed": seed, "images": len(train),
                                         "batches": len(loader)})  # fmt: skip
-    if (state := keep.load()) is not None:
-        model.load_state_dict(state["model"])
+    if (state := keep.resume(model, opt, sched, order)) is not None:
         ema.model.load_state_dict(state["ema"])
         ema.updates = state["ema_updates"]
-        opt.load_state_dict(state["opt"])
-        sched.load_state_dict(state["sched"])
-        order.set_state(state["order"])
-        torch.set_rng_state(state["rng"])
         best, best_state, history = state["best"], state["best_state"], state["history"]
         step, start, before = state["step"], state["epoch"], state["seconds"]
     bar = tqdm(total=config.epochs * len(loader), initial=step, desc=f"train {name} ({len(train)} images)",
@@ -187,10 +182,9 @@ def train_detector(train: Any, val_images: list[np.ndarray], val_gt: list[dict],
                 tb.add_scalar("val/mAP50", score, epoch + 1)
             if score > best:
                 best, best_state = score, copy.deepcopy(ema.model.state_dict())
-        keep.save({"model": model.state_dict(), "ema": ema.model.state_dict(), "ema_updates": ema.updates,
-                   "opt": opt.state_dict(), "sched": sched.state_dict(), "order": order.get_state(),
-                   "rng": torch.get_rng_state(), "best": best, "best_state": best_state, "history": history,
-                   "step": step, "epoch": epoch + 1, "seconds": before + time.perf_counter() - t0})  # fmt: skip
+        keep.save_epoch(model, opt, sched, order, ema=ema.model.state_dict(), ema_updates=ema.updates, best=best,
+                        best_state=best_state, history=history, step=step, epoch=epoch + 1,
+                        seconds=before + time.perf_counter() - t0)  # fmt: skip
     bar.close()
     if tb is not None:
         tb.close()

@@ -99,12 +99,7 @@ def train_row(data: SweepDataset, test_sets: dict[str, SweepDataset], config: An
     t0, step, start, before = time.perf_counter(), 0, 0, 0.0
     keep = EpochCheckpoint(checkpoint, {"config": config.settings(), "detector": detector, "seed": seed,
                                         "sweeps": len(data), "batches": len(loader)})  # fmt: skip
-    if (state := keep.load()) is not None:
-        model.load_state_dict(state["model"])
-        opt.load_state_dict(state["opt"])
-        sched.load_state_dict(state["sched"])
-        order.set_state(state["order"])
-        torch.set_rng_state(state["rng"])
+    if (state := keep.resume(model, opt, sched, order)) is not None:
         best, best_preds, curve = state["best"], state["best_preds"], state["curve"]
         step, start, before = state["step"], state["epoch"], state["seconds"]
     bar = tqdm(total=config.epochs * len(loader), initial=step, desc=f"train {tb_dir.name} ({len(data)} sweeps)",
@@ -129,10 +124,8 @@ def train_row(data: SweepDataset, test_sets: dict[str, SweepDataset], config: An
         if (epoch + 1) % config.eval_every == 0 or epoch + 1 == config.epochs:
             _evaluate_epoch(model, loaders, device, grid, config, precision, epoch, len(loader), tb, best, best_preds,
                             curve)  # fmt: skip
-        keep.save({"model": model.state_dict(), "opt": opt.state_dict(), "sched": sched.state_dict(),
-                   "order": order.get_state(), "rng": torch.get_rng_state(), "best": best, "best_preds": best_preds,
-                   "curve": curve, "step": step, "epoch": epoch + 1,
-                   "seconds": before + time.perf_counter() - t0})  # fmt: skip
+        keep.save_epoch(model, opt, sched, order, best=best, best_preds=best_preds, curve=curve, step=step,
+                        epoch=epoch + 1, seconds=before + time.perf_counter() - t0)  # fmt: skip
     bar.close()
     tb.close()
     record = {"detector": detector, "train_sweeps": len(data), "seconds": before + time.perf_counter() - t0,
