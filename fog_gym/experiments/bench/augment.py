@@ -15,17 +15,14 @@ Usage::
 
 from __future__ import annotations
 
-import argparse
 import math
 import sys
-import time
 from typing import Any
 
 import numpy as np
 
 from fog_gym.experiments.bench.common import (
-    add_common_arguments, finish_meta, fmt_ms, markdown_table, meta_line, repeats_of, run_meta, summarize, timed,
-    write_json,
+    bench_main, fmt_ms, markdown_table, summarize, timed,
 )  # fmt: skip
 
 #: The reference program's cost per 100 k points [s], as measured earlier on this project's machines.
@@ -113,19 +110,8 @@ def render_augment(results: dict[str, Any], repeats: int) -> list[str]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m fog_gym.experiments.bench.augment", description=__doc__.split("\n\n")[0],
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
-    add_common_arguments(parser)
-    args = parser.parse_args(argv)
-    repeats = repeats_of(args)
-    meta = run_meta(repeats=repeats, quick=args.quick)
-    t0 = time.perf_counter()
-    results = bench_augment(repeats)
-    finish_meta(meta, t0)
-    print(meta_line(meta))
-    print("\n".join(render_augment(results, repeats)))
-    write_json(args.json, {"meta": meta, "augment": results})
-    return 0
+    return bench_main(argv, "fog_gym.experiments.bench.augment", __doc__, "augment", lambda repeats, quick: bench_augment(repeats),
+                      render_augment)
 
 
 if __name__ == "__main__":

@@ -170,3 +170,22 @@ def write_json(path: Path | None, results: dict[str, Any]) -> None:
         path.parent.mkdir(parents=True, exist_ok=True)
         path.write_text(json.dumps(results, indent=2))
         print(f"\nwrote {path}", file=sys.stderr)
+
+
+def bench_main(argv: list[str] | None, module: str, doc: str, key: str, bench: Callable[[int, bool], Any],
+               render: Callable[[Any, int], list[str]]) -> int:
+    """A one-figure bench's command line: the common flags, ``bench(repeats, quick)``, the meta line, the rendered
+    table, and ``{"meta": ..., key: results}`` to ``--json``."""
+    parser = argparse.ArgumentParser(prog=f"python -m {module}", description=doc.split("\n\n")[0],
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
+    add_common_arguments(parser)
+    args = parser.parse_args(argv)
+    repeats = repeats_of(args)
+    meta = run_meta(repeats=repeats, quick=args.quick)
+    t0 = time.perf_counter()
+    results = bench(repeats, args.quick)
+    finish_meta(meta, t0)
+    print(meta_line(meta))
+    print("\n".join(render(results, repeats)))
+    write_json(args.json, {"meta": meta, key: results})
+    return 0

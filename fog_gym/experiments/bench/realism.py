@@ -20,17 +20,14 @@ Usage::
 
 from __future__ import annotations
 
-import argparse
 import sys
-import time
 from collections.abc import Callable
 from typing import Any
 
 import numpy as np
 
 from fog_gym.experiments.bench.common import (
-    add_common_arguments, finish_meta, fmt_ms, markdown_table, meta_line, repeats_of, run_meta, summarize, timed,
-    write_json,
+    bench_main, fmt_ms, markdown_table, summarize, timed,
 )  # fmt: skip
 
 #: The issue's targets: the ratio of each option's cost to the cost without it.
@@ -111,19 +108,8 @@ def render_realism(results: dict[str, Any], repeats: int) -> list[str]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    parser = argparse.ArgumentParser(prog="python -m fog_gym.experiments.bench.realism", description=__doc__.split("\n\n")[0],
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)  # fmt: skip
-    add_common_arguments(parser)
-    args = parser.parse_args(argv)
-    repeats = repeats_of(args)
-    meta = run_meta(repeats=repeats, quick=args.quick)
-    t0 = time.perf_counter()
-    results = bench_realism(repeats, (320, 240) if args.quick else (1280, 960))
-    finish_meta(meta, t0)
-    print(meta_line(meta))
-    print("\n".join(render_realism(results, repeats)))
-    write_json(args.json, {"meta": meta, "realism": results})
-    return 0
+    return bench_main(argv, "fog_gym.experiments.bench.realism", __doc__, "realism", lambda repeats, quick: bench_realism(repeats, (320, 240) if quick else (1280, 960)),
+                      render_realism)
 
 
 if __name__ == "__main__":
