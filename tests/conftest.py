@@ -63,9 +63,9 @@ def pytest_collection_modifyitems(session, config, items):
         return
     if order == "reverse":
         items.reverse()
-    elif order.startswith("shuffle:"):
+    elif order.startswith("shuffle:") and order[len("shuffle:"):].isdigit():
         import random
 
-        random.Random(int(order.split(":", 1)[1])).shuffle(items)
+        random.Random(int(order[len("shuffle:"):])).shuffle(items)
     else:
         raise pytest.UsageError(f"FOG_GYM_TEST_ORDER must be 'reverse' or 'shuffle:<seed>', got {order!r}")

@@ -6,6 +6,8 @@ import subprocess
 import sys
 from pathlib import Path
 
+import pytest
+
 EXAMPLES = sorted((Path(__file__).resolve().parents[1] / "examples").glob("*.py"))
 
 
@@ -34,3 +36,15 @@ def test_the_experiment_examples_build_valid_studies_without_running_them(tmp_pa
         study = load_module(f"examples/{name}.py").study(tmp_path / name)
         assert isinstance(study, Study) and study.settings(), name
         assert not (tmp_path / name).exists(), name
+
+
+@pytest.mark.parametrize("order", ["sideways", "shuffle:x"])
+def test_a_bad_test_order_is_a_usage_error_before_any_test_runs(order):
+    import os
+
+    env = {**os.environ, "FOG_GYM_TEST_ORDER": order}
+    out = subprocess.run([sys.executable, "-m", "pytest", "-q", "-p", "no:cacheprovider", "-p", "no:xdist",
+                          str(Path(__file__)), "-k", "help"], env=env, capture_output=True, text=True, timeout=300)  # fmt: skip
+    assert out.returncode == 4, out.stdout + out.stderr  # pytest's usage error
+    assert f"FOG_GYM_TEST_ORDER must be 'reverse' or 'shuffle:<seed>', got '{order}'" in out.stdout + out.stderr
+    assert " passed" not in out.stdout
