@@ -84,12 +84,23 @@ def _height(s, a, b1, hl, hr):
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def _blend_runs(eh, ev, w_pos, w_neg):
-    # For every run of edges eh[i, a:b1] between rows i and i + 1 (ev: the edges between columns) that ends in a stair
-    # step: the blend weights of the pixels above (w_pos, toward the row below) and below (w_neg, toward the row
-    # above) the border. Called on the transposed arrays for the vertical runs.
-    height, width = eh.shape[0] + 1, eh.shape[1]  # the image's extent across and along the runs
-    for i in prange(height - 1):
+def _mlaa_kernel(rgb, depth, sem, inst, thr, step, out):
+    height, width, _ = rgb.shape
+    # edges: eh[i, j] between (i, j) and (i + 1, j); ev[i, j] between (i, j) and (i, j + 1)
+    eh = np.zeros((max(height - 1, 0), width), np.bool_)
+    ev = np.zeros((height, max(width - 1, 0)), np.bool_)
+    for i in prange(height):
+        for j in range(width):
+            if i + 1 < height:
+                eh[i, j] = _differ(rgb, depth, sem, inst, i, j, i + 1, j, thr, step)
+            if j + 1 < width:
+                ev[i, j] = _differ(rgb, depth, sem, inst, i, j, i, j + 1, thr, step)
+    # blend weights toward the neighbour across: up (i − 1), down (i + 1), left, right
+    w_up = np.zeros((height, width), np.float32)
+    w_down = np.zeros((height, width), np.float32)
+    w_left = np.zeros((height, width), np.float32)
+    w_right = np.zeros((height, width), np.float32)
+    for i in prange(height - 1):  # runs of horizontal edges between rows i and i + 1
         j = 0
         while j < width:
             if not eh[i, j]:
@@ -111,30 +122,30 @@ def _blend_runs(eh, ev, w_pos, w_neg):
                 continue
             for x in range(a, b1):
                 pos, neg = _segment(x, a, b1, hl, hr)
-                w_pos[i, x] = pos  # the top pixel takes the bottom's colour over the area above the border
-                w_neg[i + 1, x] = neg
-
-
-@njit(cache=True, nogil=True, parallel=True)
-def _mlaa_kernel(rgb, depth, sem, inst, thr, step, out):
-    height, width, _ = rgb.shape
-    # edges: eh[i, j] between (i, j) and (i + 1, j); ev[i, j] between (i, j) and (i, j + 1)
-    eh = np.zeros((max(height - 1, 0), width), np.bool_)
-    ev = np.zeros((height, max(width - 1, 0)), np.bool_)
-    for i in prange(height):
-        for j in range(width):
-            if i + 1 < height:
-                eh[i, j] = _differ(rgb, depth, sem, inst, i, j, i + 1, j, thr, step)
-            if j + 1 < width:
-                ev[i, j] = _differ(rgb, depth, sem, inst, i, j, i, j + 1, thr, step)
-    # blend weights toward the neighbour across: up (i − 1), down (i + 1), left, right
-    w_up = np.zeros((height, width), np.float32)
-    w_down = np.zeros((height, width), np.float32)
-    w_left = np.zeros((height, width), np.float32)
-    w_right = np.zeros((height, width), np.float32)
-    # runs of horizontal edges between rows i and i + 1, then (the same on the transposed image) of vertical ones
-    _blend_runs(eh, ev, w_down, w_up)
-    _blend_runs(ev.T, eh.T, w_right.T, w_left.T)
+                w_down[i, x] = pos  # the top pixel takes the bottom's colour over the area above the border
+                w_up[i + 1, x] = neg
+    for j in prange(width - 1):  # runs of vertical edges between columns j and j + 1
+        i = 0
+        while i < height:
+            if not ev[i, j]:
+                i += 1
+                continue
+            a = i
+            while i < height and ev[i, j]:
+                i += 1
+            b1 = i
+            lft_l = a > 0 and j > 0 and eh[a - 1, j] and ev[a - 1, j - 1]
+            rgt_l = a > 0 and j + 1 < width - 1 and eh[a - 1, j + 1] and ev[a - 1, j + 1]
+            lft_r = b1 < height and j > 0 and eh[b1 - 1, j] and ev[b1, j - 1]
+            rgt_r = b1 < height and j + 1 < width - 1 and eh[b1 - 1, j + 1] and ev[b1, j + 1]
+            hl = 0.5 if lft_l and not rgt_l else (-0.5 if rgt_l and not lft_l else 0.0)
+            hr = 0.5 if lft_r and not rgt_r else (-0.5 if rgt_r and not lft_r else 0.0)
+            if hl == 0.0 and hr == 0.0:
+                continue
+            for y in range(a, b1):
+                pos, neg = _segment(y, a, b1, hl, hr)
+                w_right[y, j] = pos
+                w_left[y, j + 1] = neg
     for i in prange(height):
         for j in range(width):
             wu, wd, wl, wr = w_up[i, j], w_down[i, j], w_left[i, j], w_right[i, j]
