@@ -282,7 +282,8 @@ def test_a_unit_killed_after_an_epoch_resumes_from_its_checkpoint_to_the_uninter
                                                                                               monkeypatch):  # fmt: skip
     cfg = Exp1Config(epochs=2, batch_size=4, every=1, test_every=1, rows=("Dense",), detectors=("bev",), **TOY)
     whole = run_experiment1(lidar_set, tmp_path / "whole", cfg, progress=False, log=lambda *_: None)
-    with killed_after_first_epoch(monkeypatch), pytest.raises(Killed):  # killed in its first unit; which rows a run asks for is not a setting
+    # killed in its first unit; which rows a run asks for is not a setting
+    with killed_after_first_epoch(monkeypatch), pytest.raises(Killed):
         run_experiment1(lidar_set, tmp_path / "out", Exp1Config(**{**cfg.__dict__, "rows": ("Dense", "Clear")}),
                         progress=False, log=lambda *_: None)  # fmt: skip
     assert (tmp_path / "out" / "checkpoints" / "bev_Dense_s0.pt").exists()

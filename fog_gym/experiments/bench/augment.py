@@ -110,8 +110,8 @@ def render_augment(results: dict[str, Any], repeats: int) -> list[str]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    return bench_main(argv, "fog_gym.experiments.bench.augment", __doc__, "augment", lambda repeats, quick: bench_augment(repeats),
-                      render_augment)
+    return bench_main(argv, "fog_gym.experiments.bench.augment", __doc__, "augment",
+                      lambda repeats, quick: bench_augment(repeats), render_augment)
 
 
 if __name__ == "__main__":

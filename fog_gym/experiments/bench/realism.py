@@ -108,8 +108,10 @@ def render_realism(results: dict[str, Any], repeats: int) -> list[str]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    return bench_main(argv, "fog_gym.experiments.bench.realism", __doc__, "realism", lambda repeats, quick: bench_realism(repeats, (320, 240) if quick else (1280, 960)),
-                      render_realism)
+    def bench(repeats: int, quick: bool) -> dict[str, Any]:
+        return bench_realism(repeats, (320, 240) if quick else (1280, 960))
+
+    return bench_main(argv, "fog_gym.experiments.bench.realism", __doc__, "realism", bench, render_realism)
 
 
 if __name__ == "__main__":
