@@ -19,7 +19,11 @@ how to turn the finished units into a report. :func:`run` does the rest, the sam
 * **Ray**: ``--ray ADDRESS`` runs the units of each stage as Ray tasks on an existing cluster (the ``ray`` extra)
   with the same seeds, so the same results as a local run; ``<out>`` must be storage every node sees;
 * **local jobs**: ``--jobs N`` runs up to N units of a stage at once in worker processes on this machine (same
-  seeds, same results). Worth it where one unit leaves cores idle: an RL agent whose learner runs on one thread.
+  seeds, same results). Worth it where one unit leaves cores idle: an RL agent whose learner runs on one thread;
+* **kept units**: ``--keep DIR`` copies the study record and every finished unit (its record and files) into a
+  second folder meant to be committed or synced, and restores from it the units ``<out>`` lacks: a study then
+  spans machines and sessions whose ``<out>`` (and its caches and checkpoints) does not survive. ``DIR`` is checked
+  like ``<out>``: another study, other settings or other data are refused before any work.
 
 Example:
     >>> round(ci95_across([1.0, 2.0, 3.0]), 3), ci95_across([1.0]) is None
@@ -34,6 +38,7 @@ import argparse
 import json
 import math
 import os
+import shutil
 import time
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from contextlib import contextmanager
@@ -351,6 +356,13 @@ def _finished(study: Study, out: Path, unit: Unit) -> dict[str, Any] | None:
     return json.loads(path.read_text())
 
 
+def _copy_unit(study: Study, src: Path, dst: Path, unit: Unit) -> None:
+    """Copy a finished unit's files, then its record (last: a record in ``dst`` means its files are there)."""
+    for rel in (*study.artefacts(unit), str(_record_path(Path(), unit))):
+        with atomic_path(dst / rel) as tmp:
+            shutil.copyfile(src / rel, tmp)
+
+
 def _stages(units: Iterable[Unit]) -> dict[str, list[Unit]]:
     stages: dict[str, list[Unit]] = {}
     keys: set[tuple[str, str]] = set()
@@ -363,10 +375,11 @@ def _stages(units: Iterable[Unit]) -> dict[str, list[Unit]]:
 
 
 def run(study: Study, out: str | Path, seeds: int = 1, ray_address: str | None = None, progress: bool = True,
-        log: Callable[[str], None] | None = None, jobs: int = 1) -> Report:  # fmt: skip
+        log: Callable[[str], None] | None = None, jobs: int = 1, keep: str | Path | None = None) -> Report:  # fmt: skip
     """Run ``study`` into ``out`` for ``seeds`` seeds (see the module docstring), ``jobs`` units at once in local
-    worker processes (``ray_address``: as Ray tasks instead); returns the report as written (its Markdown with the
-    wall times, its JSON with the runner's ``"runner"`` entry: seeds and wall times)."""
+    worker processes (``ray_address``: as Ray tasks instead), keeping finished units in ``keep`` too (and restoring
+    from it those ``out`` lacks); returns the report as written (its Markdown with the wall times, its JSON with
+    the runner's ``"runner"`` entry: seeds and wall times)."""
     from tqdm import tqdm
 
     say = log or tqdm.write
@@ -377,9 +390,14 @@ def run(study: Study, out: str | Path, seeds: int = 1, ray_address: str | None =
     if jobs > 1 and ray_address is not None:
         raise ValueError("jobs and ray_address exclude each other: Ray places the units itself")
     out = Path(out)
+    keep = None if keep is None else Path(keep)
+    if keep is not None and keep.resolve() == out.resolve():
+        raise ValueError(f"keep must be another folder than out ({out})")
     ray = import_ray() if ray_address is not None else None
     settings = _jsonable(study.settings())
-    check_manifest(out, study.name, settings)
+    folders = (out,) if keep is None else (out, keep)
+    for folder in folders:
+        check_manifest(folder, study.name, settings)
     seed_list = study.seed_list(seeds)
     units = study.units(seed_list)
     stages = _stages(units)
@@ -389,8 +407,10 @@ def run(study: Study, out: str | Path, seeds: int = 1, ray_address: str | None =
     t0 = time.perf_counter()
     study.output = out  # where prepare may keep derived data (e.g. a cache) beside the units' files
     data = _jsonable(study.prepare(say, progress))
-    check_manifest(out, study.name, settings, data)
-    write_atomic(out / MANIFEST, {"study": study.name, "settings": settings, "data": data})
+    for folder in folders:
+        check_manifest(folder, study.name, settings, data)
+    for folder in folders:
+        write_atomic(folder / MANIFEST, {"study": study.name, "settings": settings, "data": data})
     if ray is not None and not ray.is_initialized():
         ray.init(address=ray_address)
     records: dict[str, dict[str, Any]] = {}
@@ -400,9 +420,15 @@ def run(study: Study, out: str | Path, seeds: int = 1, ray_address: str | None =
         pending = []
         for unit in todo:
             record = _finished(study, out, unit)
+            if record is None and keep is not None and _finished(study, keep, unit) is not None:
+                _copy_unit(study, keep, out, unit)
+                record = _finished(study, out, unit)
+                say(f"{unit.key}: restored from {keep}")
             if record is None:
                 pending.append(unit)
                 continue
+            if keep is not None and _finished(study, keep, unit) is None:
+                _copy_unit(study, out, keep, unit)
             records[unit.key] = record
             timing[unit.key] = {"stage": stage, "wall_s": record["wall_s"], "kept": True}
             say(f"{unit.key}: kept from {_record_path(out, unit)}")
@@ -412,6 +438,8 @@ def run(study: Study, out: str | Path, seeds: int = 1, ray_address: str | None =
             record = {"stage": unit.stage, "key": unit.key, "seed": unit.seed, "params": dict(unit.params),
                       "result": result, "wall_s": wall}  # fmt: skip
             write_atomic(_record_path(out, unit), _jsonable(record))
+            if keep is not None:
+                _copy_unit(study, out, keep, unit)
             records[unit.key] = _jsonable(record)
             timing[unit.key] = {"stage": stage, "wall_s": wall, "kept": False}
             line = study.describe(unit, result)
@@ -508,6 +536,9 @@ def build_parser(study: type[Study]) -> argparse.ArgumentParser:
     runner.add_argument("--jobs", type=int, default=1,
                         help="run up to N units of a stage at once in local worker processes (same results; "
                              "default 1)")
+    runner.add_argument("--keep", type=Path, default=None, metavar="DIR",
+                        help="also keep every finished unit (record and files) in DIR, a folder to commit or sync, "
+                             "and restore from it the units --out lacks: a study that spans sessions or machines")
     return parser
 
 
@@ -527,7 +558,7 @@ def main(study: type[Study], argv: Sequence[str] | None = None) -> int:
     except ValueError as e:
         parser.error(str(e))
     try:
-        report = run(instance, args.out, seeds=args.seeds, ray_address=args.ray, jobs=args.jobs)
+        report = run(instance, args.out, seeds=args.seeds, ray_address=args.ray, jobs=args.jobs, keep=args.keep)
     except (ValueError, FileNotFoundError, FileExistsError) as e:
         raise SystemExit(f"{study.command}: {e}") from None
     print(report.markdown)

@@ -308,3 +308,30 @@ def test_scenes_are_dealt_to_the_towns_as_the_datasets_page_says(scenes, towns, 
     plan = plan_scenes(scenes, **({"towns": towns} if towns else {}))
     assert Counter(s.town for s in plan if s.time_of_day == "day") == expected
     assert Counter(s.time_of_day for s in plan) == {"day": scenes // 2, "night": scenes // 2}
+
+
+def test_the_content_digest_changes_with_one_byte_and_not_with_scene_order(tmp_path):
+    from fog_gym.dataset.digest import content_digest
+
+    class Tiny:  # the three FogDrive lookups the digest uses, over two scenes of two samples with one file each
+        dataroot = tmp_path
+
+        def get_scene_by_name(self, name):
+            return {"token": name}
+
+        def get_samples_for_scene(self, token):
+            return [{"token": f"{token}-0"}, {"token": f"{token}-mid"}, {"token": f"{token}-1"}]
+
+        def get_sample_paths(self, sample):
+            return {"LIDAR_TOP": tmp_path / f"{sample}.bin"}
+
+    for scene in ("a", "b"):
+        for i in ("0", "mid", "1"):
+            (tmp_path / f"{scene}-{i}.bin").write_bytes(f"{scene}{i}".encode())
+    ds = Tiny()
+    before = content_digest(ds, ["a", "b"])
+    assert before == content_digest(ds, ["b", "a", "b"]) and before.startswith("sha256:")
+    (tmp_path / "b-mid.bin").write_bytes(b"changed")  # only the first and last samples are read
+    assert content_digest(ds, ["a", "b"]) == before
+    (tmp_path / "b-1.bin").write_bytes(b"b2")
+    assert content_digest(ds, ["a", "b"]) != before

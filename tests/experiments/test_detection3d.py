@@ -2,6 +2,7 @@
 
 import json
 import math
+import shutil
 
 import numpy as np
 import pytest
@@ -183,6 +184,10 @@ def test_experiment1_end_to_end_writes_every_cell(lidar_set, tmp_path):
     observed = (units["pillars_Mixed-L_s0"]["result"]["best"]["light"]["mAP"]
                 - units["pillars_Light_s0"]["result"]["best"]["light"]["mAP"])  # fmt: skip
     assert comp["diff"] == pytest.approx(observed, abs=1e-9)  # the bootstrap's point estimate is the tables' difference
+    shutil.rmtree(out / "models")  # a unit restored from a kept folder has its predictions, not its model
+    (out / "exp1_sweeps.png").unlink()
+    again = run_experiment1(lidar_set, out, cfg, progress=False, log=lambda *_: None)
+    assert json.dumps(again["tables"]) == json.dumps(res["tables"]) and (out / "exp1_sweeps.png").stat().st_size > 0  # drawn from preds/
 
 
 def test_a_second_run_keeps_finished_rows_and_refuses_other_settings(lidar_set, tmp_path):

@@ -94,6 +94,33 @@ def test_a_second_run_keeps_finished_units_adds_seeds_and_reruns_a_unit_whose_ar
     assert third.ran == ["b_s0"]
 
 
+def test_a_kept_folder_carries_finished_units_to_a_new_output_folder_and_the_same_report(tmp_path):
+    keep, first_out, second_out = tmp_path / "kept", tmp_path / "session1", tmp_path / "session2"
+    first = runner.run(Toy(), first_out, seeds=1, progress=False, log=lambda *_: None, keep=keep)
+    assert sorted(str(p.relative_to(keep)) for p in keep.rglob("*") if p.is_file()) == [
+        "evaluate/a_s0_eval.json", "evaluate/b_s0_eval.json", "models/a_s0.txt", "models/b_s0.txt", "study.json",
+        "train/a_s0.json", "train/b_s0.json"]  # records, their files and the study record; no report, no temporaries
+    said, later = [], Toy()  # a new session: its output folder is gone, the kept folder came back from git
+    second = runner.run(later, second_out, seeds=2, progress=False, log=said.append, keep=keep)
+    assert later.ran == ["a_s1", "b_s1", "a_s1_eval", "b_s1_eval"]
+    assert sum(s.endswith("restored from " + str(keep)) for s in said) == 4
+    assert second.data["table"]["a"]["x"]["read"]["seeds"] == 2 and (keep / "train" / "a_s1.json").exists()
+    seed0 = json.loads((keep / "evaluate" / "a_s0_eval.json").read_text())["result"]["read"]
+    assert seed0 == first.data["table"]["a"]["x"]["read"]["mean"]
+    with pytest.raises(StudyError, match=r"kept.* holds a toy study with other settings"):
+        runner.run(Toy(scale=2.0), tmp_path / "session3", progress=False, log=lambda *_: None, keep=keep)
+    with pytest.raises(ValueError, match="keep must be another folder than out"):
+        runner.run(Toy(), keep, progress=False, log=lambda *_: None, keep=keep)
+
+
+def test_units_finished_before_keep_was_asked_for_are_copied_to_the_kept_folder(tmp_path):
+    runner.run(Toy(rows=("a",)), tmp_path / "out", progress=False, log=lambda *_: None)
+    again = Toy(rows=("a",))
+    runner.run(again, tmp_path / "out", progress=False, log=lambda *_: None, keep=tmp_path / "kept")
+    assert again.ran == [] and (tmp_path / "kept" / "models" / "a_s0.txt").read_text() == (
+        tmp_path / "out" / "models" / "a_s0.txt").read_text()
+
+
 def test_the_report_says_every_units_wall_time_and_the_total(tmp_path):
     report = runner.run(Toy(rows=("a",)), tmp_path, seeds=2, progress=False, log=lambda *_: None)
     text = (tmp_path / "toy.md").read_text()

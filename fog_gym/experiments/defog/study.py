@@ -17,6 +17,7 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
 
+from fog_gym.dataset.digest import content_digest
 from fog_gym.experiments.dataset_study import DatasetStudy
 from fog_gym.experiments.defog.data import CAMERAS, LEVELS, channel, choose_scenes
 from fog_gym.experiments.runner import Report, Unit, run, size_arg, torch_device
@@ -177,7 +178,8 @@ class Exp2Study(DatasetStudy):
         empty = [s for s, n in self.images.items() if n == 0]
         if empty:
             raise ValueError(f"the {', '.join(empty)} split has no frames")
-        return {"scenes": self.scenes, "images": self.images}
+        return {"scenes": self.scenes, "images": self.images,
+                "digest": content_digest(ds, [n for names in self.scenes.values() for n in names])}
 
     def units(self, seeds: Sequence[int]) -> list[Unit]:
         train = [Unit("train", f"detector_{lv}_s{s}", s, {"model": "detector", "level": lv})

@@ -278,34 +278,30 @@ def curve_figure(records: dict[str, dict[str, Any]], path: Path) -> None:
 
 
 def sweeps_figure(root: Path, out: Path, config: Any, key: str, path: Path) -> None:
-    """One test sweep per fog level (the same sample): the BEV points, ground-truth and predicted boxes of the
-    pillar model ``key``."""
+    """One test sweep per fog level (the same sample): the BEV points, ground-truth boxes and the predictions of
+    unit ``key`` that its metrics scored (its best-FDS epoch's, from ``preds/<key>.npz``: no model is needed)."""
     import matplotlib.pyplot as plt
-    import torch
 
     from fog_gym.dataset.access import FogDrive
-    from fog_gym.experiments.detection3d.data import SweepCache, SweepDataset, collate, to_device
-    from fog_gym.experiments.detection3d.model import decode
+    from fog_gym.experiments.detection3d.data import SweepCache, SweepDataset
     from fog_gym.experiments.detection3d.protocol import evaluation_subsets
-    from fog_gym.experiments.detection3d.train import build_model
+    from fog_gym.experiments.detection3d.train import load_predictions
     from fog_gym.geometry import box_corners
 
     ds = FogDrive(root)
     tests = evaluation_subsets(ds.splits["test"], config.seed, config.test_fraction)
     cache = SweepCache(out / "cache", config.pillar_config.grid)
     det = key.split("_")[0]
-    model = build_model(det, config)
-    model.load_state_dict(torch.load(out / "models" / f"{key}.pt", map_location="cpu"))
-    model.eval()
-    levels = [lv for lv in ("clear", *FOG_COLUMNS) if lv in tests]
+    preds = load_predictions(out / "preds" / f"{key}.npz")
+    levels = [lv for lv in ("clear", *FOG_COLUMNS) if lv in tests and lv in preds]
     fig, axes = plt.subplots(1, len(levels), figsize=(4.6 * len(levels), 4.8), squeeze=False)
     for ax, lv in zip(axes[0], levels, strict=True):
         data = SweepDataset(ds, tests[lv], cache, det, config.grid(det), config.test_every)
+        if len(data) != len(preds[lv]["pred"]):
+            raise ValueError(f"{key}: {len(preds[lv]['pred'])} {lv} predictions for {len(data)} test sweeps")
         counts = [len(cache.get(*it[:3])[1]["boxes"]) for it in data.items]
         k = int(np.argmax(counts))
-        batch = collate([data[k]])
-        with torch.no_grad():
-            pred = decode(model(**to_device(batch["inputs"], torch.device("cpu"))), config.grid(det), config.threshold)[0]
+        pred = preds[lv]["pred"][k]
         p, gt = cache.get(*data.items[k][:3])
         pts = p.points
         ax.scatter(pts[:, 1], pts[:, 0], s=0.2, c=pts[:, 2], cmap="Greys", vmin=-3, vmax=1, rasterized=True)
@@ -398,7 +394,7 @@ def build(records: dict[str, dict[str, Any]], out: Path, seeds: list[int], confi
         best = best_light_row(pillar_rows)
         if best is not None:
             key = f"{det}_{best[0]}_s{seeds[0]}"
-            if (out / "models" / f"{key}.pt").exists():
+            if (out / "preds" / f"{key}.npz").exists():
                 figures["exp1_sweeps.png"] = lambda p: sweeps_figure(root, out, config, key, p)
     from dataclasses import asdict
 

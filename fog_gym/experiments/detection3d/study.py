@@ -18,6 +18,7 @@ from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 from typing import Any
 
+from fog_gym.dataset.digest import content_digest
 from fog_gym.experiments.dataset_study import DatasetStudy
 from fog_gym.experiments.detection3d.protocol import TEST_COLUMNS, TRAIN_ROWS, evaluation_subsets, training_subsets
 from fog_gym.experiments.runner import Report, StudyError, Unit, run, torch_device
@@ -209,10 +210,11 @@ class Exp1Study(DatasetStudy):
 
         for it in tqdm(todo, desc="exp1: pillarise sweeps (cached)", unit="sweep", disable=not progress):
             cache.get(*it[:3])
-        return {"test_scenes": sorted({n for p in tests.values() for n, _ in p}),
-                "train_scenes": sorted({n for p in trains.values() for n, _ in p}),
-                "train_sweeps": {row: len(d) for row, d in sets.items()},
-                "test_sweeps": self.test_samples}  # fmt: skip
+        test_scenes = sorted({n for p in tests.values() for n, _ in p})
+        train_scenes = sorted({n for p in trains.values() for n, _ in p})
+        return {"test_scenes": test_scenes, "train_scenes": train_scenes,
+                "train_sweeps": {row: len(d) for row, d in sets.items()}, "test_sweeps": self.test_samples,
+                "digest": content_digest(ds, train_scenes + test_scenes)}  # fmt: skip
 
     # -- units -------------------------------------------------------------------------------------------------
     def units(self, seeds: Sequence[int]) -> list[Unit]:
@@ -224,7 +226,7 @@ class Exp1Study(DatasetStudy):
         return units
 
     def artefacts(self, unit: Unit) -> list[str]:
-        return [f"models/{unit.key}.pt", f"preds/{unit.key}.npz"]
+        return [f"preds/{unit.key}.npz"]  # what the report reads; models/<key>.pt is written too, not required
 
     def run_unit(self, unit: Unit, out: Path, progress: bool) -> dict[str, Any]:
         import torch
