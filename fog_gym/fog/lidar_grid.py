@@ -4,9 +4,10 @@ beam directions, each point checked against its neighbours' and integrated on it
 
 A field's extinction depends on the run along its axis ``u`` and the height ``z``, so a beam's soft return depends on
 its direction only through ``du`` (its run along ``u`` per metre) and ``dz`` (its rise per metre). The points' directions
-span a small rectangle of that plane: a grid of :data:`DU_NODES` × (up to :data:`DZ_NODES`) directions over it (one row
-of ``dz`` when no term depends on height), each with the running maximum of its soft return over every range node
-(:func:`fog_gym.fog.lidar_pulse._curves`). A point reads the curves of the grid cell around its direction at its range:
+span a small rectangle of that plane: a grid of directions over it (:func:`grid_shape`: about one node per
+:data:`POINTS_PER_NODE` points, from 16 × 4 up to :data:`DU_NODES` × :data:`DZ_NODES`; one row of ``dz`` when no term
+depends on height), each with the running maximum of its soft return over the range nodes up to the farthest point that reads it (a
+node no point reads costs nothing; :func:`fog_gym.fog.lidar_pulse._curves`). A point reads the curves of the grid cell around its direction at its range:
 when the cell's corners all make the same decision (fog return or hard target), the point takes it, with the soft
 return interpolated in the cell and, for a fog return, the range of the nearest corner's maximum (where two banks'
 faces hold nearly equal maxima, it may lie at the other face than the point's own beam puts it: a few metres, well
@@ -37,8 +38,25 @@ from fog_gym.fog.lidar import GAMMA, REFERENCE_REFLECTIVITY
 from fog_gym.fog.lidar_pulse import (FIELD_COARSE, FIELD_STEP, _curves, _field_rule, beam_soft_maximum,
                                      field_pulse_weights, peak_extinction)  # fmt: skip
 
-#: Grid nodes along ``du`` and (for fields that depend on height) along ``dz`` over the points' directions.
+#: Grid nodes along ``du`` and (for fields that depend on height) along ``dz`` over the points' directions, at most.
 DU_NODES, DZ_NODES = 64, 8
+#: Points per grid node :func:`grid_shape` aims at: a curve costs about what 40 points' own reading of the grid does.
+POINTS_PER_NODE = 40
+_LADDER = {True: ((16, 4), (32, 4), (32, 8), (64, 8)), False: ((16, 1), (32, 1), (64, 1))}
+
+
+def grid_shape(n_points: int, heights: bool) -> tuple[int, int]:
+    """Nodes along ``du`` and ``dz`` for a sweep of ``n_points`` points: the finest grid of the ladder with no more
+    than one node per :data:`POINTS_PER_NODE` points (the coarsest one below that). A coarser grid leaves more cells
+    whose corners disagree (their points integrated on their own beam, with the same decisions), so a small sweep —
+    an RL agent's 5 000 points — reads 64 curves where 100 000 points read 512.
+
+    >>> grid_shape(5_000, True), grid_shape(100_000, True), grid_shape(100_000, False), grid_shape(10, True)
+    ((16, 4), (64, 8), (64, 1), (16, 4))
+    """
+    ladder = _LADDER[bool(heights)]
+    fits = [s for s in ladder if s[0] * s[1] * POINTS_PER_NODE <= n_points]
+    return fits[-1] if fits else ladder[0]
 #: Height terms of a packed field (fog_gym.fog.fields): a field without them depends on ``u`` only.
 HEIGHT = 1.0
 
@@ -60,6 +78,31 @@ def _directions(pts, pose, step, last, r0s, dus, dzs, ks, spans):
             r0s[i], dus[i], dzs[i], ks[i] = r0, du, dz, k
             lo_u, hi_u, lo_z, hi_z, top = min(lo_u, du), max(hi_u, du), min(lo_z, dz), max(hi_z, dz), max(top, k)
         spans[c, 0], spans[c, 1], spans[c, 2], spans[c, 3], spans[c, 4] = lo_u, hi_u, lo_z, hi_z, top
+
+
+@njit(cache=True, inline="always")
+def _cell(du, dz, du0, du_inv, n_du, dz0, dz_inv, n_dz):
+    # The grid cell around a direction: its lower corner's indices along du and dz and the position within the cell.
+    a = min(max((du - du0) * du_inv, 0.0), n_du - 1.0)
+    ia = min(int(a), n_du - 2) if n_du > 1 else 0
+    b = min(max((dz - dz0) * dz_inv, 0.0), n_dz - 1.0)
+    ib = min(int(b), n_dz - 2) if n_dz > 1 else 0
+    return ia, (a - ia if n_du > 1 else 0.0), ib, (b - ib if n_dz > 1 else 0.0)
+
+
+@njit(cache=True, nogil=True)
+def _node_tops(dus, dzs, ks, du0, du_inv, n_du, dz0, dz_inv, n_dz, tops):
+    # Per grid node, the farthest range node of the points whose cell it is a corner of (0 where none): the curves
+    # need go no farther (a curve's values up to a range do not depend on how far it goes), and a node no point
+    # reads costs nothing.
+    for n in range(dus.shape[0]):
+        ia, _, ib, _ = _cell(dus[n], dzs[n], du0, du_inv, n_du, dz0, dz_inv, n_dz)
+        for q in range(4):
+            da, db = q & 1, q >> 1
+            if (da and n_du == 1) or (db and n_dz == 1):
+                continue
+            i = (ib + db) * n_du + ia + da
+            tops[i] = max(tops[i], ks[n])
 
 
 @njit(cache=True, inline="always")
@@ -85,12 +128,7 @@ def _hahner_grid(pts, pose, terms, r0s, dus, dzs, ks, du0, du_inv, n_du, dz0, dz
         if attenuation >= 0.0:
             rho = min(max(np.float64(pts[n, 3]) / np.exp(-attenuation * r0), 1e-3), 1.0)
             ratio = ratio * REFERENCE_REFLECTIVITY / rho
-        a = min(max((dus[n] - du0) * du_inv, 0.0), n_du - 1.0)
-        ia = min(int(a), n_du - 2) if n_du > 1 else 0
-        ta = a - ia if n_du > 1 else 0.0
-        b = min(max((dzs[n] - dz0) * dz_inv, 0.0), n_dz - 1.0)
-        ib = min(int(b), n_dz - 2) if n_dz > 1 else 0
-        tb = b - ib if n_dz > 1 else 0.0
+        ia, ta, ib, tb = _cell(dus[n], dzs[n], du0, du_inv, n_du, dz0, dz_inv, n_dz)
         soft = 0.0
         wins = 0
         corners = 0
@@ -132,22 +170,23 @@ def fog_lidar_grid(pts: np.ndarray, terms: np.ndarray, pose: np.ndarray, log_noi
     spans = np.empty((max(1, min(numba.get_num_threads(), n)), 5))
     launch(_directions)(pts, pose, FIELD_STEP, last, r0s, dus, dzs, ks, spans)
     du_lo, du_hi = float(spans[:, 0].min()), float(spans[:, 1].max())
-    n_du = DU_NODES if du_hi > du_lo else 1
     heights = bool(np.any(terms[:, 0] == HEIGHT))
+    shape = grid_shape(n, heights)
+    n_du = shape[0] if du_hi > du_lo else 1
     dz_lo, dz_hi = (float(spans[:, 2].min()), float(spans[:, 3].max())) if heights else (0.0, 0.0)
-    n_dz = DZ_NODES if heights and dz_hi > dz_lo else 1
+    n_dz = shape[1] if heights and dz_hi > dz_lo else 1
     grid_du = np.linspace(du_lo, du_hi, n_du)
     grid_dz = np.linspace(dz_lo, dz_hi, n_dz) if heights else np.zeros(1)
     node_du = np.tile(grid_du, n_dz)
     node_dz = np.repeat(grid_dz, n_du)
-    tops = np.full(len(node_du), int(spans[:, 4].max()), np.int64)
+    cell = (du_lo, (n_du - 1) / (du_hi - du_lo) if n_du > 1 else 0.0, n_du, dz_lo,
+            (n_dz - 1) / (dz_hi - dz_lo) if n_dz > 1 else 0.0, n_dz)  # fmt: skip
+    tops = np.zeros(len(node_du), np.int64)
+    launch(_node_tops)(dus, dzs, ks, *cell, tops)
     best, where, stops = _curves(terms, pose, node_du, node_dz, tops)
     weights, ramp = field_pulse_weights()
     weights5, ramp5 = field_pulse_weights(FIELD_STEP * FIELD_COARSE)
     exact = np.zeros(n, np.uint8)
-    launch(_hahner_grid)(pts, pose, terms, r0s, dus, dzs, ks, du_lo,
-                         (n_du - 1) / (du_hi - du_lo) if n_du > 1 else 0.0, n_du, dz_lo,
-                         (n_dz - 1) / (dz_hi - dz_lo) if n_dz > 1 else 0.0, n_dz, best, where, stops, weights, ramp,
-                         weights5, ramp5, FIELD_COARSE, FIELD_STEP, peak_extinction(terms), log_noise, u, out,
-                         attenuation, exact)  # fmt: skip
+    launch(_hahner_grid)(pts, pose, terms, r0s, dus, dzs, ks, *cell, best, where, stops, weights, ramp, weights5, ramp5,
+                         FIELD_COARSE, FIELD_STEP, peak_extinction(terms), log_noise, u, out, attenuation, exact)  # fmt: skip
     return int(exact.sum())

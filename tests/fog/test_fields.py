@@ -326,12 +326,14 @@ def test_a_banks_run_table_finds_the_node_below_each_run_as_a_sorted_search_does
     (HeightFog(30.0, 2.0) + FogBank(60.0, -80.0, 60.0, edge=0.0), 10.0),  # past a wall, ground fog
     (FogBank(40.0, 40.0, 60.0, velocity=3.0) + HeightFog(80.0, 6.0) + FogBank(100.0, -60.0, 40.0), 25.0),
 ])  # fmt: skip
-def test_sums_of_fields_read_a_grid_of_curves_and_decide_as_each_beam_alone(field, ego_u):
+@pytest.mark.parametrize("n", [1_500, 20_000])  # a coarse grid (an RL sweep's) and a fine one
+def test_sums_of_fields_read_a_grid_of_curves_and_decide_as_each_beam_alone(field, ego_u, n, monkeypatch):
+    from fog_gym.fog import lidar_grid
     from fog_gym.fog.lidar_field import FIELD_COARSE, FIELD_STEP, _hahner_field, field_pulse_weights, peak_extinction
     from fog_gym.fog.lidar_grid import fog_lidar_grid
 
     rng = np.random.default_rng(7)
-    r = rng.uniform(1.5, 120.0, 20_000)
+    r = rng.uniform(1.5, 120.0, n)
     az = rng.uniform(-np.pi, np.pi, r.size)
     el = rng.choice(np.linspace(-0.35, 0.09, 64), r.size)
     pts = np.c_[r * np.cos(el) * np.cos(az), r * np.cos(el) * np.sin(az), r * np.sin(el), rng.uniform(0.02, 1, r.size)]
@@ -350,3 +352,7 @@ def test_sums_of_fields_read_a_grid_of_curves_and_decide_as_each_beam_alone(fiel
     assert np.abs(np.linalg.norm(grid[:, :3], axis=1) - np.linalg.norm(alone[:, :3], axis=1)).max() < 5.0
     full = fog_lidar_field(pts, field, np.random.default_rng(1), pose, time=1.5, noise=0.0)  # the entry takes this path
     assert np.array_equal(full, grid)
+    # each curve runs only as far as its farthest reader: bit for bit what curves run to the farthest point give
+    monkeypatch.setattr(lidar_grid, "_node_tops", lambda dus, dzs, ks, *cell_and_tops: cell_and_tops[-1].fill(ks.max()))
+    far = np.empty_like(pts)
+    assert fog_lidar_grid(pts, terms, pose, 0.0, np.zeros(len(pts)), far, -1.0) == exact and np.array_equal(far, grid)
