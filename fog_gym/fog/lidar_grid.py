@@ -3,17 +3,18 @@ beam directions, each point checked against its neighbours' and integrated on it
 (:mod:`fog_gym.fog.lidar_field` calls :func:`fog_lidar_grid`).
 
 A field's extinction depends on the run along its axis ``u`` and the height ``z``, so a beam's soft return depends on
-its direction only through ``du`` (its run along ``u`` per metre) and ``dz`` (its rise per metre). The points' directions
-span a small rectangle of that plane: a grid of directions over it (:func:`grid_shape`: about one node per
-:data:`POINTS_PER_NODE` points, from 16 × 4 up to :data:`DU_NODES` × :data:`DZ_NODES`; one row of ``dz`` when no term
-depends on height), each with the running maximum of its soft return over the range nodes up to the farthest point that reads it (a
-node no point reads costs nothing; :func:`fog_gym.fog.lidar_pulse._curves`). A point reads the curves of the grid cell around its direction at its range:
-when the cell's corners all make the same decision (fog return or hard target), the point takes it, with the soft
-return interpolated in the cell and, for a fog return, the range of the nearest corner's maximum (where two banks'
-faces hold nearly equal maxima, it may lie at the other face than the point's own beam puts it: a few metres, well
-within the model's range noise); where they disagree — near a bank's face, where the maximum jumps with the
-direction — the point's own beam is integrated (``beam_soft_maximum``, the per-beam path). The decisions are the
-per-beam path's (tested on random scenes and fields); the cost is the grid's curves plus the few points near a face.
+its direction only through ``du`` (its run along ``u`` per metre) and ``dz`` (its rise per metre). The points'
+directions span a small rectangle of that plane: a grid of directions over it (:func:`grid_shape`: about one node
+per :data:`POINTS_PER_NODE` points, from 16 × 4 up to :data:`DU_NODES` × :data:`DZ_NODES`; one row of ``dz`` when
+no term depends on height), each with the running maximum of its soft return over the range nodes up to the
+farthest point that reads it (a node no point reads costs nothing; :func:`fog_gym.fog.lidar_pulse._curves`). A
+point reads the curves of the grid cell around its direction at its range: when the cell's corners all make the
+same decision (fog return or hard target), the point takes it, with the soft return interpolated in the cell and,
+for a fog return, the range of the nearest corner's maximum (where two banks' faces hold nearly equal maxima, it
+may lie at the other face than the point's own beam puts it: a few metres, well within the model's range noise);
+where they disagree — near a bank's face, where the maximum jumps with the direction — the point's own beam is
+integrated (``beam_soft_maximum``, the per-beam path). The decisions are the per-beam path's (tested on random
+scenes and fields); the cost is the grid's curves plus the few points near a face.
 
 Example:
     >>> from fog_gym.fog.fields import FogBank
@@ -187,6 +188,7 @@ def fog_lidar_grid(pts: np.ndarray, terms: np.ndarray, pose: np.ndarray, log_noi
     weights, ramp = field_pulse_weights()
     weights5, ramp5 = field_pulse_weights(FIELD_STEP * FIELD_COARSE)
     exact = np.zeros(n, np.uint8)
-    launch(_hahner_grid)(pts, pose, terms, r0s, dus, dzs, ks, *cell, best, where, stops, weights, ramp, weights5, ramp5,
-                         FIELD_COARSE, FIELD_STEP, peak_extinction(terms), log_noise, u, out, attenuation, exact)  # fmt: skip
+    launch(_hahner_grid)(pts, pose, terms, r0s, dus, dzs, ks, *cell, best, where, stops, weights, ramp, weights5,
+                         ramp5, FIELD_COARSE, FIELD_STEP, peak_extinction(terms), log_noise, u, out, attenuation,
+                         exact)  # fmt: skip
     return int(exact.sum())

@@ -187,7 +187,8 @@ def test_experiment1_end_to_end_writes_every_cell(lidar_set, tmp_path):
     shutil.rmtree(out / "models")  # a unit restored from a kept folder has its predictions, not its model
     (out / "exp1_sweeps.png").unlink()
     again = run_experiment1(lidar_set, out, cfg, progress=False, log=lambda *_: None)
-    assert json.dumps(again["tables"]) == json.dumps(res["tables"]) and (out / "exp1_sweeps.png").stat().st_size > 0  # drawn from preds/
+    assert json.dumps(again["tables"]) == json.dumps(res["tables"])
+    assert (out / "exp1_sweeps.png").stat().st_size > 0  # drawn from preds/
 
 
 def test_a_second_run_keeps_finished_rows_and_refuses_other_settings(lidar_set, tmp_path):

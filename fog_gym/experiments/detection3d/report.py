@@ -354,6 +354,26 @@ def _verdict_lines(tabs: dict[str, Any], comp: dict[str, Any], ver: dict[str, An
     return lines
 
 
+def precision_note(records: dict[str, dict[str, Any]]) -> str | None:
+    """A line for the report when the units trained at different precisions (``--precision auto`` resolves to bf16
+    on a CPU that computes it natively and to fp32 elsewhere, so units kept from several machines may differ).
+
+    >>> precision_note({"a": {"result": {"precision": "bf16"}}, "b": {"result": {"precision": "fp32"}},
+    ...                 "c": {"result": {"precision": "bf16"}}})
+    '**Units at different precisions**: bf16 for a, c; fp32 for b (kept from machines with and without native bf16).'
+    >>> precision_note({"a": {"result": {"precision": "fp32"}}}) is None
+    True
+    """
+    by: dict[str, list[str]] = {}
+    for key, r in records.items():
+        if r["result"].get("precision"):
+            by.setdefault(r["result"]["precision"], []).append(key)
+    if len(by) < 2:
+        return None
+    parts = "; ".join(f"{p} for {', '.join(sorted(keys))}" for p, keys in sorted(by.items()))
+    return f"**Units at different precisions**: {parts} (kept from machines with and without native bf16)."
+
+
 def build(records: dict[str, dict[str, Any]], out: Path, seeds: list[int], config: Any, data: dict[str, Any],
           device: str, root: Path | None = None) -> Report:  # fmt: skip
     """The study's :class:`~fog_gym.experiments.runner.Report`."""
@@ -362,6 +382,8 @@ def build(records: dict[str, dict[str, Any]], out: Path, seeds: list[int], confi
     comp = comparisons(out, records)
     ver = verdicts(comp)
     lines = _verdict_lines(tabs, comp, ver)
+    note = precision_note(records)
+    lines += [note, ""] if note else []
     for det, table in tabs.items():
         best = best_light_row(table)
         lines += [f"## {DETECTOR_NAMES.get(det, det)}", ""]
