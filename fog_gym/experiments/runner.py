@@ -420,14 +420,15 @@ def run(study: Study, out: str | Path, seeds: int = 1, ray_address: str | None =
         pending = []
         for unit in todo:
             record = _finished(study, out, unit)
-            if record is None and keep is not None and _finished(study, keep, unit) is not None:
+            kept = None if keep is None else _finished(study, keep, unit)
+            if record is None and kept is not None:
                 _copy_unit(study, keep, out, unit)
-                record = _finished(study, out, unit)
+                record = kept
                 say(f"{unit.key}: restored from {keep}")
             if record is None:
                 pending.append(unit)
                 continue
-            if keep is not None and _finished(study, keep, unit) is None:
+            if keep is not None and kept is None:
                 _copy_unit(study, out, keep, unit)
             records[unit.key] = record
             timing[unit.key] = {"stage": stage, "wall_s": record["wall_s"], "kept": True}

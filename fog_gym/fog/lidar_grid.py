@@ -65,10 +65,10 @@ HEIGHT = 1.0
 @njit(cache=True, nogil=True, parallel=True)
 def _directions(pts, pose, step, last, r0s, dus, dzs, ks, spans):
     # Per point: range, run along u and rise per metre and range node; per chunk of the points (a row of spans): the
-    # least and greatest run and rise and the farthest node.
+    # least and greatest run and rise.
     n, chunks = pts.shape[0], spans.shape[0]
     for c in prange(chunks):
-        lo_u, hi_u, lo_z, hi_z, top = np.inf, -np.inf, np.inf, -np.inf, 0
+        lo_u, hi_u, lo_z, hi_z = np.inf, -np.inf, np.inf, -np.inf
         for i in range(c * n // chunks, (c + 1) * n // chunks):
             x, y, z = np.float64(pts[i, 0]), np.float64(pts[i, 1]), np.float64(pts[i, 2])
             r0 = np.sqrt(x * x + y * y + z * z)
@@ -77,8 +77,8 @@ def _directions(pts, pose, step, last, r0s, dus, dzs, ks, spans):
             dz = (pose[5] * x + pose[6] * y + pose[7] * z) * inv
             k = min(int(np.round(min(r0, 200.0) * (1.0 / step))), last)
             r0s[i], dus[i], dzs[i], ks[i] = r0, du, dz, k
-            lo_u, hi_u, lo_z, hi_z, top = min(lo_u, du), max(hi_u, du), min(lo_z, dz), max(hi_z, dz), max(top, k)
-        spans[c, 0], spans[c, 1], spans[c, 2], spans[c, 3], spans[c, 4] = lo_u, hi_u, lo_z, hi_z, top
+            lo_u, hi_u, lo_z, hi_z = min(lo_u, du), max(hi_u, du), min(lo_z, dz), max(hi_z, dz)
+        spans[c, 0], spans[c, 1], spans[c, 2], spans[c, 3] = lo_u, hi_u, lo_z, hi_z
 
 
 @njit(cache=True, inline="always")
@@ -168,7 +168,7 @@ def fog_lidar_grid(pts: np.ndarray, terms: np.ndarray, pose: np.ndarray, log_noi
     last = int(round(200.0 / FIELD_STEP))
     r0s, dus, dzs = np.empty((3, n))
     ks = np.empty(n, np.int64)
-    spans = np.empty((max(1, min(numba.get_num_threads(), n)), 5))
+    spans = np.empty((max(1, min(numba.get_num_threads(), n)), 4))
     launch(_directions)(pts, pose, FIELD_STEP, last, r0s, dus, dzs, ks, spans)
     du_lo, du_hi = float(spans[:, 0].min()), float(spans[:, 1].max())
     heights = bool(np.any(terms[:, 0] == HEIGHT))
