@@ -177,6 +177,7 @@ def test_experiment1_end_to_end_writes_every_cell(lidar_set, tmp_path):
     out = tmp_path / "out"
     text = (out / "exp1.md").read_text()
     assert "## Verdicts" in text and "| Mixed-L |" in text and "## Wall time" in text and "| pillars_Light_s0 | rows |" in text
+    assert "(test scenes resampled, one seed;" in text and "(best-FDS epoch per cell, one seed;" in text  # no seeds claimed
     for name in ("exp1.png", "exp1_curve.png", "exp1_sweeps.png"):
         assert (out / name).stat().st_size > 0
     assert any((out / "tb" / "pillars_Light_s0").iterdir())
@@ -222,7 +223,8 @@ def test_seeds_repeat_each_row_and_the_tables_give_their_ci(lidar_set, tmp_path)
         assert cell["ci95"] == pytest.approx(12.706 * abs(values[0] - values[1]) / 2, rel=1e-3)  # t(0.975, 1) · SD / √2
     a, b = (torch.load(tmp_path / "out" / "models" / f"bev_Dense_s{s}.pt") for s in (5, 6))
     assert not all(torch.equal(a[k], b[k]) for k in a)  # another seed, another network
-    assert " ± " in (tmp_path / "out" / "exp1.md").read_text()
+    text = (tmp_path / "out" / "exp1.md").read_text()
+    assert " ± " in text and "mean ± 95 % CI across 2 seeds;" in text
 
 
 def test_bad_settings_fail_before_training(tmp_path):

@@ -392,11 +392,13 @@ def build(records: dict[str, dict[str, Any]], out: Path, seeds: list[int], confi
             bar = f" (the competence bar is {COMPETENCE}: {'met' if cell['mAP']['mean'] >= COMPETENCE else 'not met'})" if det == "pillars" else ""
             lines += [f"Best row on the light test column: **{row}**, mAP@0.5 {fmt_stat(cell['mAP'], '{:.3f}')}{bar}.", ""]
         lines += matrix_markdown(table, len(seeds))
-        lines += ["**Per-class AP and AP per distance band** (best-FDS epoch per cell, mean ± 95 % CI across seeds; "
+        across = f"mean ± 95 % CI across {len(seeds)} seeds" if len(seeds) > 1 else "one seed"
+        lines += [f"**Per-class AP and AP per distance band** (best-FDS epoch per cell, {across}; "
                   "bands by the bird's-eye distance of the box centre)", ""] + competence_markdown(table, det) + [""]  # fmt: skip
         if comp.get(det):
-            lines += [f"**Paired comparisons** (test scenes and seeds resampled; differences A − B, higher is better "
-                      "for every metric)", ""] + comparison_markdown(comp, det) + [""]  # fmt: skip
+            drawn = "test scenes and seeds resampled" if len(seeds) > 1 else "test scenes resampled, one seed"
+            lines += [f"**Paired comparisons** ({drawn}; differences A − B, higher is better for every metric)", ""] \
+                + comparison_markdown(comp, det) + [""]  # fmt: skip
     budget = {r["params"]["epochs"]: r["result"] for r in records.values() if r["stage"] == "budget"}
     if budget:
         lines += ["## Learning curve (pillar detector, Light row, first seed, end of each schedule)", "",
