@@ -23,7 +23,7 @@ import numpy as np
 from numba import njit, prange
 
 import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
-from fog_gym._numba import FASTMATH, launch, pick, serial_twin
+from fog_gym._numba import FASTMATH, pick, serial_twin
 from fog_gym.fog.depth import optical_depths
 from fog_gym.fog.glow import _NO_GLOW, _blend_glow, _glow_rows_of
 
@@ -310,6 +310,9 @@ def _koschmieder_field(rgb, depth, xs, ys, pose, terms, starts, airlight_row, ou
                     _blend_glow(out[lv, i], i, lv, y0s, wys, firsts, fofs, wide, rofs, span_lo, span_hi)
 
 
+_koschmieder_field_serial = serial_twin(_koschmieder_field)
+
+
 def fog_field_images(rgb: np.ndarray, depth: np.ndarray, K: np.ndarray, fields: Sequence, airlight: np.ndarray,
                      pose: np.ndarray, time: float = 0.0, validate: bool = True, glow: bool = False) -> np.ndarray:  # fmt: skip
     """Koschmieder fog with fog fields (:mod:`fog_gym.fog.fields`): ``(L, H, W, 3)`` uint8, one image per field.
@@ -344,8 +347,8 @@ def fog_field_images(rgb: np.ndarray, depth: np.ndarray, K: np.ndarray, fields: 
 
         rows = _glow_rows_of(rgb, depth, K, [f.alpha for f in fields], depths)
     out = np.empty((len(packed), h, w, 3), np.uint8)
-    launch(_koschmieder_field)(np.ascontiguousarray(rgb).reshape(h, 3 * w), np.ascontiguousarray(depth, np.float32),
-                               xs, ys, pose, np.concatenate(packed), starts,
-                               np.tile(np.asarray(airlight, np.float32), w), out.reshape(len(packed), h, 3 * w),
-                               *(rows or _NO_GLOW))  # fmt: skip
+    pick(_koschmieder_field, _koschmieder_field_serial, len(packed) * h * w)(
+        np.ascontiguousarray(rgb).reshape(h, 3 * w), np.ascontiguousarray(depth, np.float32), xs, ys, pose,
+        np.concatenate(packed), starts, np.tile(np.asarray(airlight, np.float32), w), out.reshape(len(packed), h, 3 * w),
+        *(rows or _NO_GLOW))
     return out

@@ -86,6 +86,69 @@ def segment_depth(terms, u0, z0, du, dz, length):
     return tau
 
 
+def origin_constants(terms: np.ndarray, u0: float, z0: float) -> np.ndarray:
+    """What :func:`origin_depth` needs of a packed field that depends only on the segments' common start ``(u0, z0)``
+    (a sensor's place in the field frame): ``(K, 4)`` float64, a row per term ``[c0, c1, c2, fast]``. A height term
+    seen from ``z0 > 0``: ``e^{−z0/H}``, ``g(z0/H) = (1 − e^{−z0/H}) / (z0/H)``, ``1/H``, 1 (else zeros: the general
+    form); a bank: ``W(u0)``, the trapezoid's integral up to the start, 0, 0, 1; a homogeneous term: zeros.
+
+    >>> origin_constants(np.array([[1.0, 0.05, 4.0, 0, 0, 0, 0, 0]]), 0.0, 2.0).round(4).tolist()
+    [[0.6065, 0.7869, 0.25, 1.0]]
+    """
+    terms = np.ascontiguousarray(terms, np.float64)
+    out = np.zeros((len(terms), 4))
+    for k, row in enumerate(terms):
+        if row[0] == HEIGHT and z0 > 0.0:
+            x = z0 / row[2]
+            out[k] = math.exp(-x), -math.expm1(-x) / x, 1.0 / row[2], 1.0
+        elif row[0] == BANK:
+            out[k, 0], out[k, 3] = _ramp_integral(float(u0), *(float(v) for v in row[2:7])), 1.0
+    return out
+
+
+@njit(cache=True, inline="always")
+def origin_depth(terms, consts, u0, z0, du, dz, length):
+    """:func:`segment_depth` of segments that all start at ``(u0, z0)``, with that start's constants
+    (:func:`origin_constants`): a bank's integral up to the start is read, not recomputed, and a height term takes
+    one exponential, not two (``β(z0)·L·(e^{x} − 1)/x``, ``x = (z0 − z1)/H``; below the road ``β(0)`` there and the mean
+    of β over ``[0, z0]`` above it). Banks and homogeneous terms give ``segment_depth``'s bits; height terms agree to
+    rounding (1e-13 relative)."""
+    tau = 0.0
+    for k in range(terms.shape[0]):
+        kind, b0 = terms[k, 0], terms[k, 1]
+        if kind == 0.0:
+            tau += b0 * length
+        elif kind == 1.0 and consts[k, 3] != 0.0:
+            z1 = z0 + dz * length
+            if z1 < 0.0:  # (z0 > 0: the part below the road is (−z1)/(z0 − z1) of the segment)
+                below = length * (-z1) / (z0 - z1)
+                tau += b0 * (below + (length - below) * consts[k, 1])
+            else:  # x = (z0 − z1)/H, > 0 down: the mean of e^{x·s} over s ∈ [0, 1], (e^x − 1)/x (its series near 0)
+                x = (z0 - z1) * consts[k, 2]
+                mean = 1.0 + x * (0.5 + x * (1.0 / 6.0 + x / 24.0)) if abs(x) < 1e-3 else (math.exp(x) - 1.0) / x
+                tau += b0 * consts[k, 0] * length * mean
+        elif kind == 1.0:  # a start at or below the road: the general form
+            h = terms[k, 2]
+            z1 = z0 + dz * length
+            lo, hi = min(z0, z1), max(z0, z1)
+            if hi <= 0.0:
+                tau += b0 * length
+            elif lo >= 0.0:
+                tau += b0 * math.exp(-lo / h) * length * _g((hi - lo) / h)
+            else:
+                below = length * (-lo) / (hi - lo)
+                tau += b0 * (below + (length - below) * _g(hi / h))
+        else:
+            a, b, c, d, p = terms[k, 2], terms[k, 3], terms[k, 4], terms[k, 5], terms[k, 6]
+            span = du * length
+            if abs(span) < 1e-6:
+                mean_w = _ramp(u0 + 0.5 * span, a, b, c, d, p)
+            else:
+                mean_w = (_ramp_integral(u0 + span, a, b, c, d, p) - consts[k, 0]) / span
+            tau += (terms[k, 7] + b0 * mean_w) * length
+    return tau
+
+
 @njit(cache=True, nogil=True)
 def point_extinction(terms, u, z):
     """``β`` of the packed field at ``(u, z)`` [1/m]."""

@@ -10,7 +10,7 @@ import numpy as np
 from numba import njit, prange
 
 import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
-from fog_gym._numba import launch
+from fog_gym._numba import SERIAL_BELOW, pick, serial_twin
 from fog_gym.fog.depth import BANK, _ramp
 from fog_gym.fog.lidar_pulse import FIELD_STEP, _curves, _field_rule
 
@@ -183,20 +183,24 @@ def _hahner_bank(pts, pose, side, dist, nodes, lut, inv_width, inv_gap, faces, d
         _field_rule(pts, n, out, r0, i_orig, i_hard, f, r_tmp, log_noise, u, attenuation)
 
 
-def _bank_curves(terms: np.ndarray, pose: np.ndarray, plan: _BankPlan):
+_hahner_bank_serial = serial_twin(_hahner_bank)
+
+
+def _bank_curves(terms: np.ndarray, pose: np.ndarray, plan: _BankPlan, points: int = SERIAL_BELOW):
     """The curves of a bank's plan: ``best``, ``where``, ``stops`` and per node (and the background's, before or past
     the bank) its row. Inside the bank's plateau, a beam that stays on it up to its curve's last node sees homogeneous
-    fog there: the curve of the beam across the bank (run 0) serves every run that shallow."""
+    fog there: the curve of the beam across the bank (run 0) serves every run that shallow. ``points``, the sweep's
+    size, picks the curves' kernel (``_curves``)."""
     top = int(round(200.0 / FIELD_STEP))
     if plan.side != 0:
         runs = np.r_[plan.side * plan.nodes, 0.0]
-        return (*_curves(terms, pose, runs, np.zeros(len(runs)), np.full(len(runs), top, np.int64)),
+        return (*_curves(terms, pose, runs, np.zeros(len(runs)), np.full(len(runs), top, np.int64), points=points),
                 np.arange(len(runs)))  # fmt: skip
     runs, u0 = plan.nodes, float(pose[0])
     b, c = plan.depth[3], plan.depth[4]
     row = np.zeros(len(runs) + 1, np.int64)
     if b <= u0 <= c:  # (on the plateau)
-        across = _curves(terms, pose, np.zeros(1), np.zeros(1), np.full(1, top, np.int64))
+        across = _curves(terms, pose, np.zeros(1), np.zeros(1), np.full(1, top, np.int64), points=points)
         reach = (int(across[2][0]) + 1) * FIELD_STEP
         own = np.flatnonzero(np.abs(runs) * reach > min(u0 - b, c - u0))
         if not len(own):
@@ -204,7 +208,7 @@ def _bank_curves(terms: np.ndarray, pose: np.ndarray, plan: _BankPlan):
     else:
         own = np.arange(len(runs))
     best, where, stops = _curves(terms, pose, np.r_[0.0, runs[own]], np.zeros(len(own) + 1),
-                                 np.full(len(own) + 1, top, np.int64))  # fmt: skip
+                                 np.full(len(own) + 1, top, np.int64), points=points)  # fmt: skip
     row[own] = np.arange(1, len(own) + 1)
     return best, where, stops, row
 
@@ -216,8 +220,8 @@ def fog_lidar_bank(pts: np.ndarray, terms: np.ndarray, pose: np.ndarray, log_noi
     plan = _bank_plan(terms, pose)
     if plan is None:
         return False
-    best, where, stops, row = _bank_curves(terms, pose, plan)
-    launch(_hahner_bank)(pts, pose, plan.side, plan.dist, plan.nodes, plan.lut, plan.inv_width,
-                 plan.inv_gap, plan.faces, plan.depth, row, not row.any(), plan.background == 0.0, best, where, stops,
-                 FIELD_STEP, log_noise, u, out, attenuation)  # fmt: skip
+    best, where, stops, row = _bank_curves(terms, pose, plan, len(pts))
+    pick(_hahner_bank, _hahner_bank_serial, len(pts))(
+        pts, pose, plan.side, plan.dist, plan.nodes, plan.lut, plan.inv_width, plan.inv_gap, plan.faces, plan.depth, row,
+        not row.any(), plan.background == 0.0, best, where, stops, FIELD_STEP, log_noise, u, out, attenuation)
     return True

@@ -33,8 +33,8 @@ import numpy as np
 from numba import njit, prange
 
 import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
-from fog_gym._numba import launch
-from fog_gym.fog.depth import segment_depth
+from fog_gym._numba import launch, pick, serial_twin
+from fog_gym.fog.depth import origin_constants, origin_depth
 from fog_gym.fog.lidar import GAMMA, REFERENCE_REFLECTIVITY
 from fog_gym.fog.lidar_pulse import (FIELD_COARSE, FIELD_STEP, _curves, _field_rule, beam_soft_maximum,
                                      field_pulse_weights, peak_extinction)  # fmt: skip
@@ -81,6 +81,9 @@ def _directions(pts, pose, step, last, r0s, dus, dzs, ks, spans):
         spans[c, 0], spans[c, 1], spans[c, 2], spans[c, 3] = lo_u, hi_u, lo_z, hi_z
 
 
+_directions_serial = serial_twin(_directions)
+
+
 @njit(cache=True, inline="always")
 def _cell(du, dz, du0, du_inv, n_du, dz0, dz_inv, n_dz):
     # The grid cell around a direction: its lower corner's indices along du and dz and the position within the cell.
@@ -112,12 +115,13 @@ def _i_soft(best, i_orig, r0, ratio):
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def _hahner_grid(pts, pose, terms, r0s, dus, dzs, ks, du0, du_inv, n_du, dz0, dz_inv, n_dz, best, where, stops,
-                 weights, ramp, weights5, ramp5, coarse, step, beta_max, log_noise, u, out, attenuation, exact):  # fmt: skip
+def _hahner_grid(pts, pose, terms, consts, r0s, dus, dzs, ks, du0, du_inv, n_du, dz0, dz_inv, n_dz, best, where,
+                 stops, weights, ramp, weights5, ramp5, coarse, step, beta_max, log_noise, u, out, attenuation,
+                 exact):  # fmt: skip
     # Each point from its grid cell's four curves where their decisions agree, else from its own beam (exact[n] = 1).
     for n in prange(pts.shape[0]):
         r0 = r0s[n]
-        tau0 = segment_depth(terms, pose[0], pose[1], dus[n], dzs[n], r0)
+        tau0 = origin_depth(terms, consts, pose[0], pose[1], dus[n], dzs[n], r0)
         if tau0 == 0.0:  # no fog on the ray: the point as in clear air
             for c in range(pts.shape[1]):
                 out[n, c] = pts[n, c]
@@ -158,6 +162,9 @@ def _hahner_grid(pts, pose, terms, r0s, dus, dzs, ks, du0, du_inv, n_du, dz0, dz
         _field_rule(pts, n, out, r0, i_orig, i_hard, soft, r_tmp, log_noise, u, attenuation)
 
 
+_hahner_grid_serial = serial_twin(_hahner_grid)
+
+
 def fog_lidar_grid(pts: np.ndarray, terms: np.ndarray, pose: np.ndarray, log_noise: float, u: np.ndarray,
                    out: np.ndarray, attenuation: float) -> int:
     """Hahner et al. with any packed field on ``pts`` into ``out`` (``fog_gym.fog.lidar_field.fog_lidar_field``'s
@@ -169,7 +176,7 @@ def fog_lidar_grid(pts: np.ndarray, terms: np.ndarray, pose: np.ndarray, log_noi
     r0s, dus, dzs = np.empty((3, n))
     ks = np.empty(n, np.int64)
     spans = np.empty((max(1, min(numba.get_num_threads(), n)), 4))
-    launch(_directions)(pts, pose, FIELD_STEP, last, r0s, dus, dzs, ks, spans)
+    pick(_directions, _directions_serial, n)(pts, pose, FIELD_STEP, last, r0s, dus, dzs, ks, spans)
     du_lo, du_hi = float(spans[:, 0].min()), float(spans[:, 1].max())
     heights = bool(np.any(terms[:, 0] == HEIGHT))
     shape = grid_shape(n, heights)
@@ -184,11 +191,12 @@ def fog_lidar_grid(pts: np.ndarray, terms: np.ndarray, pose: np.ndarray, log_noi
             (n_dz - 1) / (dz_hi - dz_lo) if n_dz > 1 else 0.0, n_dz)  # fmt: skip
     tops = np.zeros(len(node_du), np.int64)
     launch(_node_tops)(dus, dzs, ks, *cell, tops)
-    best, where, stops = _curves(terms, pose, node_du, node_dz, tops)
+    consts = origin_constants(terms, float(pose[0]), float(pose[1]))
+    best, where, stops = _curves(terms, pose, node_du, node_dz, tops, consts, n)
     weights, ramp = field_pulse_weights()
     weights5, ramp5 = field_pulse_weights(FIELD_STEP * FIELD_COARSE)
     exact = np.zeros(n, np.uint8)
-    launch(_hahner_grid)(pts, pose, terms, r0s, dus, dzs, ks, *cell, best, where, stops, weights, ramp, weights5,
-                         ramp5, FIELD_COARSE, FIELD_STEP, peak_extinction(terms), log_noise, u, out, attenuation,
-                         exact)  # fmt: skip
+    pick(_hahner_grid, _hahner_grid_serial, n)(pts, pose, terms, consts, r0s, dus, dzs, ks, *cell, best, where, stops,
+                                               weights, ramp, weights5, ramp5, FIELD_COARSE, FIELD_STEP,
+                                               peak_extinction(terms), log_noise, u, out, attenuation, exact)
     return int(exact.sum())

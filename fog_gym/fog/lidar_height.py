@@ -3,51 +3,14 @@ per beam elevation (:mod:`fog_gym.fog.lidar_field` calls :func:`fog_lidar_height
 
 from __future__ import annotations
 
-import math
-
 import numba
 import numpy as np
 from numba import njit, prange
 
 import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
-from fog_gym._numba import launch
-from fog_gym.fog.depth import segment_depth
+from fog_gym._numba import pick, serial_twin
+from fog_gym.fog.depth import origin_constants, origin_depth
 from fog_gym.fog.lidar_pulse import FIELD_STEP, _curves, _field_rule
-
-
-@njit(cache=True, inline="always")
-def _height_depth(terms, height, z0, dz, length):
-    # segment_depth of height and homogeneous terms from a sensor at z0 > 0, with the sensor's constants per term
-    # (height[k] = e^{−z0/H}, g(z0/H) = (1 − e^{−z0/H})/(z0/H), 1/H): a segment that ends below the road sees β(0)
-    # there and the mean of β over [0, z0] above it (no exponential); one that stays above it β(z0)·L·(e^{x} − 1)/x,
-    # x = (z0 − z1)/H (one exp, either way). The same formulas as segment_depth, rearranged.
-    z1 = z0 + dz * length
-    tau = 0.0
-    for k in range(terms.shape[0]):
-        b0 = terms[k, 1]
-        if terms[k, 0] == 0.0:
-            tau += b0 * length
-        elif z1 < 0.0:  # (z0 > 0: the part below the road is (−z1)/(z0 − z1) of the segment)
-            below = length * (-z1) / (z0 - z1)
-            tau += b0 * (below + (length - below) * height[k, 1])
-        else:  # x = (z0 − z1)/H, > 0 down: the mean of e^{x·s} over s ∈ [0, 1], (e^x − 1)/x (its series near 0)
-            x = (z0 - z1) * height[k, 2]
-            mean = 1.0 + x * (0.5 + x * (1.0 / 6.0 + x / 24.0)) if abs(x) < 1e-3 else (math.exp(x) - 1.0) / x
-            tau += b0 * height[k, 0] * length * mean
-    return tau
-
-
-def _height_constants(terms: np.ndarray, z0: float) -> np.ndarray:
-    """_height_depth's constants of a field of height and homogeneous terms seen from z0 > 0 (empty otherwise: the
-    general closed form)."""
-    if z0 <= 0.0 or not np.all((terms[:, 0] == 0.0) | (terms[:, 0] == 1.0)):
-        return np.zeros((0, 3))
-    out = np.zeros((len(terms), 3))
-    for k, row in enumerate(terms):
-        if row[0] == 1.0:
-            x = z0 / row[2]
-            out[k] = math.exp(-x), -math.expm1(-x) / x, 1.0 / row[2]
-    return out
 
 
 #: Beam elevations closer than this (the run up per metre) share one soft-return curve; past ELEVATION_NODES distinct
@@ -58,9 +21,9 @@ ELEVATION_KEYS = int(round(1.0 / ELEVATION_ROUND))
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def _beam_elevations(pts, pose, terms, height, step, last, dzs, ks, keys, tau, spans, present):
+def _beam_elevations(pts, pose, terms, consts, step, last, dzs, ks, keys, tau, spans, present):
     # Per point: its beam's elevation (run up per metre), its range node, the elevation rounded to ELEVATION_ROUND (its
-    # key) and τ to it in closed form (_height_depth, or segment_depth where height is empty). Per chunk c of the
+    # key) and τ to it in closed form (origin_depth, with the sensor's constants). Per chunk c of the
     # points (spans and present have a row per chunk): the least and greatest key and elevation and the farthest range
     # node, and which keys occur (present[c, key + ELEVATION_KEYS]).
     n, chunks = pts.shape[0], spans.shape[0]
@@ -74,10 +37,12 @@ def _beam_elevations(pts, pose, terms, height, step, last, dzs, ks, keys, tau, s
             k = min(int(np.round(min(r0, 200.0) * (1.0 / step))), last)
             dzs[i], ks[i], keys[i] = dz, k, key
             present[c, key + ELEVATION_KEYS] = 1
-            tau[i] = _height_depth(terms, height, pose[1], dz, r0) if height.shape[0] else \
-                segment_depth(terms, 0.0, pose[1], 0.0, dz, r0)  # fmt: skip
+            tau[i] = origin_depth(terms, consts, 0.0, pose[1], 0.0, dz, r0)
             lo_key, hi_key, low, high, top = min(lo_key, key), max(hi_key, key), min(low, dz), max(high, dz), max(top, k)
         spans[c, 0], spans[c, 1], spans[c, 2], spans[c, 3], spans[c, 4] = lo_key, hi_key, low, high, top
+
+
+_beam_elevations_serial = serial_twin(_beam_elevations)
 
 
 @njit(cache=True, nogil=True)
@@ -156,6 +121,9 @@ def _hahner_height(pts, tau, dzs, ks, keys, node_dz, first, lo_key, inv_spacing,
                     where[near, min(k, stops[near])] * step, log_noise, u, attenuation)  # fmt: skip
 
 
+_hahner_height_serial = serial_twin(_hahner_height)
+
+
 def fog_lidar_height(pts: np.ndarray, terms: np.ndarray, pose: np.ndarray, log_noise: float, u: np.ndarray,
                      out: np.ndarray, attenuation: float) -> None:
     """Hahner et al. with a packed field of height and homogeneous terms on ``pts`` (N ≥ 1) into ``out``: τ to each
@@ -165,10 +133,11 @@ def fog_lidar_height(pts: np.ndarray, terms: np.ndarray, pose: np.ndarray, log_n
     dzs, tau = np.empty((2, n))
     ks, keys = np.empty(n, np.int64), np.empty(n, np.int64)
     spans, present = np.empty((chunks, 5)), np.zeros((chunks, 2 * ELEVATION_KEYS + 1), np.uint8)
-    launch(_beam_elevations)(pts, pose, terms, _height_constants(terms, float(pose[1])), FIELD_STEP,
-                     int(round(200.0 / FIELD_STEP)), dzs, ks, keys, tau, spans, present)  # fmt: skip
+    consts = origin_constants(terms, 0.0, float(pose[1]))
+    pick(_beam_elevations, _beam_elevations_serial, n)(pts, pose, terms, consts, FIELD_STEP,
+                                                       int(round(200.0 / FIELD_STEP)), dzs, ks, keys, tau, spans, present)
     node_dz, tops, first, lo_key, inv_spacing = _elevation_nodes(spans, present, ELEVATION_NODES)
     horizontal = np.sqrt(np.maximum(1.0 - node_dz**2, 0.0))  # (a height-only field ignores the run along u)
-    best, where, stops = _curves(terms, pose, horizontal, node_dz, tops)
-    launch(_hahner_height)(pts, tau, dzs, ks, keys, node_dz, first, lo_key, inv_spacing, best, where, stops, FIELD_STEP,
-                   log_noise, u, out, attenuation)  # fmt: skip
+    best, where, stops = _curves(terms, pose, horizontal, node_dz, tops, points=n)
+    pick(_hahner_height, _hahner_height_serial, n)(pts, tau, dzs, ks, keys, node_dz, first, lo_key, inv_spacing, best,
+                                                   where, stops, FIELD_STEP, log_noise, u, out, attenuation)

@@ -16,8 +16,8 @@ import numpy as np
 from numba import njit, prange
 
 import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
-from fog_gym._numba import launch
-from fog_gym.fog.depth import BANK, point_extinction, segment_depth
+from fog_gym._numba import SERIAL_BELOW, pick, serial_twin
+from fog_gym.fog.depth import BANK, origin_constants, origin_depth, point_extinction, segment_depth
 from fog_gym.fog.lidar import BETA_PER_MOR, GAMMA, REFERENCE_REFLECTIVITY, SPEED_OF_LIGHT, TAU_H, XI_R1, XI_R2
 
 
@@ -130,34 +130,38 @@ def _field_rule(pts, n, out, r0, i_orig, i_hard, best, r_tmp, log_noise, u, atte
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def _soft_curves(terms, u0, z0, dus, dzs, tops, weights, ramp, step, best, where, stops, beta_max):
+def _soft_curves(terms, consts, u0, z0, dus, dzs, tops, weights, ramp, step, best, where, stops, beta_max):
     # For beam directions (dus[i], dzs[i]): the running maximum of the soft return F over ranges k·step, k ≤ tops[i],
     # into best[i, k], and the range node where it lies into where[i, k] (every node from the first with fog on the
     # ray, as _hahner_field's refinement does near its maximum, until _soft_bound shows that no farther range can beat
-    # the maximum so far: stops[i] is the last node written, and the curve is constant beyond it).
+    # the maximum so far: stops[i] is the last node written, and the curve is constant beyond it). τ from the sensor's
+    # constants (origin_depth).
     n_nodes = weights.shape[1]
     one = int(np.round(XI_R2 / step))
     for i in prange(dus.shape[0]):
         du, dz, top = dus[i], dzs[i], tops[i]
         trans = np.empty(top + 1)
         beta1 = point_extinction(terms, u0 + du * XI_R2, z0 + dz * XI_R2)
-        lift = 0.0 if one > top else beta1 * np.exp(-2.0 * segment_depth(terms, u0, z0, du, dz, one * step)) * \
+        lift = 0.0 if one > top else beta1 * np.exp(-2.0 * origin_depth(terms, consts, u0, z0, du, dz, one * step)) * \
             np.exp(beta1 * (XI_R2 - XI_R1))  # fmt: skip
         start = max(one, _clear_node(terms, u0, z0, du, dz, step, top))
         for j in range(max(start - n_nodes + 1, 0), min(start, top + 1)):  # the first window's transmittance
-            trans[j] = np.exp(-2.0 * segment_depth(terms, u0, z0, du, dz, j * step))
+            trans[j] = np.exp(-2.0 * origin_depth(terms, consts, u0, z0, du, dz, j * step))
         top_f, top_k, k = 0.0, 0, 0
         while k <= top:
             if k >= start:
                 if top_f > 0.0 and top_f >= _soft_bound(k * step, beta_max, trans[max(k - n_nodes + 1, 0)]):
                     break
-                trans[k] = np.exp(-2.0 * segment_depth(terms, u0, z0, du, dz, k * step))
+                trans[k] = np.exp(-2.0 * origin_depth(terms, consts, u0, z0, du, dz, k * step))
                 f = ramp[k] * lift + _window(weights, k, trans, min(n_nodes, k + 1))
                 if f > top_f:
                     top_f, top_k = f, k
             best[i, k], where[i, k] = top_f, top_k
             k += 1
         stops[i] = k - 1
+
+
+_soft_curves_serial = serial_twin(_soft_curves)
 
 
 @njit(cache=True, inline="always")
@@ -252,12 +256,18 @@ def peak_extinction(terms: np.ndarray) -> float:
     return float(peak)
 
 
-def _curves(terms: np.ndarray, pose: np.ndarray, dus: np.ndarray, dzs: np.ndarray, tops: np.ndarray):
-    """:func:`_soft_curves` of these beam directions: ``best``, ``where`` (each row written up to its ``stops``)."""
+def _curves(terms: np.ndarray, pose: np.ndarray, dus: np.ndarray, dzs: np.ndarray, tops: np.ndarray,
+            consts: np.ndarray | None = None, points: int = SERIAL_BELOW):
+    """:func:`_soft_curves` of these beam directions: ``best``, ``where`` (each row written up to its ``stops``);
+    ``consts`` the sensor's :func:`~fog_gym.fog.depth.origin_constants` (computed when not given); ``points`` the
+    sweep's size, which picks the kernel (one thread below :data:`~fog_gym._numba.SERIAL_BELOW`: an RL agent's sweep
+    reads a few dozen curves, less work than a parallel launch costs)."""
+    if consts is None:
+        consts = origin_constants(terms, float(pose[0]), float(pose[1]))
     weights, ramp = field_pulse_weights()
     best = np.empty((len(dus), int(tops.max(initial=0)) + 1))
     where = np.empty(best.shape, np.int64)
     stops = np.zeros(len(dus), np.int64)
-    launch(_soft_curves)(terms, pose[0], pose[1], dus, dzs, tops, weights, ramp, FIELD_STEP, best, where, stops,
-                 peak_extinction(terms))
+    pick(_soft_curves, _soft_curves_serial, points)(terms, consts, pose[0], pose[1], dus, dzs, tops, weights, ramp,
+                                                    FIELD_STEP, best, where, stops, peak_extinction(terms))
     return best, where, stops

@@ -8,15 +8,22 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from numba import njit
 
 from fog_gym.fog import fog_images, fog_lidar, parse_fog
 from fog_gym.fog.camera import fog_field_images
-from fog_gym.fog.depth import field_pose
+from fog_gym.fog.depth import _depths, field_pose, origin_constants, origin_depth
 from fog_gym.fog.fields import FogBank, FogSum, HeightFog, Homogeneous, field_from_info, field_json
 from fog_gym.fog.lidar import BETA_PER_MOR, GAMMA, SPEED_OF_LIGHT, TAU_H, XI_R1, XI_R2, soft_response_table
 from fog_gym.fog.lidar_field import KAPPA, fog_lidar_field
 
 LN20 = math.log(20.0)
+
+
+@njit(cache=False)
+def _origin_depths(terms, consts, u0, z0, du, dz, lengths, out):
+    for i in range(lengths.shape[0]):
+        out[i] = origin_depth(terms, consts, u0, z0, du, dz, lengths[i])
 
 
 def quad_depth(field, u0, z0, du, dz, length, n=200_001):
@@ -79,6 +86,25 @@ def test_closed_form_optical_depth_equals_quadrature_on_random_rays(u0, z0, azim
     field = HeightFog(60.0, height) + FogBank(40.0, 30.0, 25.0, edge=edge, background=800.0) + Homogeneous(900.0)
     closed = float(field.optical_depth(u0, z0, du, dz, length))
     assert closed == pytest.approx(quad_depth(field, u0, z0, du, dz, length), rel=1e-4, abs=1e-6)
+
+
+@given(u0=st.floats(-200, 200), z0=st.floats(-1.0, 8.0), azimuth=st.floats(-math.pi, math.pi),
+       elevation=st.floats(-0.6, 0.6), lengths=st.lists(st.floats(0.0, 400.0), min_size=1, max_size=8),
+       edge=st.sampled_from([0.0, 0.5, 20.0]), height=st.floats(0.5, 40.0))  # fmt: skip
+@settings(max_examples=60, deadline=None)
+def test_depth_from_a_sensors_constants_is_segment_depth(u0, z0, azimuth, elevation, lengths, edge, height):
+    du, dz = math.cos(elevation) * math.cos(azimuth), math.sin(elevation)
+    banks = (FogBank(40.0, 30.0, 25.0, edge=edge, background=800.0) + FogBank(60.0, -50.0, 70.0, edge=edge)).pack(0.0)
+    mixed = (HeightFog(60.0, height) + FogBank(40.0, 30.0, 25.0, edge=edge) + Homogeneous(900.0)).pack(0.0)
+    ls = np.array(lengths)
+    for terms, exact in ((banks, True), (mixed, False)):
+        got, want = np.empty(len(ls)), np.empty(len(ls))
+        _origin_depths(terms, origin_constants(terms, u0, z0), u0, z0, du, dz, ls, got)
+        _depths(terms, np.full(len(ls), u0), np.full(len(ls), z0), np.full(len(ls), du), np.full(len(ls), dz), ls, want)
+        if exact:  # banks and homogeneous terms: segment_depth's bits (the start's integral read, not recomputed)
+            assert np.array_equal(got, want)
+        else:  # height terms: one exponential, not two; the same to rounding
+            np.testing.assert_allclose(got, want, rtol=1e-12, atol=1e-300)
 
 
 def test_a_banks_edge_to_zero_limit_is_the_step():
@@ -297,6 +323,31 @@ def test_a_bank_reads_curves_per_run_along_its_axis_and_decides_as_each_beam_alo
 def test_bad_inputs_of_the_field_physics_fail_before_any_work(call, word):
     with pytest.raises(ValueError, match=word):
         call()
+
+
+@pytest.mark.parametrize("field", [
+    HeightFog(50.0, 4.0) + FogBank(50.0, 40.0, 80.0),  # the grid of curves
+    HeightFog(40.0, 3.0) + Homogeneous(400.0),  # the curves per beam elevation
+    FogBank(50.0, 20.0, 40.0),  # the curves per run along a bank
+])  # fmt: skip
+def test_a_small_sweep_runs_the_field_kernels_serial_twins_with_the_same_bits(field, monkeypatch):
+    import fog_gym._numba
+
+    rng = np.random.default_rng(5)
+    r = rng.uniform(1.5, 120.0, 3_000)
+    az, el = rng.uniform(-np.pi, np.pi, r.size), rng.choice(np.linspace(-0.35, 0.09, 32), r.size)
+    pts = np.c_[r * np.cos(el) * np.cos(az), r * np.cos(el) * np.sin(az), r * np.sin(el), rng.uniform(0.02, 1, r.size)]
+    pts = pts.astype(np.float32)
+    pose = field_pose(LIDAR, (0.0, 0.0, 0.0))
+    rgb, depth = scene()
+    runs = []
+    for below in (0, 10**12):  # every kernel parallel, then every kernel on one thread
+        monkeypatch.setattr(fog_gym._numba, "SERIAL_BELOW", below)
+        runs.append((fog_lidar_field(pts, field, np.random.default_rng(1), pose),
+                     fog_field_images(rgb, depth, K, [field], np.array([180.0, 190.0, 200.0]),
+                                      field_pose(CAMERA, (0.0, 0.0, 0.0)))))  # fmt: skip
+    assert np.array_equal(runs[0][0], runs[1][0]) and np.array_equal(runs[0][1], runs[1][1])
+    assert np.any(runs[0][0][:, :3] != pts[:, :3])  # (the fog moved points)
 
 
 @settings(max_examples=60, deadline=None)
