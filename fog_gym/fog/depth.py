@@ -55,6 +55,19 @@ def _ramp(u, a, b, c, d, p):
     return p * (d - u) / (d - c)
 
 
+@njit(cache=True, inline="always")
+def _height_term(b0, h, z0, dz, length):
+    """τ of one height term ``β0·exp(−max(z, 0)/H)`` along a segment from height ``z0`` rising ``dz`` per metre."""
+    z1 = z0 + dz * length
+    lo, hi = min(z0, z1), max(z0, z1)
+    if hi <= 0.0:
+        return b0 * length
+    if lo >= 0.0:
+        return b0 * math.exp(-lo / h) * length * _g((hi - lo) / h)
+    below = length * (-lo) / (hi - lo)  # the part below the road sees β(0)
+    return b0 * (below + (length - below) * _g(hi / h))
+
+
 @njit(cache=True, nogil=True)
 def segment_depth(terms, u0, z0, du, dz, length):
     """Optical depth ``τ`` of the packed field ``terms`` along the segment from ``(u0, z0)`` with unit direction
@@ -65,16 +78,7 @@ def segment_depth(terms, u0, z0, du, dz, length):
         if kind == 0.0:  # homogeneous
             tau += terms[k, 1] * length
         elif kind == 1.0:  # height: β0·exp(−max(z, 0)/H)
-            b0, h = terms[k, 1], terms[k, 2]
-            z1 = z0 + dz * length
-            lo, hi = min(z0, z1), max(z0, z1)
-            if hi <= 0.0:
-                tau += b0 * length
-            elif lo >= 0.0:
-                tau += b0 * math.exp(-lo / h) * length * _g((hi - lo) / h)
-            else:  # the part below the road sees β(0)
-                below = length * (-lo) / (hi - lo)
-                tau += b0 * (below + (length - below) * _g(hi / h))
+            tau += _height_term(terms[k, 1], terms[k, 2], z0, dz, length)
         else:  # bank: β_bg + Δβ·w(u)
             db, a, b, c, d, p, bg = terms[k, 1], terms[k, 2], terms[k, 3], terms[k, 4], terms[k, 5], terms[k, 6], terms[k, 7]
             span = du * length
@@ -128,16 +132,7 @@ def origin_depth(terms, consts, u0, z0, du, dz, length):
                 mean = 1.0 + x * (0.5 + x * (1.0 / 6.0 + x / 24.0)) if abs(x) < 1e-3 else (math.exp(x) - 1.0) / x
                 tau += b0 * consts[k, 0] * length * mean
         elif kind == 1.0:  # a start at or below the road: the general form
-            h = terms[k, 2]
-            z1 = z0 + dz * length
-            lo, hi = min(z0, z1), max(z0, z1)
-            if hi <= 0.0:
-                tau += b0 * length
-            elif lo >= 0.0:
-                tau += b0 * math.exp(-lo / h) * length * _g((hi - lo) / h)
-            else:
-                below = length * (-lo) / (hi - lo)
-                tau += b0 * (below + (length - below) * _g(hi / h))
+            tau += _height_term(b0, terms[k, 2], z0, dz, length)
         else:
             a, b, c, d, p = terms[k, 2], terms[k, 3], terms[k, 4], terms[k, 5], terms[k, 6]
             span = du * length
