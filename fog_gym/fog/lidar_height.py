@@ -138,6 +138,6 @@ def fog_lidar_height(pts: np.ndarray, terms: np.ndarray, pose: np.ndarray, log_n
                                                        int(round(200.0 / FIELD_STEP)), dzs, ks, keys, tau, spans, present)
     node_dz, tops, first, lo_key, inv_spacing = _elevation_nodes(spans, present, ELEVATION_NODES)
     horizontal = np.sqrt(np.maximum(1.0 - node_dz**2, 0.0))  # (a height-only field ignores the run along u)
-    best, where, stops = _curves(terms, pose, horizontal, node_dz, tops, points=n)
+    best, where, stops = _curves(terms, pose, horizontal, node_dz, tops, consts, n)  # (u0 is moot: no bank here)
     pick(_hahner_height, _hahner_height_serial, n)(pts, tau, dzs, ks, keys, node_dz, first, lo_key, inv_spacing, best,
                                                    where, stops, FIELD_STEP, log_noise, u, out, attenuation)
