@@ -148,6 +148,39 @@ def test_other_settings_or_another_study_are_refused_before_any_work(tmp_path):
         runner.run(Toy(), tmp_path, progress=False, log=lambda *_: None)
 
 
+class ToyData(Toy):
+    """The toy study on "data": a content digest and the scenes its units read."""
+
+    def __init__(self, digest: str, scenes: tuple[str, ...] = ("s1", "s2")) -> None:
+        super().__init__()
+        self.digest, self.scenes = digest, scenes
+
+    def prepare(self, log, progress):
+        return {"digest": self.digest, "scenes": list(self.scenes)}
+
+
+def test_data_regenerated_on_another_machine_is_taken_only_when_its_digest_is_named(tmp_path):
+    keep, quiet = tmp_path / "kept", {"progress": False, "log": lambda *_: None}
+    runner.run(ToyData("sha256:aaa"), tmp_path / "s1", **quiet, keep=keep)
+    other = ToyData("sha256:bbb")
+    with pytest.raises(StudyError, match=r"other data \(digest: .*, pass --accept-data sha256:bbb$"):
+        runner.run(other, tmp_path / "s2", **quiet, keep=keep)
+    assert other.ran == [] and not (tmp_path / "s2" / "train").exists()
+    with pytest.raises(StudyError, match="other data"):  # naming another digest takes nothing
+        runner.run(other, tmp_path / "s2", **quiet, keep=keep, accept_data="sha256:ccc")
+    runner.run(other, tmp_path / "s2", **quiet, keep=keep, accept_data="sha256:bbb")
+    assert other.ran == []  # every unit restored from the kept folder, none run again
+    record = json.loads((keep / "study.json").read_text())["data"]
+    assert record["digest"] == "sha256:aaa" and record["equivalent_digests"] == ["sha256:bbb"]
+    for digest in ("sha256:aaa", "sha256:bbb"):  # afterwards either machine's data is taken without the flag
+        again = ToyData(digest)
+        runner.run(again, tmp_path / f"s3_{digest[-3:]}", **quiet, keep=keep)
+        assert again.ran == []
+    assert json.loads((keep / "study.json").read_text())["data"] == record  # and the record stays as it was
+    with pytest.raises(StudyError, match=r"scenes: .*here\); use another --out, or the same settings to resume it$"):
+        runner.run(ToyData("sha256:ddd", ("s1",)), tmp_path / "s4", **quiet, keep=keep, accept_data="sha256:ddd")
+
+
 def test_ray_without_the_extra_is_refused_before_any_work(tmp_path, monkeypatch):
     monkeypatch.setitem(sys.modules, "ray", None)
     study = Toy()
