@@ -335,17 +335,12 @@ def record_data(out: Path, data: Mapping[str, Any]) -> dict[str, Any]:
     """The ``data`` entry to write into ``out``'s study record: ``data`` itself for a new record; for a kept one,
     its first digest stays ``digest`` and every other digest accepted for it (:func:`check_manifest`) joins
     ``equivalent_digests``, so that data regenerated on either machine is taken afterwards."""
-    data = _jsonable(data)
-    path = Path(out) / MANIFEST
+    data, path = _jsonable(data), Path(out) / MANIFEST
     kept = json.loads(path.read_text()).get("data") if path.exists() else None
     if not isinstance(kept, dict) or "digest" not in kept or "digest" not in data:
         return data
-    others = set(kept.get("equivalent_digests", [])) | {data["digest"]}
-    others.discard(kept["digest"])
-    merged = {**data, "digest": kept["digest"]}
-    if others:
-        merged["equivalent_digests"] = sorted(others)
-    return merged
+    others = sorted((set(kept.get("equivalent_digests", [])) | {data["digest"]}) - {kept["digest"]})
+    return {**data, "digest": kept["digest"]} | ({"equivalent_digests": others} if others else {})
 
 
 def torch_device(name: str) -> Any:
