@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import json
 import os
+import subprocess
 import sys
 import time
 from collections.abc import Callable
@@ -142,14 +143,48 @@ def record(path: str) -> list:
     return rec.rows()
 
 
+class _Calls:
+    """Records the fog-gym kernels called from Python with their argument types, whether a call compiles them or loads
+    them from the cache (numba resolves a Python call's first types in ``_compile_for_args``; a kernel called inside
+    another kernel never passes there, as the table wants)."""
+
+    def __enter__(self) -> _Calls:
+        from numba.core.dispatcher import _DispatcherBase
+
+        self.found: dict[tuple[str, str], list] = {}
+        self._base, self._orig = _DispatcherBase, _DispatcherBase._compile_for_args
+        found, orig = self.found, self._orig
+
+        def compile_for_args(disp, *args, **kws):
+            f = disp.py_func
+            if f.__module__.startswith("fog_gym"):
+                sig = [repr(disp.typeof_pyval(a)) for a in args]
+                sigs = found.setdefault((f.__module__, f.__name__), [])
+                if sig not in sigs:
+                    sigs.append(sig)
+            return orig(disp, *args, **kws)
+
+        _DispatcherBase._compile_for_args = compile_for_args
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._base._compile_for_args = self._orig
+
+
 def check(*paths: str) -> dict[str, list]:
-    """Per path, the kernels it still compiles after :func:`ensure_compiled` of its own table row (empty when the table
-    is complete). Runs each path in this process, so run it in a fresh one."""
+    """Per path, the kernels (and argument types) it calls from Python that its table row lacks (empty when the table
+    is complete), on a warm cache or a cold one alike. Runs the paths in this process, so give it one path in a fresh
+    one (``python -m fog_gym.envs.warmup --check`` runs each path in its own)."""
     paths = paths or tuple(PATHS)
     out = {}
     for path in paths:
         ensure_compiled(path)
-        out[path] = record(path)
+        known = {(e.module, e.name): set(e.signatures) for e in entries(path)}
+        with _Calls() as calls:
+            PATHS[path]()
+        out[path] = [[m, n, [s for s in sigs if tuple(s) not in known.get((m, n), set())], 0.0]
+                     for (m, n), sigs in sorted(calls.found.items())
+                     if any(tuple(s) not in known.get((m, n), set()) for s in sigs)]  # fmt: skip
     return out
 
 
@@ -167,7 +202,19 @@ def main(argv: list[str] | None = None) -> int:
     a = p.parse_args(argv)
     paths = a.paths or list(PATHS)
     if a.check:
-        print(json.dumps(check(*paths)))
+        if len(paths) == 1:
+            print(json.dumps(check(*paths)))
+            return 0
+        # each path in a fresh process: a kernel an earlier path already resolved would hide from a later one
+        out = {}
+        for path in paths:
+            run = subprocess.run([sys.executable, "-m", "fog_gym.envs.warmup", "--check", path], capture_output=True,
+                                 text=True, check=False)  # fmt: skip
+            if run.returncode:
+                sys.stderr.write(run.stderr)
+                return run.returncode
+            out.update(json.loads(run.stdout.strip().splitlines()[-1]))
+        print(json.dumps(out))
         return 0
     if a.record:
         if len(paths) != 1:

@@ -31,6 +31,20 @@ from typing import Any
 
 import numpy as np
 
+
+def nanmean(values: np.ndarray, axis: int = 0) -> np.ndarray:
+    """``np.nanmean`` along ``axis`` without its warning: NaN where every value is NaN (a class that no resample or
+    seed evaluated is not a number, and not a problem to warn about).
+
+    >>> nanmean(np.array([[1.0, np.nan], [3.0, np.nan]])).tolist()
+    [2.0, nan]
+    """
+    v = np.asarray(values, np.float64)
+    ok = ~np.isnan(v)
+    n = ok.sum(axis)
+    return np.where(n > 0, np.where(ok, v, 0.0).sum(axis) / np.maximum(n, 1), np.nan)
+
+
 #: Resamples per comparison unless a caller asks for others.
 N_RESAMPLES = 2000
 
@@ -61,7 +75,7 @@ def seed_means(values: np.ndarray, rng: np.random.Generator) -> np.ndarray:
         raise ValueError(f"values must be (seeds, resamples), got shape {v.shape}")
     s, r = v.shape
     pick = rng.integers(0, s, (r, s))
-    return np.nanmean(v[pick, np.arange(r)[:, None]], axis=1)
+    return nanmean(v[pick, np.arange(r)[:, None]], axis=1)
 
 
 def paired_differences(a: np.ndarray, b: np.ndarray, seed: int = 0) -> np.ndarray:
@@ -111,4 +125,4 @@ def seed_draws(seeds: int, n: int, rng: np.random.Generator) -> np.ndarray:
 def apply_draws(values: np.ndarray, draws: np.ndarray) -> np.ndarray:
     """Per resample, the mean over the drawn seeds of ``values`` (S, R) → (R,)."""
     v = np.asarray(values, np.float64)
-    return np.nanmean(v[draws, np.arange(v.shape[1])[:, None]], axis=1)
+    return nanmean(v[draws, np.arange(v.shape[1])[:, None]], axis=1)

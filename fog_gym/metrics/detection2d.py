@@ -24,6 +24,8 @@ from typing import Any
 
 import numpy as np
 
+from fog_gym.metrics.bootstrap import nanmean
+
 
 def _frames(frames: Sequence[Mapping[str, Any]], name: str, scores: bool) -> list[tuple[np.ndarray, ...]]:
     if isinstance(frames, Mapping) or not isinstance(frames, Sequence):
@@ -231,11 +233,11 @@ def coco_summarise(m: Mapping[str, Any], weights: np.ndarray | None = None, thre
         fp_c += (wd * (keep & ~c["matched"][0])).sum(1)
     with np.errstate(invalid="ignore"):
         stack = np.stack(list(ap50.values())) if ap50 else np.full((1, r), np.nan)
-        out = {"mAP50": np.nanmean(np.where(np.isnan(stack), np.nan, stack), axis=0) if ap50 else np.full(r, np.nan),
+        out = {"mAP50": nanmean(stack) if ap50 else np.full(r, np.nan),
                "precision": np.where(n_gt > 0, np.where(tp_c + fp_c > 0, tp_c / np.maximum(tp_c + fp_c, 1e-300), 0.0), np.nan),
                "recall": np.where(n_gt > 0, tp_c / np.maximum(n_gt, 1e-300), np.nan), "AP50": ap50}  # fmt: skip
         if len(thresholds) == 10:
-            out["mAP50_95"] = np.nanmean(np.stack(ap_all), axis=0) if ap_all else np.full(r, np.nan)
+            out["mAP50_95"] = nanmean(np.stack(ap_all)) if ap_all else np.full(r, np.nan)
     if single:
         out = {k: ({c: float(v[0]) for c, v in x.items()} if k == "AP50" else float(x[0])) for k, x in out.items()}
     return out

@@ -37,6 +37,7 @@ import numpy as np
 from numba import njit
 
 from fog_gym.geometry import polygon_area
+from fog_gym.metrics.bootstrap import nanmean
 
 ATE_CAP_M = 2.0
 ASE_CAP = 1.0
@@ -272,7 +273,7 @@ def summarise(m: Mapping[str, Any], weights: np.ndarray | None = None) -> dict[s
         if n_gt.max() > 0:
             ap[cls] = _weighted_ap(c["tp"].astype(np.float64), w[:, c["frame"]], n_gt)
     with np.errstate(invalid="ignore"):
-        m_ap = np.nanmean(np.stack(list(ap.values())), axis=0) if ap else np.full(len(w), np.nan)
+        m_ap = nanmean(np.stack(list(ap.values()))) if ap else np.full(len(w), np.nan)
     e, ew = m["errors"], w[:, m["error_frames"]]
     count = ew.sum(axis=1)
     with np.errstate(invalid="ignore", divide="ignore"):

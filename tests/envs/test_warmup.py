@@ -34,6 +34,23 @@ def test_every_path_compiles_nothing_its_table_row_misses():
     assert missed == {path: [] for path in PATHS}
 
 
+
+def test_the_check_sees_a_kernel_the_cache_already_holds():
+    """A kernel loaded from a warm cache compiles nothing, so a check that listened for compilations missed kernels
+    the table lacks whenever an earlier test had cached them; the check records calls from Python instead."""
+    code = "import numpy as np; from fog_gym.geometry import polygon_area; polygon_area(np.zeros((3, 2)), 3)"
+    first = _run(code)
+    assert first.returncode == 0, first.stderr
+    # a fresh process on the now warm cache: the kernel loads from the cache, and the check still sees its call
+    code_warm = ("import numpy as np; from fog_gym.geometry import polygon_area; from fog_gym.envs.warmup import _Calls\n"
+                 "with _Calls() as c: polygon_area(np.zeros((4, 2)), 4)\n"
+                 "print(sorted(c.found.items()))")  # fmt: skip
+    out = _run(code_warm)
+    assert out.returncode == 0 and "compiling" not in out.stderr, out.stderr
+    assert out.stdout.strip() == str([(("fog_gym.geometry", "polygon_area"),
+                                       [["Array(float64, 2, 'C', False, aligned=True)", "int64"]])])
+
+
 def test_the_table_names_every_path_and_only_kernels_that_exist():
     assert list(TABLE) == list(PATHS)
     for e in entries(*PATHS):

@@ -37,6 +37,7 @@ import numpy as np
 
 from fog_gym.experiments.defog.dehazers import DEHAZERS
 from fog_gym.experiments.runner import Report, aggregate, fmt_stat, save_figure
+from fog_gym.metrics.bootstrap import nanmean
 
 PIPELINE_NAMES = {"A": "A (clean→clean)", "B": "B (clean→fog)", "C-DCP": "C – DCP", "C-AOD-Net": "C – AOD-Net (trained here)",
                   "C-DehazeFormer": "C – DehazeFormer-T (trained here)", "C-oracle": "C – oracle", "D": "D (fog→fog)"}  # fmt: skip
@@ -194,7 +195,7 @@ def comparisons(bs: dict[str, Any]) -> dict[str, Any]:
         pooled = interval(float(_spearman_rows(x_obs, y_obs)[0]), _spearman_rows(x_res, y_res))
         k = len(methods)
         within_obs = np.mean([_spearman_rows(x_obs[:, i * k:(i + 1) * k], y_obs[:, i * k:(i + 1) * k])[0] for i in range(len(LEVELS))])
-        within_res = np.nanmean(np.stack([_spearman_rows(x_res[:, i * k:(i + 1) * k], y_res[:, i * k:(i + 1) * k])
+        within_res = nanmean(np.stack([_spearman_rows(x_res[:, i * k:(i + 1) * k], y_res[:, i * k:(i + 1) * k])
                                           for i in range(len(LEVELS))]), axis=0)  # fmt: skip
         within = interval(float(within_obs), within_res)
         reversals = []
