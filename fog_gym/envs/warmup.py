@@ -171,20 +171,19 @@ class _Calls:
         self._base._compile_for_args = self._orig
 
 
-def check(*paths: str) -> dict[str, list]:
-    """Per path, the kernels (and argument types) it calls from Python that its table row lacks (empty when the table
-    is complete), on a warm cache or a cold one alike. Runs the paths in this process, so give it one path in a fresh
-    one (``python -m fog_gym.envs.warmup --check`` runs each path in its own)."""
-    paths = paths or tuple(PATHS)
-    out = {}
-    for path in paths:
-        ensure_compiled(path)
-        known = {(e.module, e.name): set(e.signatures) for e in entries(path)}
-        with _Calls() as calls:
-            PATHS[path]()
-        out[path] = [[m, n, [s for s in sigs if tuple(s) not in known.get((m, n), set())], 0.0]
-                     for (m, n), sigs in sorted(calls.found.items())
-                     if any(tuple(s) not in known.get((m, n), set()) for s in sigs)]  # fmt: skip
+def check(path: str) -> list:
+    """The kernels (and argument types) ``path`` calls from Python that its table row lacks (empty when the table is
+    complete), on a warm cache or a cold one alike. Runs the path in this process, so run it in a fresh one
+    (``python -m fog_gym.envs.warmup --check`` runs each path in its own)."""
+    ensure_compiled(path)
+    known = {(e.module, e.name): set(e.signatures) for e in entries(path)}
+    with _Calls() as calls:
+        PATHS[path]()
+    out = []
+    for (module, name), sigs in sorted(calls.found.items()):
+        missing = [s for s in sigs if tuple(s) not in known.get((module, name), set())]
+        if missing:
+            out.append([module, name, missing, 0.0])
     return out
 
 
@@ -203,7 +202,7 @@ def main(argv: list[str] | None = None) -> int:
     paths = a.paths or list(PATHS)
     if a.check:
         if len(paths) == 1:
-            print(json.dumps(check(*paths)))
+            print(json.dumps({paths[0]: check(paths[0])}))
             return 0
         # each path in a fresh process: a kernel an earlier path already resolved would hide from a later one
         out = {}

@@ -196,7 +196,7 @@ def comparisons(bs: dict[str, Any]) -> dict[str, Any]:
         k = len(methods)
         within_obs = np.mean([_spearman_rows(x_obs[:, i * k:(i + 1) * k], y_obs[:, i * k:(i + 1) * k])[0] for i in range(len(LEVELS))])
         within_res = nanmean(np.stack([_spearman_rows(x_res[:, i * k:(i + 1) * k], y_res[:, i * k:(i + 1) * k])
-                                          for i in range(len(LEVELS))]), axis=0)  # fmt: skip
+                                       for i in range(len(LEVELS))]), axis=0)  # fmt: skip
         within = interval(float(within_obs), within_res)
         reversals = []
         for lv in LEVELS:
