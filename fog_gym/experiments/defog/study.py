@@ -269,11 +269,12 @@ class Exp2Study(DatasetStudy):
     @classmethod
     def add_arguments(cls, p: argparse.ArgumentParser) -> None:
         cls.add_common_arguments(p, "with cameras and train/val/test splits", "detector", 2e-3)
+        cpu, gpu = Exp2Config(), Exp2Config.gpu()
         for action in p._actions:  # the configuration decides these defaults (CPU or GPU)
             if action.dest in ("epochs", "batch_size", "every", "test_every", "eval_every"):
                 action.default = None
-                action.help = {"epochs": "training epochs per detector (CPU configuration 4, GPU 60)",
-                               "batch_size": "batch size (CPU 8, GPU 16)",
+                action.help = {"epochs": f"training epochs per detector (CPU {cpu.epochs}, GPU {gpu.epochs})",
+                               "batch_size": f"batch size (CPU {cpu.batch_size}, GPU {gpu.batch_size})",
                                "every": "use every n-th training / validation sample of a scene (default 2)",
                                "test_every": "use every n-th test sample (default 8)",
                                "eval_every": "evaluate on the validation set every n-th epoch and the last (CPU 1, "
