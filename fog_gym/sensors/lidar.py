@@ -24,6 +24,7 @@ Example:
 from __future__ import annotations
 
 import functools
+import itertools
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -35,7 +36,7 @@ from numba import njit
 from fog_gym._numba import readonly
 from fog_gym.checks import finite, interval, positive
 from fog_gym.channels.spec import FOG_LEVELS, LIDAR_MOTIONS, lidar_channel, lidar_columns
-from fog_gym.geometry import Pose, sensor_to_world
+from fog_gym.geometry import Pose, sensor_to_world, transform_matrix, yaw_transform
 from fog_gym.sensors.base import PointSensor, point_space, register
 from fog_gym.channels.packing import LIDAR
 from fog_gym.sensors.raycast import GROUND, MISS, RayHits, cast_rays
@@ -317,34 +318,34 @@ def simulate_lidar(
         hits = cast_rays(origin, dirs, cfg.range, prims, rotation=rot)
         reflect = _NONE32 if cfg.intensity == "carla" else reflectance(hits, dirs, rot, origin, surface, prims.colors)
     else:  # a sweep that takes time: each slice of columns from where the sensor and the world are at its time
-        from fog_gym.sensors.motion import sweep_slices
+        from fog_gym.sensors.motion import slice_times, sweep_order
 
-        columns = (np.arange(n) if rays is None else rays) % cfg.points_per_channel(simulation_frequency)
-        slices, times_of = sweep_slices(columns, cfg.points_per_channel(simulation_frequency), simulation_frequency)
-        dist, index = np.empty(n, np.float32), np.empty(n, np.int32)
-        cosine, material = np.empty(n, np.float32), np.empty(n, np.uint8)
+        m = cfg.points_per_channel(simulation_frequency)
+        order, bounds = sweep_order((np.arange(n) if rays is None else rays) % m, m)
+        times_of = slice_times(simulation_frequency, len(bounds) - 1)
+        sorted_dirs = dirs.take(order, axis=0)  # the slices' rays contiguous: each slice casts a view
+        at = [motion(float(t)) for t in times_of]  # each slice's sensor → world and world
+        frames = [split_transform(s2w) for s2w, _ in at]
+        hits = RayHits(np.empty(n, np.float32), np.empty(n, np.int32), np.empty(n, np.float32), np.empty(n, np.uint8))
         reflect = _NONE32 if cfg.intensity == "carla" else np.empty(n, np.float32)
-        def trace(k: int):
-            sel = slices[k]
-            if sel.size == 0:
-                return None
-            s2w, prims_k = motion(float(times_of[k]))
-            rot_k, origin_k = split_transform(s2w)
-            d = dirs.take(sel, axis=0)
-            h = cast_rays(origin_k, d, cfg.range, prims_k, rotation=rot_k, n_azimuth_bins=SLICE_AZIMUTH_BINS)
-            return sel, h, (reflectance(h, d, rot_k, origin_k, surface, prims_k.colors) if reflect.size else None)
 
-        for res in _slice_map(trace, len(slices)):  # the slices' casts on the cores (each a serial kernel)
-            if res is None:
-                continue
-            sel, h, refl = res
-            dist[sel], index[sel], cosine[sel], material[sel] = h
-            if refl is not None:
-                reflect[sel] = refl
-        hits = RayHits(dist, index, cosine, material)
+        def trace(k: int) -> None:
+            lo, hi = bounds[k], bounds[k + 1]
+            if lo == hi:
+                return
+            (rot_k, origin_k), world = frames[k], at[k][1]
+            d, rows = sorted_dirs[lo:hi], order[lo:hi]
+            h = cast_rays(origin_k, d, cfg.range, world, rotation=rot_k, n_azimuth_bins=SLICE_AZIMUTH_BINS,
+                          sector=True)  # bins over the slice's sector only
+            for whole, part in zip(hits, h):  # into the sweep's laser order (the slices' rows are disjoint)
+                whole[rows] = part
+            if reflect.size:
+                reflect[rows] = reflectance(h, d, rot_k, origin_k, surface, world.colors)
+
+        for _ in _slice_map(trace, len(bounds) - 1):  # the slices' casts on the cores (each a serial kernel)
+            pass
         times = np.empty(n, np.float32)
-        for k, sel in enumerate(slices):
-            times[sel] = times_of[k]
+        times[order] = np.repeat(times_of.astype(np.float32), np.diff(bounds))
     noise = rng.normal(0.0, cfg.noise_stddev, n) if cfg.noise_stddev > _EPS else _NONE
     uniform = rng.random(n) if cfg.dropoff_zero_intensity > 0.0 else _NONE
     limit = cfg.dropoff_intensity_limit
@@ -361,8 +362,9 @@ _POOL: list = []
 
 
 def _slice_map(fn: Callable[[int], Any], n: int):
-    """``fn`` over ``range(n)``: on a pool of numba's thread count (kernels release the GIL; a small cast runs its
-    serial kernel), or in this thread when it is already a worker's (a vector env's) or numba has one thread."""
+    """``fn`` over ``range(n)`` (its results in no set order): on a pool of numba's thread count, one task per thread
+    that takes the next item when free (kernels release the GIL; a small cast runs its serial kernel), or in this
+    thread when it is already a worker's (a vector env's) or numba has one thread."""
     import numba
 
     from fog_gym._numba import in_worker, worker_pool
@@ -372,11 +374,22 @@ def _slice_map(fn: Callable[[int], Any], n: int):
         return map(fn, range(n))
     if not _POOL or _POOL[0][0] != threads:
         _POOL[:] = [(threads, worker_pool(threads))]
-    return _POOL[0][1].map(fn, range(n))
+    pending = itertools.count()  # one task per thread, each taking the next item when it is free (next() is atomic)
+
+    def work() -> list:
+        out = []
+        for i in pending:
+            if i >= n:
+                return out
+            out.append(fn(i))
+        return out
+
+    return [r for f in [_POOL[0][1].submit(work) for _ in range(min(threads, n))] for r in f.result()]
 
 
-#: Azimuth bins of the ray caster for one slice of a sweep that takes time (its rays span a 16th of the turn: fewer
-#: bins bin the boxes faster; the hits do not depend on the bins)
+
+#: Azimuth bins of the ray caster over one slice of a sweep that takes time (``cast_rays(sector=True)``: the bins
+#: cover the slice's 16th of the turn; the hits do not depend on the bins)
 SLICE_AZIMUTH_BINS = 64
 
 
@@ -471,17 +484,20 @@ class LidarSensor(PointSensor):
         cfg = self.config
         motion = None
         if cfg.motion == "continuous":
-            from fog_gym.sensors.motion import sweep_slices
+            from fog_gym.sensors.motion import MOTION_SLICES, slice_times
             from fog_gym.world.motion import SceneMotion
 
             sm = SceneMotion(scene.vehicles, getattr(scene, "previous", None))
-
-            def motion(t: float):
-                return sensor_to_world(cfg.pose, sm.ego_pose_at(t, scene.ego_id)), sm.primitives_at(prims, t)
-
-            m = cfg.points_per_channel(self.simulation_frequency)
-            _, times = sweep_slices(np.arange(m), m, self.simulation_frequency)
-            self.ego_poses = np.array([(t, *sm.ego_pose_at(t, scene.ego_id)) for t in (*times, 0.0)])
+            n_slices = min(MOTION_SLICES, cfg.points_per_channel(self.simulation_frequency))
+            times = slice_times(self.simulation_frequency, n_slices)
+            poses = [sm.ego_pose_at(t, scene.ego_id) for t in times]
+            mp = Pose.coerce(cfg.pose)
+            mount = transform_matrix(mp.location, mp.rotation)  # sensor_to_world's, once per sweep
+            at = {float(t): (yaw_transform(*pose) @ mount, moved)
+                  for t, pose, moved in zip(times, poses, sm.primitives_during(prims, times))}  # fmt: skip
+            motion = at.__getitem__  # each slice's sensor → world and world, from one pass over the slices
+            poses.append(sm.ego_pose_at(0.0, scene.ego_id))
+            self.ego_poses = np.array([(t, *pose) for t, pose in zip((*times, 0.0), poses)])
         pts = simulate_lidar(cfg, sensor_to_world(cfg.pose, scene.ego_pose), prims, scene.static.surface, rng,
                              self.simulation_frequency, self.start_angle(tick), motion)  # fmt: skip
         if cfg.returns == "dual":  # in clear air a beam's strongest echo is its last: one row, return 0

@@ -74,15 +74,57 @@ def _sin_elevation(z, r):
     return z / n
 
 
+@njit(cache=True, inline="always")
+def _wrap(a):
+    """A pseudo-azimuth difference in [−2, 2) (half a turn either way)."""
+    return a - 4.0 * np.floor((a + 2.0) * 0.25)
+
+
 @njit(cache=True, nogil=True)
-def _bin_boxes(ox, oy, oz, max_range, centers, halves, yaws, n_az, n_el, s_lo, s_hi):
+def _sector(rotation, directions):
+    """The rays' azimuth sector: ``(a_ref, a_lo, a_hi)``, pseudo-azimuths relative to the first ray's over every ray
+    (exact); ``a_lo = a_hi = 0`` when it spans more than a quarter turn (then the bins cover the full turn)."""
+    R = rotation
+    a_ref = 0.0
+    a_lo = 0.0
+    a_hi = 0.0
+    for i in range(directions.shape[0]):
+        ax, ay, az = directions[i, 0], directions[i, 1], directions[i, 2]
+        inv_n = 1.0 / np.sqrt(ax * ax + ay * ay + az * az)  # the unit world direction, as the cast computes it
+        a = _pseudo_azimuth((R[0, 0] * ax + R[0, 1] * ay + R[0, 2] * az) * inv_n,
+                            (R[1, 0] * ax + R[1, 1] * ay + R[1, 2] * az) * inv_n)  # fmt: skip
+        if i == 0:
+            a_ref = a
+        rel = _wrap(a - a_ref)
+        a_lo = min(a_lo, rel)
+        a_hi = max(a_hi, rel)
+        if a_hi - a_lo > 1.0:
+            return 0.0, 0.0, 0.0
+    return a_ref, a_lo, a_hi
+
+
+@njit(cache=True, nogil=True)
+def _bin_boxes(ox, oy, oz, max_range, centers, halves, yaws, n_az, n_el, s_lo, s_hi, a_ref, a_lo, a_hi):
     """Cull, sort and bin the boxes. Returns (box table (K, 8), near distance (K,), prim index (K,), cell offsets
-    (n_az * n_el + 1,), cell entries) with cell = az_bin * n_el + el_bin and each cell's entries nearest first."""
+    (n_az * n_el + 1,), cell entries) with cell = az_bin * n_el + el_bin and each cell's entries nearest first.
+    With ``a_hi > a_lo`` the azimuth bins cover the rays' sector only (pseudo-azimuths ``a_lo … a_hi`` from
+    ``a_ref``, :func:`_sector`) and boxes wholly outside it are dropped; else they cover the full turn."""
     n = centers.shape[0]
+    sector = a_hi > a_lo
     near = np.empty(n)
     keep = np.zeros(n, dtype=np.bool_)
     local = np.empty((n, 8))  # origin in the box frame (3), halves (3), cos, sin of yaw
     for p in range(n):
+        if sector:  # a box whose bounding circle's azimuths miss the sector: no ray can meet it
+            rx, ry = centers[p, 0] - ox, centers[p, 1] - oy
+            rho = np.sqrt(rx * rx + ry * ry)
+            r = np.sqrt(halves[p, 0] * halves[p, 0] + halves[p, 1] * halves[p, 1])
+            if rho > r + NEAR_ALL:
+                w = 0.5 * np.pi * r / rho + _PAD  # ≥ asin(r / ρ), the circle's half-angle; |d pseudo-azimuth| ≤ |d angle|
+                if w < 0.5:
+                    pc = _wrap(_pseudo_azimuth(rx, ry) - a_ref)
+                    if pc + w < a_lo or pc - w > a_hi:
+                        continue
         c = np.cos(yaws[p])
         s = np.sin(yaws[p])
         rx = ox - centers[p, 0]
@@ -114,6 +156,7 @@ def _bin_boxes(ox, oy, oz, max_range, centers, halves, yaws, n_az, n_el, s_lo, s
     e0 = np.zeros(k_n, dtype=np.int64)
     e1 = np.zeros(k_n, dtype=np.int64)
     inv_ds = n_el / (s_hi - s_lo) if s_hi > s_lo else 0.0
+    inv_da = n_az / (a_hi - a_lo) if sector else 0.0
     for k in range(k_n):
         p = order[k]
         lx, ly, lz = local[p, 0], local[p, 1], local[p, 2]
@@ -159,11 +202,18 @@ def _bin_boxes(ox, oy, oz, max_range, centers, halves, yaws, n_az, n_el, s_lo, s
                     dq += 4.0
                 lo = min(lo, dq)
                 hi = max(hi, dq)
-        b0 = int(np.floor((pc + lo - _PAD) * (n_az / 4.0)))
-        b1 = int(np.floor((pc + hi + _PAD) * (n_az / 4.0)))
-        if b1 - b0 + 1 >= n_az:
-            b0 = 0
-            b1 = n_az - 1
+        if sector:  # the interval's copy nearest the sector (which lies within ±1 of a_ref; the interval spans < 2)
+            mid = _wrap(pc + 0.5 * (lo + hi) - a_ref)
+            b0 = int(np.floor((mid - 0.5 * (hi - lo) - _PAD - a_lo) * inv_da))
+            b1 = int(np.floor((mid + 0.5 * (hi - lo) + _PAD - a_lo) * inv_da))
+            b0 = min(max(b0, 0), n_az - 1)  # beyond the sector: the edge bins (rays there clamp the same way)
+            b1 = min(max(b1, 0), n_az - 1)
+        else:
+            b0 = int(np.floor((pc + lo - _PAD) * (n_az / 4.0)))
+            b1 = int(np.floor((pc + hi + _PAD) * (n_az / 4.0)))
+            if b1 - b0 + 1 >= n_az:
+                b0 = 0
+                b1 = n_az - 1
         a0[k] = b0
         a1[k] = b1
     # CSR fill: count, prefix sum, fill in nearest-first order
@@ -309,7 +359,7 @@ def _mesh_hit(ox, oy, oz, dx, dy, dz, sx, sy, sz, m, tri_geom, node_start, node_
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def _cast(origin, rotation, directions, max_range, centers, halves, yaws, meshes, n_az, n_el,
+def _cast(origin, rotation, directions, max_range, centers, halves, yaws, meshes, n_az, n_el, sector,
           tri_geom, lib_t, lib_m, node_start, node_lo, node_hi, node_skip, node_first, node_count, radius):  # fmt: skip
     n_rays = directions.shape[0]
     ox, oy, oz = origin[0], origin[1], origin[2]
@@ -323,10 +373,12 @@ def _cast(origin, rotation, directions, max_range, centers, halves, yaws, meshes
         sz = (R[2, 0] * ax + R[2, 1] * ay + R[2, 2] * az) / np.sqrt(ax * ax + ay * ay + az * az)
         s_lo = min(s_lo, sz)
         s_hi = max(s_hi, sz)
+    a_ref, a_lo, a_hi = _sector(R, directions) if sector else (0.0, 0.0, 0.0)
     table, near, prim, offsets, entries = _bin_boxes(
-        ox, oy, oz, max_range, centers, halves, yaws, n_az, n_el, s_lo, s_hi
+        ox, oy, oz, max_range, centers, halves, yaws, n_az, n_el, s_lo, s_hi, a_ref, a_lo, a_hi
     )
     inv_ds = n_el / (s_hi - s_lo) if s_hi > s_lo else 0.0
+    inv_da = n_az / (a_hi - a_lo) if a_hi > a_lo else 0.0
     dist = np.empty(n_rays, dtype=np.float32)
     index = np.empty(n_rays, dtype=np.int32)
     cosine = np.empty(n_rays, dtype=np.float32)
@@ -351,9 +403,12 @@ def _cast(origin, rotation, directions, max_range, centers, halves, yaws, meshes
                 best = tg
                 hit = GROUND
                 cos_hit = -dz
-        b = int(_pseudo_azimuth(dx, dy) * (n_az / 4.0))
-        if b >= n_az:
-            b = n_az - 1
+        if a_hi > a_lo:  # bins over the rays' sector
+            b = min(max(int((_wrap(_pseudo_azimuth(dx, dy) - a_ref) - a_lo) * inv_da), 0), n_az - 1)
+        else:
+            b = int(_pseudo_azimuth(dx, dy) * (n_az / 4.0))
+            if b >= n_az:
+                b = n_az - 1
         e = min(max(int((dz - s_lo) * inv_ds), 0), n_el - 1)
         cell = b * n_el + e
         for j in range(offsets[cell], offsets[cell + 1]):
@@ -402,6 +457,7 @@ def _cast(origin, rotation, directions, max_range, centers, halves, yaws, meshes
 _cast_serial = serial_twin(_cast)
 
 
+
 class RayHits(NamedTuple):
     """Per-ray result of :func:`cast_rays`."""
 
@@ -419,6 +475,7 @@ def cast_rays(
     rotation: np.ndarray | None = None,
     n_azimuth_bins: int = 512,
     n_elevation_bins: int = 16,
+    sector: bool = False,
 ) -> RayHits:
     """Cast rays from one world point against the boxes of ``prims`` and the ground plane ``z = 0``.
 
@@ -427,7 +484,10 @@ def cast_rays(
     Distances are metres along the ray.
     ``prims`` is a :class:`~fog_gym.world.primitives.Primitives` (or a mapping with at least ``centers`` (P, 3),
     ``halves`` (P, 3) and ``yaws`` (P,)); only the geometry is used. A hit counts when it lies strictly nearer than ``max_range``; hits from inside a box do not
-    count. The bin counts only trade set-up time against per-ray work; results do not depend on them.
+    count. The bin counts only trade set-up time against per-ray work; results do not depend on them. ``sector``
+    (for rays that span a narrow sector of azimuths, as one slice of a sweep that takes time): the azimuth bins
+    cover the rays' sector only and boxes outside it are never binned — the same hits, less set-up; rays that span
+    more than a quarter turn fall back to the full turn.
 
     >>> prims = {"centers": np.array([[10.0, 0.0, 1.0]]), "halves": np.array([[1.0, 1.0, 1.0]]),
     ...          "yaws": np.zeros(1)}
@@ -457,7 +517,9 @@ def cast_rays(
         prims.meshes,
         int(n_azimuth_bins),
         int(n_elevation_bins),
+        bool(sector),
         lib.tri_geom, lib.triangles, lib.materials, lib.node_start, lib.node_lo, lib.node_hi, lib.node_skip,
         lib.node_first, lib.node_count, lib.radius,
     )
     return RayHits(dist, index, cosine, material)
+

@@ -65,13 +65,11 @@ class SceneMotion:
         c = self.current.centers[k]
         return (float(c[0] + d[0]), float(c[1] + d[1]), float(self.current.yaws[k] + dyaw))
 
-    def primitives_at(self, prims: Primitives, t: float) -> Primitives:
-        """``prims`` with every vehicle's boxes (``insts`` > 0, its id) moved rigidly to time ``t``: rotated about the
-        vehicle's centre by its heading change and shifted by its displacement; the static world stays."""
-        if t == 0.0:
-            return prims
+    def _moving(self, prims: Primitives) -> tuple:
+        """Which boxes of ``prims`` move, with whom: (moving boxes, their vehicles' rows, pivots, offsets), once per
+        set of primitives."""
         cached = self._prims
-        if cached is None or cached[0] is not prims:  # which boxes move, with whom, once per set of primitives
+        if cached is None or cached[0] is not prims:
             moving = np.flatnonzero(prims.insts > 0)
             rows = np.array([self._row.get(int(i), -1) for i in prims.insts[moving]], np.int64)
             moving, rows = moving[rows >= 0], rows[rows >= 0]
@@ -79,14 +77,32 @@ class SceneMotion:
             moving, rows = moving[~still], rows[~still]
             pivot = self.current.centers[rows, :2]
             cached = self._prims = (prims, moving, rows, pivot, prims.centers[moving, :2] - pivot)
-        _, moving, rows, pivot, rel = cached
+        return cached[1:]
+
+    def primitives_at(self, prims: Primitives, t: float) -> Primitives:
+        """``prims`` with every vehicle's boxes (``insts`` > 0, its id) moved rigidly to time ``t``: rotated about the
+        vehicle's centre by its heading change and shifted by its displacement; the static world stays."""
+        return prims if t == 0.0 else self.primitives_during(prims, [t])[0]
+
+    def primitives_during(self, prims: Primitives, times) -> list[Primitives]:
+        """:meth:`primitives_at` at each of ``times``, in one pass over the moving boxes."""
+        t = np.asarray(times, np.float64)
+        moving, rows, pivot, rel = self._moving(prims)
         if moving.size == 0:
-            return prims
-        d, dyaw = self._dxy[rows] * t, self._dyaw[rows] * t
+            return [prims] * len(t)
+        d, dyaw = self._dxy[rows][None] * t[:, None, None], self._dyaw[rows][None] * t[:, None]
         c, s = np.cos(dyaw), np.sin(dyaw)
-        centers = prims.centers.copy()
-        centers[moving, 0] = pivot[:, 0] + c * rel[:, 0] - s * rel[:, 1] + d[:, 0]
-        centers[moving, 1] = pivot[:, 1] + s * rel[:, 0] + c * rel[:, 1] + d[:, 1]
-        yaws = prims.yaws.copy()
-        yaws[moving] = yaws[moving] + dyaw
-        return replace(prims, centers=centers, yaws=yaws)
+        cx = pivot[:, 0] + c * rel[:, 0] - s * rel[:, 1] + d[..., 0]  # (S, M)
+        cy = pivot[:, 1] + s * rel[:, 0] + c * rel[:, 1] + d[..., 1]
+        yaw = prims.yaws[moving] + dyaw
+        out = []
+        for k in range(len(t)):
+            if t[k] == 0.0:
+                out.append(prims)
+                continue
+            centers = prims.centers.copy()
+            centers[moving, 0], centers[moving, 1] = cx[k], cy[k]
+            yaws = prims.yaws.copy()
+            yaws[moving] = yaw[k]
+            out.append(replace(prims, centers=centers, yaws=yaws))
+        return out

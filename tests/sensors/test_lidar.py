@@ -6,6 +6,8 @@ import numpy as np
 
 from fog_gym.world.primitives import Primitives
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from fog_gym.geometry import Pose
 from fog_gym.geometry import transform_points, yaw_transform
@@ -94,6 +96,30 @@ def test_cast_rays_matches_brute_force(where):
         np.testing.assert_array_equal(hits.index, ref_i)
         np.testing.assert_allclose(hits.distance, ref_d, rtol=1e-6)
     assert (ref_i >= 0).sum() > 500 and (ref_i == MISS).sum() > 100
+
+
+@settings(max_examples=25, deadline=None)
+@given(seed=st.integers(0, 2**31 - 1), width=st.floats(0.01, 1.2), centre=st.floats(-np.pi, np.pi),
+       inside=st.booleans())  # fmt: skip
+def test_rays_in_a_sector_hit_what_the_full_turn_and_brute_force_hit(seed, width, centre, inside):
+    """sector=True bins only the rays' sector and drops boxes outside it: the same hits (wider than a quarter turn
+    falls back to the full turn)."""
+    rng = np.random.default_rng(seed)
+    prims = boxes(*[(rng.uniform([-40, -40, 0], [40, 40, 4]), rng.uniform(0.1, 5, 3), rng.uniform(-4, 4), 1, 0)
+                    for _ in range(120)])  # fmt: skip
+    origin = prims.centers[0] if inside else np.array([0.3, -0.2, 1.7])
+    az = centre + rng.uniform(-width / 2, width / 2, 1500)
+    el = rng.uniform(-0.4, 0.2, 1500)
+    dirs = np.c_[np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)]
+    rot = yaw_transform(0, 0, rng.uniform(-np.pi, np.pi))[:3, :3]
+    ref_d, ref_i = _brute_force(origin, dirs @ rot.T, 45.0, prims)
+    full = cast_rays(origin, dirs, 45.0, prims, rotation=rot)
+    for bins in (64, 7, 1):
+        hits = cast_rays(origin, dirs, 45.0, prims, rotation=rot, n_azimuth_bins=bins, sector=True)
+        np.testing.assert_array_equal(hits.index, ref_i)
+        np.testing.assert_array_equal(hits.index, full.index)
+        np.testing.assert_array_equal(hits.distance, full.distance)
+    np.testing.assert_allclose(full.distance, ref_d, rtol=1e-6)
 
 
 # --------------------------------------------------------------------------------------------- LiDAR

@@ -107,6 +107,10 @@ def test_world_between_keyframes_interpolates_and_moves_boxes_rigidly():
     assert np.linalg.norm(moved.centers[0] - moved.centers[1]) == pytest.approx(d0)  # rigid
     assert np.array_equal(moved.centers[2], prims.centers[2])  # the static world stays
     assert m.primitives_at(prims, 0.0) is prims
+    times = [-0.1, -0.05, 0.0, -0.0125]  # all slices in one pass: each the world primitives_at gives
+    for t, world in zip(times, m.primitives_during(prims, times)):
+        one = m.primitives_at(prims, t)
+        assert np.array_equal(world.centers, one.centers) and np.array_equal(world.yaws, one.yaws)
 
 
 def test_env_sweep_in_time_channels_columns_and_fog():
