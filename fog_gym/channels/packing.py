@@ -19,6 +19,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 
 import numpy as np
+from numba import njit
 
 from fog_gym.channels.spec import COLUMNS, LIDAR, RADAR, SEMANTIC_LIDAR  # noqa: F401  (COLUMNS re-exported)
 
@@ -66,9 +67,14 @@ def unpack_points(obs: Mapping[str, np.ndarray] | np.ndarray, channel: str | Non
         raise ValueError(
             f"expected one (capacity, C) point array, got shape {array.shape} (index a vector env's batch first)"
         )
-    if kind == RADAR:  # a detection has a non-zero depth
+    rule = 1 if kind == RADAR else (0 if kind is not None else 2)
+    if array.dtype == np.float32 and array.shape[1] >= (4 if rule == 1 else 3 if rule == 0 else 0):
+        n, packed = _leading_rows(array, rule)  # one pass that stops reading at the first empty row it can
+        if packed:
+            return _copy_rows(array, n)
+    if rule == 1:  # a detection has a non-zero depth
         valid = array[:, 3] != 0
-    elif kind is not None:  # a LiDAR return has a non-zero position
+    elif rule == 0:  # a LiDAR return has a non-zero position
         valid = (array[:, 0] != 0) | (array[:, 1] != 0) | (array[:, 2] != 0)
     else:
         valid = np.any(array != 0, axis=1)
@@ -76,6 +82,38 @@ def unpack_points(obs: Mapping[str, np.ndarray] | np.ndarray, channel: str | Non
     if n and not valid[:n].all():  # not packed: keep every non-zero row, in order
         return np.ascontiguousarray(array[valid], np.float32)
     return np.ascontiguousarray(array[:n], np.float32)
+
+
+@njit(cache=True, nogil=True)
+def _leading_rows(array, rule):
+    """The number of leading points of a point channel and whether every later row is empty (packed): one
+    branch-free pass (a point's test, :func:`unpack_points`: ``rule`` 0 a non-zero position, 1 a non-zero depth, 2
+    any non-zero value)."""
+    rows, cols = array.shape
+    count = 0
+    first_empty = rows
+    for i in range(rows):
+        if rule == 0:
+            v = (array[i, 0] != 0) | (array[i, 1] != 0) | (array[i, 2] != 0)
+        elif rule == 1:
+            v = array[i, 3] != 0
+        else:
+            v = False
+            for j in range(cols):
+                v |= array[i, j] != 0
+        count += v
+        first_empty = min(first_empty, rows if v else i)  # a select, not a branch: the loop vectorises
+    return count, first_empty >= count
+
+
+@njit(cache=True, nogil=True)
+def _copy_rows(array, n):
+    """The first ``n`` rows of ``array`` (any strides: a view of some columns) as a new C-contiguous array."""
+    out = np.empty((n, array.shape[1]), np.float32)
+    for i in range(n):
+        for j in range(array.shape[1]):
+            out[i, j] = array[i, j]
+    return out
 
 
 def pad_rows(rows: np.ndarray, capacity: int, fill: float = 0) -> np.ndarray:

@@ -102,7 +102,7 @@ def hahner_keeps(r0, intensity, table_i, table_r, alpha, beta_ratio):
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def _hahner(pts, table_i, table_r, alpha, beta_ratio, log_noise, u, out, attenuation):
+def _hahner(pts, table_i, table_r, alpha, beta_ratio, log_noise, u, out, attenuation, hard):
     for n in prange(pts.shape[0]):
         x, y, z = np.float64(pts[n, 0]), np.float64(pts[n, 1]), np.float64(pts[n, 2])
         r0 = np.sqrt(x * x + y * y + z * z)
@@ -111,6 +111,8 @@ def _hahner(pts, table_i, table_r, alpha, beta_ratio, log_noise, u, out, attenua
             rho = min(max(np.float64(pts[n, 3]) / np.exp(-attenuation * r0), 1e-3), 1.0)
             ratio = beta_ratio * REFERENCE_REFLECTIVITY / rho
         i_hard, i_soft, key = hahner_intensities(r0, np.float64(pts[n, 3]), table_i, alpha, ratio)
+        if hard.shape[0] > 0:  # the attenuated hard echo, for the return modes
+            hard[n] = i_hard
         if i_soft > i_hard:  # the fog's own return is stronger: a fog point on the same ray
             scale = table_r[key] / max(r0, 1e-12) * np.exp(log_noise * u[n])
             out[n, 0] = np.float32(x * scale)
@@ -128,6 +130,8 @@ def _hahner(pts, table_i, table_r, alpha, beta_ratio, log_noise, u, out, attenua
 
 _hahner_serial = serial_twin(_hahner)
 
+
+_NO_HARD = np.zeros(0)
 
 #: With reflectance intensities (:func:`fog_lidar`'s ``reflectance``), the reflectivity decided about as CARLA's
 #: intensities are under Hahner et al.'s constant Γ.
@@ -147,7 +151,7 @@ def _checked_points(points: np.ndarray, noise: float) -> np.ndarray:
 
 
 def fog_lidar(points: np.ndarray, level: FogLevel, rng: np.random.Generator, noise: float = 10.0,
-              reflectance: float | None = None) -> np.ndarray:  # fmt: skip
+              reflectance: float | None = None, hard: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
     """Hahner et al. fog on CARLA LiDAR points ``(N, 4)`` x, y, z, intensity ∈ [0, 1] → ``(N, 4)`` float32.
 
     Intensities are scaled to 0–255 and rounded; each point either stays with ``round(i·exp(−2αR))`` or, when the
@@ -167,9 +171,17 @@ def fog_lidar(points: np.ndarray, level: FogLevel, rng: np.random.Generator, noi
     (a target of :data:`REFERENCE_REFLECTIVITY` is decided about as CARLA's intensities are, within the rounding of
     0–255 intensities) and the hard return scales with ``ρ|cos θ|`` while the fog's own backscatter does not — bright
     surfaces (licence plates, lane markings) outlast dark paint.
+
+    ``hard`` (an ``(N,)`` float64 array, optional) receives each point's attenuated hard-target intensity on 0–255,
+    ``round(round(i·255)·exp(−2αR))``, the echo the return modes keep behind the fog
+    (:func:`fog_gym.fog.returns.apply_returns`'s ``i_hard``).
     """
     pts = _checked_points(points, noise)
+    if hard is not None and (hard.shape != (len(pts),) or hard.dtype != np.float64):
+        raise ValueError(f"hard must be a float64 array of one value per point ({len(pts)}), got {hard.dtype} {hard.shape}")
     if level.is_clear:
+        if hard is not None:
+            hard[:] = np.round(np.round(pts[:, 3].astype(np.float64) * 255.0))
         return pts.copy()
     table_i, table_r = soft_response_table(level.alpha)
     u = rng.uniform(-1.0, 1.0, len(pts))
@@ -177,5 +189,6 @@ def fog_lidar(points: np.ndarray, level: FogLevel, rng: np.random.Generator, noi
     pick(_hahner, _hahner_serial, len(pts))(
         pts, table_i, table_r, level.alpha, BETA_PER_MOR / level.visibility_m / (GAMMA / math.pi),
         math.log(max(1.0, noise / 5.0)) if noise > 0 else 0.0, u, out, -1.0 if reflectance is None else float(reflectance),
+        _NO_HARD if hard is None else hard,
     )  # fmt: skip
     return out

@@ -132,23 +132,28 @@ class Hahner:
     def apply(self, obs, channel, levels, context):
         from fog_gym.fog.returns import apply_returns, field_tau
 
-        clean = unpack_points(obs, channel)
         mode = context.lidar_returns
         if mode == "dual":  # the clean sweep's return column (all 0) goes; apply_returns writes the fogged one
-            clean = np.ascontiguousarray(clean[:, :-1])
+            clean = unpack_points(np.asarray(obs[channel])[:, :-1], channel)
+        else:
+            clean = unpack_points(obs, channel)
         # x, y, z, intensity feed the physics; further columns (a sweep's time) ride along with each beam
         capacity = obs[channel].shape[0]
         out = {}
         for lv in levels:
+            hard = None
             if lv.is_homogeneous:
-                fogged = fog_lidar(clean, lv, context.rngs[lv.name], context.lidar_noise, context.lidar_reflectance)
-                tau = None  # α·R, in the return rule's own pass
+                hard = None if mode == "strongest" else np.empty(len(clean))  # the hard echo, from the fog's pass
+                fogged = fog_lidar(clean, lv, context.rngs[lv.name], context.lidar_noise, context.lidar_reflectance,
+                                   hard=hard)  # fmt: skip
+                tau = None
             else:  # a fog field: the local extinction along each beam
                 pose = field_pose(context.poses[channel], context.frame)
                 fogged = fog_lidar_field(clean, lv, context.rngs[lv.name], pose, context.time, context.lidar_noise,
                                          context.lidar_reflectance)  # fmt: skip
                 tau = None if mode == "strongest" else field_tau(clean, lv, pose, context.time)
-            if mode != "strongest":
-                fogged = apply_returns(clean, fogged, tau, mode, alpha=lv.alpha if tau is None else None)
-            out[lv.name] = pack_points(fogged, capacity)
+            if mode == "strongest":
+                out[lv.name] = pack_points(fogged, capacity)
+            else:  # the return rule writes the packed channel itself
+                out[lv.name] = apply_returns(clean, fogged, tau, mode, i_hard=hard, capacity=capacity)
         return out

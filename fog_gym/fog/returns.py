@@ -55,11 +55,15 @@ def hard_intensity(points: np.ndarray, tau: np.ndarray) -> np.ndarray:
 
 
 def apply_returns(clean: np.ndarray, strongest: np.ndarray, tau: np.ndarray | None, mode: str,
-                  alpha: float | None = None) -> np.ndarray:  # fmt: skip
+                  alpha: float | None = None, i_hard: np.ndarray | None = None,
+                  capacity: int | None = None) -> np.ndarray:  # fmt: skip
     """The sweep a LiDAR in ``mode`` reports, from the clean sweep, the model's strongest-echo output (same rows) and
     the optical depth ``tau`` (N,) from the sensor to each clean point (or, for homogeneous fog, ``tau`` None and the
     extinction ``alpha``: ``τ = α·R``): ``(N, C)`` for ``strongest`` and ``last``, ``(N + M, C + 1)`` for ``dual``
-    (the strongest rows first, in order, then the M extra last echoes, in order)."""
+    (the strongest rows first, in order, then the M extra last echoes, in order). ``i_hard`` (N,): each point's
+    attenuated hard intensity on 0–255 as the fog model computed it (:func:`fog_gym.fog.lidar.fog_lidar`'s
+    ``hard``), used instead of recomputing it from ``tau`` or ``alpha``. ``capacity``: the result packed into a
+    ``(capacity, …)`` point channel (:func:`fog_gym.channels.pack_points`), written there directly."""
     check_mode(mode)
     clean = np.asarray(clean, np.float32)
     strongest = np.asarray(strongest, np.float32)
@@ -67,44 +71,61 @@ def apply_returns(clean: np.ndarray, strongest: np.ndarray, tau: np.ndarray | No
         raise ValueError(f"clean and strongest must be the same sweep, got shapes {clean.shape} and {strongest.shape}")
     if mode == "strongest":
         return strongest
-    if tau is None:
+    hard = np.zeros(0)
+    tau_arr, a = np.zeros(0), 0.0
+    if i_hard is not None:
+        hard = np.ascontiguousarray(i_hard, np.float64)
+        if hard.shape != (len(clean),):
+            raise ValueError(f"i_hard must hold one intensity per point ({len(clean)}), got shape {hard.shape}")
+    elif tau is None:
         if alpha is None:
-            raise ValueError("apply_returns needs the optical depths tau or, for homogeneous fog, alpha")
-        tau_arr, a = np.zeros(0), float(alpha)
+            raise ValueError("apply_returns needs the optical depths tau or, for homogeneous fog, alpha (or i_hard)")
+        a = float(alpha)
     else:
-        tau_arr, a = np.ascontiguousarray(np.broadcast_to(np.asarray(tau, np.float64), (len(clean),))), 0.0
-    return _returns_kernel(np.ascontiguousarray(clean), np.ascontiguousarray(strongest), tau_arr, a, mode == "dual",
-                           DETECTION_FLOOR)  # fmt: skip
+        tau_arr = np.ascontiguousarray(np.broadcast_to(np.asarray(tau, np.float64), (len(clean),)))
+    dual = mode == "dual"
+    if capacity is not None and (int(capacity) < len(clean) or (dual and int(capacity) < 2 * len(clean))):
+        raise ValueError(f"capacity {capacity} cannot hold the {mode} returns of {len(clean)} beams")
+    packed = np.zeros((0, 0), np.float32) if capacity is None else \
+        np.zeros((int(capacity), clean.shape[1] + dual), np.float32)  # fmt: skip
+    return _returns_kernel(np.ascontiguousarray(clean), np.ascontiguousarray(strongest), tau_arr, a, dual,
+                           DETECTION_FLOOR, hard, packed)  # fmt: skip
 
 
 @njit(cache=True, nogil=True)
-def _returns_kernel(clean, strongest, tau, alpha, dual, floor):
+def _returns_kernel(clean, strongest, tau, alpha, dual, floor, hard, packed):
     """:func:`apply_returns` for "last" (``dual`` False) and "dual" in one pass over the beams (then one to fill);
-    ``tau`` empty: ``α·R`` (homogeneous fog, as :func:`homogeneous_tau`)."""
+    ``hard`` the hard intensities (0–255) when given, else from ``tau``, or with ``tau`` empty from ``α·R``
+    (homogeneous fog, as :func:`homogeneous_tau`); into ``packed`` (zeros, rows enough) unless it is empty."""
     n, c = clean.shape
     seen = np.zeros(n, np.bool_)
     i_hard = np.zeros(n, np.float32)
     m = 0
     for k in range(n):
         if strongest[k, 0] != clean[k, 0] or strongest[k, 1] != clean[k, 1] or strongest[k, 2] != clean[k, 2]:
-            if tau.shape[0] > 0:
-                t = tau[k]
+            if hard.shape[0] > 0:
+                h = hard[k]
             else:
-                x, y, z = np.float64(clean[k, 0]), np.float64(clean[k, 1]), np.float64(clean[k, 2])
-                t = alpha * np.sqrt(x * x + y * y + z * z)
-            h = np.round(np.round(np.float64(clean[k, 3]) * 255.0) * np.exp(-2.0 * t))
+                if tau.shape[0] > 0:
+                    t = tau[k]
+                else:
+                    x, y, z = np.float64(clean[k, 0]), np.float64(clean[k, 1]), np.float64(clean[k, 2])
+                    t = alpha * np.sqrt(x * x + y * y + z * z)
+                h = np.round(np.round(np.float64(clean[k, 3]) * 255.0) * np.exp(-2.0 * t))
             if h >= floor:  # the hard target still detected behind the fog
                 seen[k] = True
                 i_hard[k] = np.float32(h / 255.0)
                 m += 1
     if not dual:
-        out = strongest.copy()
+        out = strongest.copy() if packed.shape[0] == 0 else packed
+        if packed.shape[0] > 0:
+            out[:n, :] = strongest
         for k in range(n):
             if seen[k]:
                 out[k, :] = clean[k, :]
                 out[k, 3] = i_hard[k]
         return out
-    out = np.zeros((n + m, c + 1), np.float32)
+    out = np.zeros((n + m, c + 1), np.float32) if packed.shape[0] == 0 else packed
     out[:n, :c] = strongest
     r = n
     for k in range(n):

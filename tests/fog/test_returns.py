@@ -11,7 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from fog_gym.channels import unpack_points
+from fog_gym.channels import pack_points, unpack_points
 from fog_gym.fog import fog_lidar, parse_fog
 from fog_gym.fog.returns import DETECTION_FLOOR, apply_returns, hard_intensity, homogeneous_tau
 
@@ -193,3 +193,29 @@ def test_homogeneous_alpha_path_equals_the_optical_depths(seed, alpha):
                               apply_returns(clean, strongest, homogeneous_tau(clean, alpha), mode))
     with pytest.raises(ValueError, match="alpha"):
         apply_returns(clean, strongest, None, "last")
+
+
+@settings(max_examples=20, deadline=None)
+@given(seed=st.integers(0, 10_000), visibility=st.floats(20.0, 400.0), reflect=st.booleans())
+def test_the_fog_pass_hard_echo_equals_the_return_rule_own(seed, visibility, reflect):
+    """fog_lidar's ``hard`` output (the fog pass's attenuated hard echo) gives the same last and dual sweeps as the
+    return rule recomputing it from α·R; the strongest sweep does not depend on asking for it."""
+    rng = np.random.default_rng(seed)
+    clean = np.c_[rng.uniform(-80, 80, (400, 3)), rng.uniform(0.01, 1, 400)].astype(np.float32)
+    level = parse_fog(visibility)
+    hard = np.empty(len(clean))
+    with_hard = fog_lidar(clean, level, np.random.default_rng(1), reflectance=0.004 if reflect else None, hard=hard)
+    plain = fog_lidar(clean, level, np.random.default_rng(1), reflectance=0.004 if reflect else None)
+    assert np.array_equal(with_hard, plain)
+    np.testing.assert_array_equal(hard, hard_intensity(clean, homogeneous_tau(clean, level.alpha)))
+    for mode in ("last", "dual"):
+        assert np.array_equal(apply_returns(clean, plain, None, mode, i_hard=hard),
+                              apply_returns(clean, plain, None, mode, alpha=level.alpha))
+        packed = apply_returns(clean, plain, None, mode, i_hard=hard, capacity=2 * len(clean) + 5)
+        assert np.array_equal(packed, pack_points(apply_returns(clean, plain, None, mode, i_hard=hard), len(packed)))
+    with pytest.raises(ValueError, match="one intensity per point"):
+        apply_returns(clean, plain, None, "last", i_hard=hard[:-1])
+    with pytest.raises(ValueError, match="cannot hold the dual returns"):
+        apply_returns(clean, plain, None, "dual", i_hard=hard, capacity=len(clean))
+    with pytest.raises(ValueError, match="hard must be a float64 array"):
+        fog_lidar(clean, level, np.random.default_rng(1), hard=np.empty(3))
