@@ -270,3 +270,14 @@ def test_examples_are_short_drivers_and_scripts_edit_no_import_path():
             assert len(path.read_text().splitlines()) <= 40, f"{path.name} is a driver: keep it short"
     for path in sorted([*(ROOT / "scripts").glob("*.py"), *(ROOT / "examples").glob("*.py")]):
         assert "sys.path" not in path.read_text(), path.name
+
+
+def test_the_resume_script_answers_help_and_refuses_bad_arguments_before_work(tmp_path):
+    script = ROOT / "scripts" / "resume_studies.sh"
+    env = {"PATH": "/usr/bin:/bin", "DATA": str(tmp_path / "data"), "RUNS": str(tmp_path / "runs")}
+    helped = subprocess.run(["bash", str(script), "--help"], capture_output=True, text=True, env=env)
+    assert helped.returncode == 0 and "--keep" in helped.stdout and "exp1|exp2|both" in helped.stdout
+    for args, says in ((["exp3"], "unknown study 'exp3'"), (["both", "--", "--epochs", "1"], "go to one study")):
+        bad = subprocess.run(["bash", str(script), *args], capture_output=True, text=True, env=env, cwd=tmp_path)
+        assert bad.returncode == 2 and says in bad.stderr and bad.stderr.count("\n") == 1
+    assert not (tmp_path / "data").exists()  # refused before any work
