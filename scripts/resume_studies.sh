@@ -46,6 +46,8 @@ fi
 if [ "$WHICH" != exp1 ]; then
   generate "$DATA/cam160" --scenes 160 --seconds 10 --resolution 640x480 --modality cameras \
     --cameras CAM_FRONT CAM_LEFT
-  "$FOG_GYM" exp2 --root "$DATA/cam160" --out "$RUNS/exp2" --keep results/exp2 --seeds 3 "$@" 2>&1 \
-    | tee -a "$RUNS/exp2.log"
+  for seeds in 1 2 3; do  # one seed's whole report (its evaluation too) before the next seed's training
+    "$FOG_GYM" exp2 --root "$DATA/cam160" --out "$RUNS/exp2" --keep results/exp2 --seeds "$seeds" "$@" 2>&1 \
+      | tee -a "$RUNS/exp2.log"
+  done
 fi

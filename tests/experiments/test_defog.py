@@ -209,3 +209,15 @@ def test_a_detector_killed_after_an_epoch_resumes_from_its_checkpoint_to_the_uni
     a, b = whole.state_dict(), resumed.state_dict()
     assert all(torch.equal(a[k], b[k]) for k in a)
     assert EpochCheckpoint(tmp_path / "t.pt", {"other": 1}).load() is None  # another unit's state is never loaded
+
+
+def test_the_short_dehazer_units_run_before_the_detectors_and_every_model_is_one_unit(tmp_path):
+    from fog_gym.experiments.defog.study import Exp2Study
+
+    units = Exp2Study(tmp_path).units([0, 1])
+    keys = [u.key for u in units]
+    detectors = [f"detector_{lv}_s{s}" for s in (0, 1) for lv in ("clean", *LEVELS)]
+    dehazers = [f"{m}_s{s}" for s in (0, 1) for m in ("aodnet", "dehazeformer")]
+    assert keys == dehazers + detectors + ["pipelines_s0", "pipelines_s1"]
+    assert [u.stage for u in units] == ["train"] * 12 + ["evaluate"] * 2
+    assert all(u.seed == int(u.key[-1]) for u in units)
