@@ -4,10 +4,10 @@
 #   bash scripts/resume_studies.sh [exp1|exp2|both] [-- EXTRA RUNNER FLAGS]
 #
 # The data and the runs' working folders do not outlive a machine; the kept units do (commit results/ as they land).
-# For each study this regenerates its data with the documented command when the folder's done-marker is missing
-# (Experiment 1: 168 LiDAR-only scenes, 12-13 minutes on two cores; Experiment 2: 160 two-camera scenes at 640 x 480,
-# 7-11 minutes, 14 GB), then runs the whole study with --keep: units kept before are restored, not rerun, and each
-# unit finished now is copied into results/ at once. Kill it at any point; run it again to go on.
+# For each study this generates its data with the documented command unless its done-marker exists (resuming a
+# cut one; Experiment 1: 168 LiDAR-only scenes, 12-13 minutes on two cores; Experiment 2: 160 two-camera scenes
+# at 640 x 480, 7-11 minutes, 14 GB), then runs the whole study with --keep: units kept before are restored, not
+# rerun, and each unit finished now is copied into results/ at once. Kill it at any point; run it again to go on.
 # If the regenerated data's digest differs from the study record's (the same scenes generated on another CPU can
 # differ in floating-point last bits), the runner refuses and names the digest: check it, then pass
 # `-- --accept-data sha256:...` with that study alone (flags after -- go to each study run). Run from the
@@ -22,19 +22,23 @@ case "${1:-both}" in
   *) echo "resume_studies.sh: unknown study '$1' (choose exp1, exp2 or both; --help)" >&2; exit 2 ;;
 esac
 [ "${1:-}" = "--" ] && shift
-[ "$WHICH" = both ] && [ $# -gt 0 ] && { echo "resume_studies.sh: runner flags go to one study (exp1 or exp2)" >&2; exit 2; }
+if [ "$WHICH" = both ] && [ $# -gt 0 ]; then
+  echo "resume_studies.sh: runner flags go to one study (exp1 or exp2)" >&2; exit 2
+fi
 [ -d results ] && [ -f pyproject.toml ] || { echo "resume_studies.sh: run it from the repository root" >&2; exit 2; }
 DATA=${DATA:-out/data}
 RUNS=${RUNS:-out/runs}
 FOG_GYM=${FOG_GYM:-$(command -v fog-gym || echo .venv/bin/fog-gym)}
-[ -x "$FOG_GYM" ] || { echo "resume_studies.sh: no fog-gym command (run ./dev demo first, or set FOG_GYM)" >&2; exit 2; }
+if [ ! -x "$FOG_GYM" ]; then
+  echo "resume_studies.sh: no fog-gym command (run ./dev demo first, or set FOG_GYM)" >&2; exit 2
+fi
 mkdir -p "$DATA" "$RUNS"
 
-generate() {  # generate ROOT ARGS...: the dataset once; the marker says it finished
+generate() {  # generate ROOT ARGS...: the dataset once (an interrupted one resumed); the marker says it finished
   local root=$1; shift
   if [ ! -f "$root.done" ]; then
-    rm -rf "$root"
-    "$FOG_GYM" generate --root "$root" "$@" --workers 2 && touch "$root.done"
+    "$FOG_GYM" generate --root "$root" "$@" --workers 2 $([ -d "$root" ] && echo --resume) \
+      && touch "$root.done"
   fi
 }
 

@@ -277,7 +277,9 @@ def test_the_resume_script_answers_help_and_refuses_bad_arguments_before_work(tm
     env = {"PATH": "/usr/bin:/bin", "DATA": str(tmp_path / "data"), "RUNS": str(tmp_path / "runs")}
     helped = subprocess.run(["bash", str(script), "--help"], capture_output=True, text=True, env=env)
     assert helped.returncode == 0 and "--keep" in helped.stdout and "exp1|exp2|both" in helped.stdout
-    for args, says in ((["exp3"], "unknown study 'exp3'"), (["both", "--", "--epochs", "1"], "go to one study")):
+    cases = ((["exp3"], "unknown study 'exp3'"), (["both", "--", "--epochs", "1"], "go to one study"),
+             (["exp2"], "from the repository root"))  # tmp_path is not the repository
+    for args, says in cases:
         bad = subprocess.run(["bash", str(script), *args], capture_output=True, text=True, env=env, cwd=tmp_path)
         assert bad.returncode == 2 and says in bad.stderr and bad.stderr.count("\n") == 1
     assert not (tmp_path / "data").exists()  # refused before any work
