@@ -291,7 +291,7 @@ def figure(detection: dict[str, Any], path: Path) -> None:
     import matplotlib.pyplot as plt
 
     keys = [k for k in ("B", "C-DCP", "C-AOD-Net", "C-DehazeFormer", "C-oracle", "D") if k in detection]
-    fig, ax = plt.subplots(figsize=(10, 4))
+    fig, ax = plt.subplots(figsize=(12, 4))
     width = 0.8 / max(1, len(keys))
     for i, k in enumerate(keys):
         cells = [detection[k][lv]["mAP50"] for lv in LEVELS]
@@ -306,7 +306,7 @@ def figure(detection: dict[str, Any], path: Path) -> None:
     ax.set_xlabel("test fog level")
     ax.set_ylabel("mAP@0.5 (COCO, every box)")
     ax.set_title("Detection per pipeline and fog level (mean ± 95 % CI across seeds)")
-    ax.legend(fontsize=7, ncol=2)
+    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))  # beside the axes: no bar hidden
     fig.tight_layout()
     save_figure(fig, path, dpi=120)
 
