@@ -3,7 +3,7 @@
 #
 #   bash scripts/resume_studies.sh [exp1|exp2|both] [-- EXTRA RUNNER FLAGS]
 #
-# The data and the runs' working folders do not outlive a machine; the kept units do (commit results/ as they land).
+# The data and the runs' working folders may not outlive a machine; the kept units do (commit results/ as they land).
 # For each study this generates its data with the documented command unless its done-marker exists (resuming a
 # cut one; Experiment 1: 168 LiDAR-only scenes, 12-13 minutes on two cores; Experiment 2: 160 two-camera scenes
 # at 640 x 480, 7-11 minutes, 14 GB), then runs the whole study with --keep: units kept before are restored, not
