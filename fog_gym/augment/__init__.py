@@ -7,7 +7,7 @@ The physics is the simulator's own — Hahner et al. for LiDAR (:func:`fog_gym.f
 * a **LiDAR profile** (:mod:`~fog_gym.augment.profiles`): how a sensor's file stores intensity and where the sensor
   sits above the road;
 * **dense depth** for images (:mod:`~fog_gym.augment.depth`): the scan projected with the calibration and completed
-  by Ku et al.'s classical method, sky above the horizon;
+  by Ku et al.'s classical method, the sky found in the image;
 * a **field frame**: fog fields (banks, ground fog; :mod:`fog_gym.fog.fields`) are laid out in a frame whose x axis
   is the heading along which a bank's ``start`` is measured and whose z = 0 is the road. By default that frame is
   the LiDAR's own (x forward, z up) moved down by the profile's mount height; ``sensor_to_field`` (4 × 4) places the
@@ -92,29 +92,41 @@ def fog_points(points: np.ndarray, fog: Any, profile: str | Path | LidarProfile 
 
 
 def image_depth(size: tuple[int, int], K: np.ndarray, points: np.ndarray, T_cam_lidar: np.ndarray,
-                up: tuple[float, float, float] = (0.0, 0.0, 1.0)) -> np.ndarray:  # fmt: skip
-    """Dense planar depth of a ``size`` = (W, H) image from a LiDAR scan: projected, completed (Ku et al.); where no
-    return reaches, sky above the LiDAR's horizontal plane and, below it, the flat ground at the scan's road height
-    (the 2nd percentile of the points' heights within 30 m: a LiDAR above the camera misses the road right in front
-    of it)."""
-    from fog_gym.augment.depth import ground_depth
+                up: tuple[float, float, float] = (0.0, 0.0, 1.0), rgb: np.ndarray | None = None,
+                sky: str = "image") -> np.ndarray:  # fmt: skip
+    """Dense planar depth of a ``size`` = (W, H) image from a LiDAR scan: projected, completed (Ku et al.); below the
+    LiDAR's horizontal plane, where no return reaches, the flat ground at the scan's road height (the 2nd percentile
+    of the points' heights within 30 m: a LiDAR above the camera misses the road right in front of it); above it,
+    with ``sky="image"`` and the image ``rgb``, the image's sky (:func:`~fog_gym.augment.depth.sky_mask`) and
+    for the rest each column's top depth carried upward (objects above the scan), with ``sky="horizon"`` (or no
+    image) everything sky (:mod:`fog_gym.augment.depth`)."""
+    from fog_gym.augment.depth import SKY_RULES, ground_depth, reached_by_scan, sky_mask
 
+    if sky not in SKY_RULES:
+        raise ValueError(f"sky must be one of {SKY_RULES}, got {sky!r}")
+    if rgb is not None and np.shape(rgb)[:2] != (size[1], size[0]):
+        raise ValueError(f"rgb must be an image of size (W, H) = {tuple(size)}, got shape {np.shape(rgb)}")
     sparse = project_points(points, K, T_cam_lidar, size)
     p = np.asarray(points, np.float64)[:, :3]
     upv = np.asarray(up, np.float64)
     near = np.linalg.norm(p, axis=1) < 30.0
     heights = p[near] @ upv if near.any() else p @ upv
     ground = ground_depth(K, T_cam_lidar, size, float(np.percentile(heights, 2)), up) if len(heights) else None
-    return complete_depth(sparse, above_horizon(K, T_cam_lidar, size, up), ground=ground)
+    above = above_horizon(K, T_cam_lidar, size, up)
+    if rgb is None or sky == "horizon":
+        return complete_depth(sparse, above, ground=ground)
+    sky_px = sky_mask(rgb, above & ~reached_by_scan(sparse))
+    return complete_depth(sparse, sky_px, ground=ground, extend=above)
 
 
 def fog_image(rgb: np.ndarray, K: np.ndarray, fog: Any, depth: np.ndarray | None = None, points: np.ndarray | None = None,
               T_cam_lidar: np.ndarray | None = None, airlight: np.ndarray | None = None,
               rng: np.random.Generator | None = None, camera_to_field: np.ndarray | None = None,
-              profile: str | Path | LidarProfile = "fogdrive", time: float = 0.0, glow: bool = False) -> np.ndarray:  # fmt: skip
+              profile: str | Path | LidarProfile = "fogdrive", time: float = 0.0, glow: bool = False,
+              sky: str = "image") -> np.ndarray:  # fmt: skip
     """Koschmieder fog on a uint8 RGB image with intrinsic ``K``: planar ``depth`` [m] as given (stereo, a network,
     a simulator), or completed from a LiDAR scan ``points`` in the LiDAR frame with the LiDAR → camera transform
-    ``T_cam_lidar`` (:func:`image_depth`). ``airlight`` (RGB, 0–255) defaults to the image's own estimate (dark
+    ``T_cam_lidar`` (:func:`image_depth`, whose ``sky`` rule is passed on). ``airlight`` (RGB, 0–255) defaults to the image's own estimate (dark
     channel, as fog-gym's day frames). Camera fog has no random part: ``rng`` is accepted so that one stream can be
     passed to both sensors, and is not drawn from. A fog field needs the camera's place in the field frame:
     ``camera_to_field``, or the LiDAR's (the profile's default) composed with ``T_cam_lidar``. ``glow`` (for night
@@ -123,13 +135,17 @@ def fog_image(rgb: np.ndarray, K: np.ndarray, fog: Any, depth: np.ndarray | None
     from fog_gym.dehaze.classical import check_image
     from fog_gym.fog.camera import atmospheric_light, fog_field_images, fog_images
 
+    from fog_gym.augment.depth import SKY_RULES
+
     img = check_image(rgb, "rgb")
+    if sky not in SKY_RULES:
+        raise ValueError(f"sky must be one of {SKY_RULES}, got {sky!r}")
     h, w = img.shape[:2]
     k, t = _check_calibration_pair(K, T_cam_lidar)
     if depth is None:
         if points is None or t is None:
             raise ValueError("fog_image needs a depth map, or LiDAR points with T_cam_lidar to complete one")
-        depth = image_depth((w, h), k, points, t)
+        depth = image_depth((w, h), k, points, t, rgb=img, sky=sky)
     d = np.asarray(depth, np.float32)
     if d.shape != (h, w):
         raise ValueError(f"depth must be (H, W) = {(h, w)} like the image, got {d.shape}")

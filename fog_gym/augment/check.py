@@ -87,9 +87,10 @@ def lidar_decisions(src: str | Path, out: str | Path, fmt: str, level: str) -> d
 
 
 def camera_errors(src: str | Path, level: str, completed: bool, camera: str = "CAM_FRONT",
-                  every: int = 1) -> dict[str, Any]:  # fmt: skip
+                  every: int = 1, sky: str = "image") -> dict[str, Any]:  # fmt: skip
     """The augmenter's ``camera`` images at ``level`` against the simulator's, every ``every``-th sample: with the
-    true depth, or (``completed``) with depth completed from the clean LiDAR scan; the simulator's airlight.
+    true depth, or (``completed``) with depth completed from the clean LiDAR scan (``sky``: the completion's sky
+    rule, :func:`fog_gym.augment.image_depth`); the simulator's airlight.
     Returns the max absolute difference, PSNR overall and per band of true distance (:data:`BANDS`)."""
     from fog_gym.augment import fog_image
     from fog_gym.dataset.access import FogDrive
@@ -117,7 +118,7 @@ def camera_errors(src: str | Path, level: str, completed: bool, camera: str = "C
             K = intrinsic(w, h)
             if completed:
                 out = fog_image(clean, K, level, points=load_channel("LIDAR_TOP", p["LIDAR_TOP"]), T_cam_lidar=T,
-                                airlight=airlight, glow=night)  # fmt: skip
+                                airlight=airlight, glow=night, sky=sky)  # fmt: skip
             else:
                 out = fog_image(clean, K, level, depth=depth, airlight=airlight, glow=night)
             d = out.astype(np.float64) - sim

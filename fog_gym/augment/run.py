@@ -138,7 +138,7 @@ def fog_file(src: Path, task: Task, fog: Any, seed: int, profile: Any, jpeg_qual
             raise ValueError(f"its LiDAR scan {info['scan']} (needed for depth) is missing")
         pts = read_points(scan_path, 5)
         K, T = np.asarray(info["K"], np.float64), np.asarray(info["T"], np.float64)
-        depth = image_depth((w, h), K, pts, T, tuple(info["up"]))
+        depth = image_depth((w, h), K, pts, T, tuple(info["up"]), rgb=rgb)
         out = fog_image(rgb, K, fog, depth=depth, camera_to_field=np.asarray(info["camera_to_field"]), profile=profile)
         return encode_image(path, out, jpeg_quality)
     # fog-gym's own layout: exact depth, and the airlight fog-gym made the set's fog with

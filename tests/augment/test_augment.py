@@ -226,8 +226,11 @@ def test_fogdrive_images_equal_the_simulators_within_one_level_with_true_depth(s
     for level in ("light", "dense"):
         r = camera_errors(sets["src"], level, completed=False)
         assert r["max_abs"] <= 1, level  # day and night (with the glow of lit fog)
-    r = camera_errors(sets["src"], "dense", completed=True)
-    assert r["bands"]["sky"] > 30.0 and r["psnr"] > 20.0  # with LiDAR-completed depth: docs/augment.md's table
+    # with LiDAR-completed depth (docs/augment.md's table): the image's sky reaches 30 dB where the horizon rule,
+    # which takes everything above the scan for sky, does not
+    light, horizon = camera_errors(sets["src"], "light", completed=True), camera_errors(sets["src"], "light", True, sky="horizon")
+    assert light["psnr"] >= 30.0 and light["psnr"] > horizon["psnr"] + 4.0, (light["psnr"], horizon["psnr"])
+    assert camera_errors(sets["src"], "dense", completed=True)["psnr"] >= 30.0
 
 
 def test_runs_are_deterministic_per_seed_and_file(sets, tmp_path):

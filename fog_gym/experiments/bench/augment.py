@@ -71,13 +71,16 @@ def bench_augment(repeats: int) -> dict[str, Any]:
         scan = np.concatenate([scan, kitti_like_scan(1)])[:120_000]
         K, T = kitti_like_camera()
         rng = np.random.default_rng(0)
-        img = rng.integers(0, 256, (375, 1242, 3), dtype=np.uint8)
+        img = rng.integers(0, 256, (375, 1242, 3), dtype=np.uint8)  # a textured scene under a smooth blue sky
+        img[:150] = np.linspace((90, 130, 200), (170, 190, 220), 150)[:, None].astype(np.uint8)
         bank = FogBank(50.0, start=25.0, length=80.0, edge=10.0)
         calls = {
             **{f"LiDAR fog, {len(scan) // 1000} k points, {lv}": (lambda lv=lv: fog_points(scan, lv, "kitti", rng))
                for lv in ("light", "moderate", "dense")},
             f"LiDAR fog, {len(scan) // 1000} k points, a fog bank (50 m, 25 m ahead)": lambda: fog_points(scan, bank, "kitti", rng),
-            "depth completion, 1242 × 375 (projection + Ku et al. + sky and ground)": lambda: image_depth((1242, 375), K, scan, T),
+            "depth completion, 1242 × 375 (projection + Ku et al. + ground + the image's sky)":
+                lambda: image_depth((1242, 375), K, scan, T, rgb=img),
+            "depth completion, 1242 × 375, sky='horizon'": lambda: image_depth((1242, 375), K, scan, T),
             "camera fog with depth completion, 1242 × 375, dense": lambda: fog_image(img, K, "dense", points=scan, T_cam_lidar=T),
         }  # fmt: skip
         results = {}
