@@ -62,10 +62,13 @@ def main() -> None:
     print("\n**Camera (CAM_FRONT): the augmenter's images against the simulator's** (PSNR in dB; max |difference| in "
           "levels of 255)\n")  # fmt: skip
     print("| level | true depth: max abs | completed depth: PSNR | " + " | ".join(BANDS) + " |\n|---|---|---|" + "---|" * len(BANDS))
+    print("(completed depth with the image's sky, sky='image'; in brackets the horizon rule, sky='horizon')\n")
     for lv in LEVELS:
         exact = camera_errors(src, lv, completed=False)
         r = camera_errors(src, lv, completed=True)
-        print(f"| {lv} | {exact['max_abs']} | {r['psnr']:.1f} | " + " | ".join(f"{r['bands'][b]:.1f}" for b in BANDS) + " |")
+        hr = camera_errors(src, lv, completed=True, sky="horizon")
+        print(f"| {lv} | {exact['max_abs']} | {r['psnr']:.1f} ({hr['psnr']:.1f}) | "
+              + " | ".join(f"{r['bands'][b]:.1f} ({hr['bands'][b]:.1f})" for b in BANDS) + " |")  # fmt: skip
     share = {b: v for b, v in camera_errors(src, "dense", completed=True)["pixels"].items()}
     total = sum(share.values())
     print("\nPixels per band: " + ", ".join(f"{b} {v / total * 100:.0f} %" for b, v in share.items()))
