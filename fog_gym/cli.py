@@ -397,7 +397,7 @@ AUGMENT_DESCRIPTION = (
     "Fog on the data you already have: write a fogged copy of a KITTI object, nuScenes or FogDrive data set, file "
     "for file (same names, dtypes and encodings; every other file hard-linked), with fog-gym's calibrated physics — "
     "Hahner et al. on the LiDAR scans, Koschmieder on the camera images with depth completed from the scan (Ku et "
-    "al.). Deterministic per (seed, file); --resume completes an interrupted run to the same bytes; one writer per "
+    "al.; above the scan, the image's sky is far and the rest carried up its column). Deterministic per (seed, file); --resume completes an interrupted run to the same bytes; one writer per "
     "output; a manifest (fog_gym_augment.json) records fog, profile, seed and every source file's hash.\n\n"
     "fog-gym augment kitti/ kitti_dense/ --format kitti --fog dense\n"
     "fog-gym augment nuscenes/ nuscenes_fog/ --format nuscenes --fog light moderate dense --workers 2\n"
