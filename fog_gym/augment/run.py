@@ -102,6 +102,9 @@ def encode_image(path: Path, rgb: np.ndarray, jpeg_quality: int) -> bytes:
 
 
 _AIRLIGHT: dict[str, np.ndarray] = {}
+#: How a KITTI or nuScenes image gets its depth (recorded in the settings, so that a resume by a version that completes
+#: depth otherwise is refused rather than mixed into the same output).
+CAMERA_DEPTH = "scan completed by Ku et al. (CRV 2018); above the scan the image's sky, the rest carried up its column"
 
 
 def fog_file(src: Path, task: Task, fog: Any, seed: int, profile: Any, jpeg_quality: int) -> bytes:
@@ -271,7 +274,8 @@ def augment(src: str | Path, dst: str | Path, fmt: str, fogs: Sequence[Any], sen
         for level in levels:
             root = dst / level.name if len(levels) > 1 else dst
             settings = {"format": fmt, "fog": fog_info(level), "seed": seed, "profile": profile_info(prof),
-                        "sensors": sorted(sensors), "jpeg_quality": jpeg_quality, "source": str(src.resolve())}  # fmt: skip
+                        "sensors": sorted(sensors), "jpeg_quality": jpeg_quality, "source": str(src.resolve()),
+                        "camera_depth": "the set's depth channel" if fmt == "fogdrive" else CAMERA_DEPTH}  # fmt: skip
             _check_settings(root, settings, resume)
             chunks = [tasks[i:i + 16] for i in range(0, len(tasks), 16)]
             payload = [[asdict(t) for t in c] for c in chunks]
