@@ -124,14 +124,15 @@ def fog_image(rgb: np.ndarray, K: np.ndarray, fog: Any, depth: np.ndarray | None
               rng: np.random.Generator | None = None, camera_to_field: np.ndarray | None = None,
               profile: str | Path | LidarProfile = "fogdrive", time: float = 0.0, glow: bool = False,
               sky: str = "image") -> np.ndarray:  # fmt: skip
-    """Koschmieder fog on a uint8 RGB image with intrinsic ``K``: planar ``depth`` [m] as given (stereo, a network,
-    a simulator), or completed from a LiDAR scan ``points`` in the LiDAR frame with the LiDAR → camera transform
-    ``T_cam_lidar`` (:func:`image_depth`, whose ``sky`` rule is passed on). ``airlight`` (RGB, 0–255) defaults to the image's own estimate (dark
-    channel, as fog-gym's day frames). Camera fog has no random part: ``rng`` is accepted so that one stream can be
-    passed to both sensors, and is not drawn from. A fog field needs the camera's place in the field frame:
-    ``camera_to_field``, or the LiDAR's (the profile's default) composed with ``T_cam_lidar``. ``glow`` (for night
-    frames) adds the glow that lit fog spreads around the image's bright sources (:func:`fog_gym.fog.add_glow`:
-    lamps and headlights, found in the image with their depth), as fog-gym's night frames have."""
+    """Koschmieder fog on a uint8 RGB image with intrinsic ``K``: planar ``depth`` [m] as given (stereo, a network, a
+    simulator), or completed from a LiDAR scan ``points`` in the LiDAR frame with the LiDAR → camera transform
+    ``T_cam_lidar`` (:func:`image_depth`, whose ``sky`` rule is passed on). ``airlight`` (RGB, 0–255) defaults to
+    the image's own estimate (dark channel, as fog-gym's day frames). Camera fog has no random part: ``rng`` is
+    accepted so that one stream can be passed to both sensors, and is not drawn from. A fog field needs the camera's
+    place in the field frame: ``camera_to_field``, or the LiDAR's (the profile's default) composed with
+    ``T_cam_lidar``. ``glow`` (for night frames) adds the glow that lit fog spreads around the image's bright
+    sources (:func:`fog_gym.fog.add_glow`: lamps and headlights, found in the image with their depth), as fog-gym's
+    night frames have."""
     from fog_gym.dehaze.classical import check_image
     from fog_gym.fog.camera import atmospheric_light, fog_field_images, fog_images
 
