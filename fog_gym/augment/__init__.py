@@ -100,10 +100,9 @@ def image_depth(size: tuple[int, int], K: np.ndarray, points: np.ndarray, T_cam_
     with ``sky="image"`` and the image ``rgb``, the image's sky (:func:`~fog_gym.augment.depth.sky_mask`) and
     for the rest each column's top depth carried upward (objects above the scan), with ``sky="horizon"`` (or no
     image) everything sky (:mod:`fog_gym.augment.depth`)."""
-    from fog_gym.augment.depth import SKY_RULES, ground_depth, reached_by_scan, sky_mask
+    from fog_gym.augment.depth import check_sky_rule, ground_depth, reached_by_scan, sky_mask
 
-    if sky not in SKY_RULES:
-        raise ValueError(f"sky must be one of {SKY_RULES}, got {sky!r}")
+    check_sky_rule(sky)
     if rgb is not None and np.shape(rgb)[:2] != (size[1], size[0]):
         raise ValueError(f"rgb must be an image of size (W, H) = {tuple(size)}, got shape {np.shape(rgb)}")
     sparse = project_points(points, K, T_cam_lidar, size)
@@ -136,11 +135,10 @@ def fog_image(rgb: np.ndarray, K: np.ndarray, fog: Any, depth: np.ndarray | None
     from fog_gym.dehaze.classical import check_image
     from fog_gym.fog.camera import atmospheric_light, fog_field_images, fog_images
 
-    from fog_gym.augment.depth import SKY_RULES
+    from fog_gym.augment.depth import check_sky_rule
 
     img = check_image(rgb, "rgb")
-    if sky not in SKY_RULES:
-        raise ValueError(f"sky must be one of {SKY_RULES}, got {sky!r}")
+    check_sky_rule(sky)
     h, w = img.shape[:2]
     k, t = _check_calibration_pair(K, T_cam_lidar)
     if depth is None:

@@ -122,6 +122,13 @@ def ground_depth(K: np.ndarray, T_cam_lidar: np.ndarray, size: tuple[int, int], 
     return np.where((along < 0) & (z > 0), z, np.inf).astype(np.float32)
 
 
+def check_sky_rule(sky: str) -> str:
+    """``sky`` if it is one of :data:`SKY_RULES`, else a ``ValueError`` naming them."""
+    if sky not in SKY_RULES:
+        raise ValueError(f"sky must be one of {SKY_RULES}, got {sky!r}")
+    return sky
+
+
 def reached_by_scan(sparse: np.ndarray) -> np.ndarray:
     """``(H, W)`` mask of the pixels within reach of a return (a 7 × 7 neighbourhood): where the completion stands."""
     return cv2.dilate((np.asarray(sparse) > 0.1).astype(np.uint8), _FULL_7) > 0
