@@ -116,6 +116,34 @@ def test_unpack_points_inverts_pack_points(channel, data):
 
 
 @FAST
+@given(channel=st.sampled_from(["LIDAR_TOP", "RADAR_FRONT", None]), data=st.data())
+def test_unpack_points_keeps_every_point_in_order_however_the_rows_lie(channel, data):
+    """The one-pass reader (which stops at the first empty row when all after it is zero) against a brute-force mask,
+    on channels with empty rows anywhere, tails that are empty for the rule but not zero, and column views."""
+    rows = data.draw(st.integers(0, 30))
+    cols = data.draw(st.integers(4, 6))
+    values = st.sampled_from([0.0, -0.0, 1.5, -3.0, float("nan")])
+    array = data.draw(arrays(np.float32, (rows, cols), elements=values))
+    valid = (array[:, 3] != 0 if channel == "RADAR_FRONT" else np.any(array[:, :3] != 0, axis=1)) if channel else \
+        np.any(array != 0, axis=1)  # fmt: skip
+    columns = data.draw(st.one_of(st.none(), st.integers(1, cols)))
+    got = unpack_points(array, channel, columns=columns)
+    assert np.array_equal(got, array[valid][:, :columns], equal_nan=True)
+    assert got.flags.c_contiguous and got.dtype == np.float32
+    if cols > 4:  # the same through a view of the leading columns (not contiguous)
+        view = array[:, :4]
+        keep = np.any(view != 0, axis=1) if channel is None else valid
+        assert np.array_equal(unpack_points(view, channel), view[keep], equal_nan=True)
+
+
+@FAST
+@given(st.one_of(st.integers(-3, 0), st.floats(), st.booleans(), st.text(max_size=3)))
+def test_unpack_points_refuses_a_bad_column_count(columns):
+    with pytest.raises(ValueError, match=r"^columns must be a positive number of leading columns or None"):
+        unpack_points(np.zeros((3, 4), np.float32), "LIDAR_TOP", columns=columns)
+
+
+@FAST
 @given(st.text(max_size=12))
 def test_resolution_argument_is_two_positive_ints_or_a_clear_error(text):
     try:

@@ -50,10 +50,18 @@ def pack_points(points: np.ndarray, capacity: int) -> np.ndarray:
     return out
 
 
-def unpack_points(obs: Mapping[str, np.ndarray] | np.ndarray, channel: str | None = None) -> np.ndarray:
+def unpack_points(obs: Mapping[str, np.ndarray] | np.ndarray, channel: str | None = None,
+                  columns: int | None = None) -> np.ndarray:  # fmt: skip
     """The exact ``(N, 4)`` / ``(N, 6)`` / ``(N, 4)`` float32 points of ``LIDAR_TOP*``, ``SEM_LIDAR_TOP`` or
     ``RADAR_FRONT`` (or ``(N, C)`` of an added point sensor) from an observation dict (or from the channel's array
-    itself)."""
+    itself); ``columns``: only the first ``columns`` columns of each point (the points are found on the whole
+    channel), e.g. a dual-return sweep without its ``return`` column.
+
+    >>> unpack_points(np.array([[1, 2, 3, 0.5, 1], [0, 0, 0, 0, 0]], np.float32), "LIDAR_TOP_DUAL", columns=4)
+    array([[1. , 2. , 3. , 0.5]], dtype=float32)
+    """
+    if columns is not None and (isinstance(columns, bool) or not isinstance(columns, (int, np.integer)) or columns < 1):
+        raise ValueError(f"columns must be a positive number of leading columns or None, got {columns!r}")
     kind = None if channel is None else channel_kind(channel)  # None: an added sensor, any non-zero row is a point
     if isinstance(obs, Mapping):
         if channel is None:
@@ -71,7 +79,7 @@ def unpack_points(obs: Mapping[str, np.ndarray] | np.ndarray, channel: str | Non
     if array.dtype == np.float32 and array.shape[1] >= (4 if rule == 1 else 3 if rule == 0 else 0):
         n, packed = _leading_rows(array, rule)  # one pass that stops reading at the first empty row it can
         if packed:
-            return _copy_rows(array, n)
+            return _copy_rows(array if columns is None else array[:, :columns], n)
     if rule == 1:  # a detection has a non-zero depth
         valid = array[:, 3] != 0
     elif rule == 0:  # a LiDAR return has a non-zero position
@@ -80,15 +88,16 @@ def unpack_points(obs: Mapping[str, np.ndarray] | np.ndarray, channel: str | Non
         valid = np.any(array != 0, axis=1)
     n = int(valid.sum())
     if n and not valid[:n].all():  # not packed: keep every non-zero row, in order
-        return np.ascontiguousarray(array[valid], np.float32)
-    return np.ascontiguousarray(array[:n], np.float32)
+        return np.ascontiguousarray(array[valid][:, :columns], np.float32)
+    return np.ascontiguousarray(array[:n, :columns], np.float32)
 
 
 @njit(cache=True, nogil=True)
 def _leading_rows(array, rule):
-    """The number of leading points of a point channel and whether every later row is empty (packed): one
-    branch-free pass (a point's test, :func:`unpack_points`: ``rule`` 0 a non-zero position, 1 a non-zero depth, 2
-    any non-zero value)."""
+    """The number of leading points of a point channel and whether every later row is empty (packed): one pass over
+    the rows (a point's test, :func:`unpack_points`: ``rule`` 0 a non-zero position, 1 a non-zero depth, 2 any
+    non-zero value) that stops at the first empty row of a C-contiguous array when every value after it is zero (a
+    channel as fog-gym packs it; that check reads the tail as one flat run, which vectorises)."""
     rows, cols = array.shape
     count = 0
     first_empty = rows
@@ -101,8 +110,16 @@ def _leading_rows(array, rule):
             v = False
             for j in range(cols):
                 v |= array[i, j] != 0
+        if not v and first_empty == rows:
+            first_empty = i
+            if array.flags.c_contiguous:
+                tail = array.ravel()[i * cols:]
+                nonzero = False
+                for k in range(tail.shape[0]):
+                    nonzero |= tail[k] != 0
+                if not nonzero:
+                    return count, True
         count += v
-        first_empty = min(first_empty, rows if v else i)  # a select, not a branch: the loop vectorises
     return count, first_empty >= count
 
 

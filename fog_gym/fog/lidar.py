@@ -151,7 +151,8 @@ def _checked_points(points: np.ndarray, noise: float) -> np.ndarray:
 
 
 def fog_lidar(points: np.ndarray, level: FogLevel, rng: np.random.Generator, noise: float = 10.0,
-              reflectance: float | None = None, hard: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
+              reflectance: float | None = None, hard: np.ndarray | None = None,
+              out: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
     """Hahner et al. fog on CARLA LiDAR points ``(N, 4)`` x, y, z, intensity ∈ [0, 1] → ``(N, 4)`` float32.
 
     Intensities are scaled to 0–255 and rounded; each point either stays with ``round(i·exp(−2αR))`` or, when the
@@ -175,17 +176,27 @@ def fog_lidar(points: np.ndarray, level: FogLevel, rng: np.random.Generator, noi
     ``hard`` (an ``(N,)`` float64 array, optional) receives each point's attenuated hard-target intensity on 0–255,
     ``round(round(i·255)·exp(−2αR))``, the echo the return modes keep behind the fog
     (:func:`fog_gym.fog.returns.apply_returns`'s ``i_hard``).
+
+    ``out`` (an ``(N, C)`` float32 array, optional; a view will do, such as the first rows of a packed channel)
+    receives the result, which is then returned: the return modes write the fogged sweep into its channel this way
+    (:func:`fog_gym.fog.returns.returns_into`).
     """
     pts = _checked_points(points, noise)
     if hard is not None and (hard.shape != (len(pts),) or hard.dtype != np.float64):
         raise ValueError(f"hard must be a float64 array of one value per point ({len(pts)}), got {hard.dtype} {hard.shape}")
+    if out is not None and (not isinstance(out, np.ndarray) or out.shape != pts.shape or out.dtype != np.float32):
+        raise ValueError(f"out must be a float32 array of the points' shape {pts.shape}, got "
+                         f"{getattr(out, 'dtype', type(out).__name__)} {getattr(out, 'shape', '')}")  # fmt: skip
     if level.is_clear:
         if hard is not None:
             hard[:] = np.round(np.round(pts[:, 3].astype(np.float64) * 255.0))
+        if out is not None:
+            out[...] = pts
+            return out
         return pts.copy()
     table_i, table_r = soft_response_table(level.alpha)
     u = rng.uniform(-1.0, 1.0, len(pts))
-    out = np.empty_like(pts)
+    out = np.empty_like(pts) if out is None else out
     pick(_hahner, _hahner_serial, len(pts))(
         pts, table_i, table_r, level.alpha, BETA_PER_MOR / level.visibility_m / (GAMMA / math.pi),
         math.log(max(1.0, noise / 5.0)) if noise > 0 else 0.0, u, out, -1.0 if reflectance is None else float(reflectance),

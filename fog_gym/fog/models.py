@@ -130,30 +130,31 @@ class Hahner:
     name = "hahner"
 
     def apply(self, obs, channel, levels, context):
-        from fog_gym.fog.returns import apply_returns, field_tau
+        from fog_gym.fog.returns import apply_returns, field_tau, returns_into
 
         mode = context.lidar_returns
         if mode == "dual":  # the clean sweep's return column (all 0) goes; apply_returns writes the fogged one
-            clean = unpack_points(np.asarray(obs[channel])[:, :-1], channel)
+            clean = unpack_points(obs, channel, columns=obs[channel].shape[1] - 1)
         else:
             clean = unpack_points(obs, channel)
         # x, y, z, intensity feed the physics; further columns (a sweep's time) ride along with each beam
         capacity = obs[channel].shape[0]
         out = {}
         for lv in levels:
-            hard = None
-            if lv.is_homogeneous:
+            if lv.is_homogeneous:  # the fog's pass writes the packed channel; the return rule works in it
                 hard = None if mode == "strongest" else np.empty(len(clean))  # the hard echo, from the fog's pass
-                fogged = fog_lidar(clean, lv, context.rngs[lv.name], context.lidar_noise, context.lidar_reflectance,
-                                   hard=hard)  # fmt: skip
-                tau = None
+                packed = np.zeros(obs[channel].shape, np.float32)
+                fog_lidar(clean, lv, context.rngs[lv.name], context.lidar_noise, context.lidar_reflectance, hard=hard,
+                          out=packed[: len(clean), : clean.shape[1]])  # fmt: skip
+                returns_into(clean, packed, None, mode, i_hard=hard)
+                out[lv.name] = packed
             else:  # a fog field: the local extinction along each beam
                 pose = field_pose(context.poses[channel], context.frame)
                 fogged = fog_lidar_field(clean, lv, context.rngs[lv.name], pose, context.time, context.lidar_noise,
                                          context.lidar_reflectance)  # fmt: skip
                 tau = None if mode == "strongest" else field_tau(clean, lv, pose, context.time)
-            if mode == "strongest":
-                out[lv.name] = pack_points(fogged, capacity)
-            else:  # the return rule writes the packed channel itself
-                out[lv.name] = apply_returns(clean, fogged, tau, mode, i_hard=hard, capacity=capacity)
+                if mode == "strongest":
+                    out[lv.name] = pack_points(fogged, capacity)
+                else:  # the return rule writes the packed channel itself
+                    out[lv.name] = apply_returns(clean, fogged, tau, mode, capacity=capacity)
         return out

@@ -71,70 +71,98 @@ def apply_returns(clean: np.ndarray, strongest: np.ndarray, tau: np.ndarray | No
         raise ValueError(f"clean and strongest must be the same sweep, got shapes {clean.shape} and {strongest.shape}")
     if mode == "strongest":
         return strongest
-    hard = np.zeros(0)
-    tau_arr, a = np.zeros(0), 0.0
+    tau_arr, a, hard = _hard_inputs(clean, tau, alpha, i_hard)
+    dual = mode == "dual"
+    n = len(clean)
+    if capacity is not None and (int(capacity) < n or (dual and int(capacity) < 2 * n)):
+        raise ValueError(f"capacity {capacity} cannot hold the {mode} returns of {n} beams")
+    rows = (2 * n if dual else n) if capacity is None else int(capacity)
+    out = np.zeros((rows, clean.shape[1] + dual), np.float32)
+    r = _returns_kernel(np.ascontiguousarray(clean), np.ascontiguousarray(strongest), out, tau_arr, a, dual,
+                        DETECTION_FLOOR, hard)  # fmt: skip
+    return out if capacity is not None or r == rows else out[:r].copy()
+
+
+def returns_into(clean: np.ndarray, channel: np.ndarray, tau: np.ndarray | None, mode: str,
+                 alpha: float | None = None, i_hard: np.ndarray | None = None) -> int:  # fmt: skip
+    """:func:`apply_returns` in place: ``channel`` a packed ``(capacity, C)`` (``"last"``) or ``(capacity, C + 1)``
+    (``"dual"``, its other rows and ``return`` column zero) point channel whose first N rows already hold the
+    strongest echoes of the N clean points (as :func:`fog_gym.fog.lidar.fog_lidar`'s ``out=`` writes them); the
+    return rule rewrites those rows (last) or appends the extra last echoes after them (dual). Returns the number of
+    points in the channel. One pass over the beams and no copy of the sweep: the LiDAR fog's own path.
+
+    >>> clean = np.array([[30.0, 0, 0, 0.8]], np.float32)
+    >>> channel = np.zeros((2, 5), np.float32); channel[0, :4] = [3.0, 0, 0, 0.2]  # the fog's echo is the strongest
+    >>> returns_into(clean, channel, np.array([0.9]), "dual"), channel[1].tolist()
+    (2, [30.0, 0.0, 0.0, 0.13333334028720856, 1.0])
+    """
+    check_mode(mode)
+    clean = np.ascontiguousarray(clean, np.float32)
+    if mode == "strongest":
+        return len(clean)
+    dual = mode == "dual"
+    n = len(clean)
+    if not (isinstance(channel, np.ndarray) and channel.dtype == np.float32 and channel.ndim == 2
+            and channel.shape[1] == clean.shape[1] + dual and len(channel) >= (2 * n if dual else n)):  # fmt: skip
+        raise ValueError(f"channel must be a float32 ({'2 × ' if dual else ''}{n} or more, {clean.shape[1] + dual}) "
+                         f"point channel for the {mode} returns of {n} beams, got "
+                         f"{getattr(channel, 'dtype', type(channel).__name__)} {getattr(channel, 'shape', '')}")  # fmt: skip
+    tau_arr, a, hard = _hard_inputs(clean, tau, alpha, i_hard)
+    return int(_returns_kernel(clean, np.zeros((0, clean.shape[1]), np.float32), channel, tau_arr, a, dual,
+                               DETECTION_FLOOR, hard))  # fmt: skip
+
+
+def _hard_inputs(clean: np.ndarray, tau: np.ndarray | None, alpha: float | None,
+                 i_hard: np.ndarray | None) -> tuple[np.ndarray, float, np.ndarray]:  # fmt: skip
+    """The kernel's ``tau``, ``alpha`` and ``hard`` arguments: the hard intensities when given, else the optical
+    depths, else the extinction of homogeneous fog (empty arrays for what is not used)."""
     if i_hard is not None:
         hard = np.ascontiguousarray(i_hard, np.float64)
         if hard.shape != (len(clean),):
             raise ValueError(f"i_hard must hold one intensity per point ({len(clean)}), got shape {hard.shape}")
-    elif tau is None:
+        return np.zeros(0), 0.0, hard
+    if tau is None:
         if alpha is None:
             raise ValueError("apply_returns needs the optical depths tau or, for homogeneous fog, alpha (or i_hard)")
-        a = float(alpha)
-    else:
-        tau_arr = np.ascontiguousarray(np.broadcast_to(np.asarray(tau, np.float64), (len(clean),)))
-    dual = mode == "dual"
-    if capacity is not None and (int(capacity) < len(clean) or (dual and int(capacity) < 2 * len(clean))):
-        raise ValueError(f"capacity {capacity} cannot hold the {mode} returns of {len(clean)} beams")
-    packed = np.zeros((0, 0), np.float32) if capacity is None else \
-        np.zeros((int(capacity), clean.shape[1] + dual), np.float32)  # fmt: skip
-    return _returns_kernel(np.ascontiguousarray(clean), np.ascontiguousarray(strongest), tau_arr, a, dual,
-                           DETECTION_FLOOR, hard, packed)  # fmt: skip
+        return np.zeros(0), float(alpha), np.zeros(0)
+    return np.ascontiguousarray(np.broadcast_to(np.asarray(tau, np.float64), (len(clean),))), 0.0, np.zeros(0)
 
 
 @njit(cache=True, nogil=True)
-def _returns_kernel(clean, strongest, tau, alpha, dual, floor, hard, packed):
-    """:func:`apply_returns` for "last" (``dual`` False) and "dual" in one pass over the beams (then one to fill);
-    ``hard`` the hard intensities (0–255) when given, else from ``tau``, or with ``tau`` empty from ``α·R``
-    (homogeneous fog, as :func:`homogeneous_tau`); into ``packed`` (zeros, rows enough) unless it is empty."""
+def _returns_kernel(clean, strongest, out, tau, alpha, dual, floor, hard):
+    """The return rule in one pass over the beams, into ``out`` (zeros after its first rows): its first N rows the
+    strongest echoes (copied there from ``strongest`` unless that is empty: already there); "last" (``dual``
+    False) rewrites a row whose hard target reaches the floor behind the fog, "dual" appends it after the N rows
+    with ``return`` 1. ``hard`` the hard intensities (0–255) when given, else from ``tau``, or with ``tau`` empty
+    from ``α·R`` (homogeneous fog, as :func:`homogeneous_tau`). Returns the number of rows written."""
     n, c = clean.shape
-    seen = np.zeros(n, np.bool_)
-    i_hard = np.zeros(n, np.float32)
-    m = 0
+    copy = strongest.shape[0] > 0
+    r = n  # the next extra row (dual)
     for k in range(n):
-        if strongest[k, 0] != clean[k, 0] or strongest[k, 1] != clean[k, 1] or strongest[k, 2] != clean[k, 2]:
-            if hard.shape[0] > 0:
-                h = hard[k]
+        if copy:
+            for j in range(c):
+                out[k, j] = strongest[k, j]
+        if out[k, 0] == clean[k, 0] and out[k, 1] == clean[k, 1] and out[k, 2] == clean[k, 2]:
+            continue  # the strongest echo is the target itself
+        if hard.shape[0] > 0:
+            h = hard[k]
+        else:
+            if tau.shape[0] > 0:
+                t = tau[k]
             else:
-                if tau.shape[0] > 0:
-                    t = tau[k]
-                else:
-                    x, y, z = np.float64(clean[k, 0]), np.float64(clean[k, 1]), np.float64(clean[k, 2])
-                    t = alpha * np.sqrt(x * x + y * y + z * z)
-                h = np.round(np.round(np.float64(clean[k, 3]) * 255.0) * np.exp(-2.0 * t))
-            if h >= floor:  # the hard target still detected behind the fog
-                seen[k] = True
-                i_hard[k] = np.float32(h / 255.0)
-                m += 1
-    if not dual:
-        out = strongest.copy() if packed.shape[0] == 0 else packed
-        if packed.shape[0] > 0:
-            out[:n, :] = strongest
-        for k in range(n):
-            if seen[k]:
-                out[k, :] = clean[k, :]
-                out[k, 3] = i_hard[k]
-        return out
-    out = np.zeros((n + m, c + 1), np.float32) if packed.shape[0] == 0 else packed
-    out[:n, :c] = strongest
-    r = n
-    for k in range(n):
-        if seen[k]:
-            out[r, :c] = clean[k, :]
-            out[r, 3] = i_hard[k]
-            out[r, c] = 1.0
+                x, y, z = np.float64(clean[k, 0]), np.float64(clean[k, 1]), np.float64(clean[k, 2])
+                t = alpha * np.sqrt(x * x + y * y + z * z)
+            h = np.round(np.round(np.float64(clean[k, 3]) * 255.0) * np.exp(-2.0 * t))
+        if h < floor:  # nothing the receiver detects behind the fog
+            continue
+        row = r if dual else k  # "last": the hard target replaces the fog's echo; "dual": an extra row
+        for j in range(c):
+            out[row, j] = clean[k, j]
+        out[row, 3] = np.float32(h / 255.0)
+        if dual:
+            out[row, c] = 1.0
             r += 1
-    return out
+    return r
 
 
 def homogeneous_tau(points: np.ndarray, alpha: float) -> np.ndarray:

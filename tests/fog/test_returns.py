@@ -219,3 +219,38 @@ def test_the_fog_pass_hard_echo_equals_the_return_rule_own(seed, visibility, ref
         apply_returns(clean, plain, None, "dual", i_hard=hard, capacity=len(clean))
     with pytest.raises(ValueError, match="hard must be a float64 array"):
         fog_lidar(clean, level, np.random.default_rng(1), hard=np.empty(3))
+
+
+@settings(max_examples=40, deadline=None)
+@given(seed=st.integers(0, 10**6), n=st.integers(1, 1500), fog=st.sampled_from(["light", "dense", 30.0]),
+       mode=st.sampled_from(["last", "dual"]), spare=st.integers(0, 50))  # fmt: skip
+def test_the_fog_pass_writing_the_channel_then_the_rule_in_place_equals_the_copying_path(seed, n, fog, mode, spare):
+    """``fog_lidar(..., out=)`` into a packed channel's first rows and ``returns_into`` give, row for row, what
+    ``fog_lidar`` then ``apply_returns(..., capacity=)`` give (the LiDAR fog's own path against the reference)."""
+    from fog_gym.fog.returns import returns_into
+
+    clean = _cloud(seed, n)
+    level = parse_fog(fog)
+    hard = np.empty(n)
+    strongest = fog_lidar(clean, level, np.random.default_rng(seed), hard=hard)
+    dual = mode == "dual"
+    capacity = (2 * n if dual else n) + spare
+    reference = apply_returns(clean, strongest, None, mode, alpha=level.alpha, capacity=capacity)
+    channel = np.zeros((capacity, 4 + dual), np.float32)
+    written = fog_lidar(clean, level, np.random.default_rng(seed), out=channel[:n, :4])
+    assert written.base is channel or np.shares_memory(written, channel)
+    rows = returns_into(clean, channel, None, mode, i_hard=hard)
+    assert np.array_equal(channel, reference)
+    assert rows == len(unpack_points(channel, "LIDAR_TOP_DUAL" if dual else "LIDAR_TOP"))
+
+
+def test_writing_into_a_channel_refuses_a_wrong_one_before_any_work():
+    from fog_gym.fog.returns import returns_into
+
+    clean = _cloud(0, 10)
+    with pytest.raises(ValueError, match=r"^out must be a float32 array of the points' shape \(10, 4\)"):
+        fog_lidar(clean, parse_fog("dense"), np.random.default_rng(0), out=np.zeros((10, 4)))
+    with pytest.raises(ValueError, match=r"^channel must be a float32 \(2 × 10 or more, 5\) point channel"):
+        returns_into(clean, np.zeros((15, 5), np.float32), None, "dual", alpha=0.05)
+    with pytest.raises(ValueError, match=r"^channel must be a float32 \(10 or more, 4\) point channel"):
+        returns_into(clean, np.zeros((10, 5), np.float32), None, "last", alpha=0.05)
