@@ -286,8 +286,21 @@ def comparison_markdown(comp: dict[str, Any]) -> list[str]:
 
 
 # -- figures ---------------------------------------------------------------------------------------------------
+def clipped_errors(means, half) -> np.ndarray:
+    """Matplotlib's ``(2, N)`` lower and upper error-bar lengths of ``means ± half``, cut at 0 and 1 (a score's range).
+
+    >>> clipped_errors([0.1, 0.5], [0.3, 0.2]).round(6).tolist()  # the lower bar cut at 0
+    [[0.1, 0.2], [0.3, 0.2]]
+    >>> clipped_errors([0.9], [0.5]).round(6).tolist()  # the upper bar cut at 1
+    [[0.5], [0.1]]
+    """
+    means, half = np.asarray(means, float), np.asarray(half, float)
+    return np.stack([means - np.maximum(means - half, 0.0), np.minimum(means + half, 1.0) - means])
+
+
 def figure(detection: dict[str, Any], path: Path) -> None:
-    """mAP@0.5 per pipeline and level (bars; the 95 % CIs across seeds as error bars), A as a line."""
+    """mAP@0.5 per pipeline and level (bars; the 95 % CIs across seeds as error bars, cut at 0 and 1, the metric's
+    range: with two or three seeds a Student-t interval can reach past both), A as a line."""
     import matplotlib.pyplot as plt
 
     keys = [k for k in ("B", "C-DCP", "C-AOD-Net", "C-DehazeFormer", "C-oracle", "D") if k in detection]
@@ -295,17 +308,18 @@ def figure(detection: dict[str, Any], path: Path) -> None:
     width = 0.8 / max(1, len(keys))
     for i, k in enumerate(keys):
         cells = [detection[k][lv]["mAP50"] for lv in LEVELS]
-        err = None if all(c["ci95"] is None for c in cells) else [c["ci95"] or 0.0 for c in cells]
-        ax.bar(np.arange(len(LEVELS)) + i * width, [c["mean"] for c in cells], width, yerr=err, capsize=2,
-               label=PIPELINE_NAMES[k])  # fmt: skip
+        means = np.array([c["mean"] for c in cells])
+        err = None if all(c["ci95"] is None for c in cells) else clipped_errors(means, [c["ci95"] or 0.0 for c in cells])
+        ax.bar(np.arange(len(LEVELS)) + i * width, means, width, yerr=err, capsize=2, label=PIPELINE_NAMES[k])
     a = detection["A"]["clean"]["mAP50"]
     ax.axhline(a["mean"], color="k", ls="--", lw=1, label="A (clean→clean)")
     if a["ci95"]:
-        ax.axhspan(a["mean"] - a["ci95"], a["mean"] + a["ci95"], color="k", alpha=0.08)
+        ax.axhspan(max(a["mean"] - a["ci95"], 0.0), min(a["mean"] + a["ci95"], 1.0), color="k", alpha=0.08)
+    ax.set_ylim(0.0, 1.0)
     ax.set_xticks(np.arange(len(LEVELS)) + 0.4 - width / 2, LEVELS)
     ax.set_xlabel("test fog level")
     ax.set_ylabel("mAP@0.5 (COCO, every box)")
-    ax.set_title("Detection per pipeline and fog level (mean ± 95 % CI across seeds)")
+    ax.set_title("Detection per pipeline and fog level (mean ± 95 % CI across seeds, cut at 0 and 1)")
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))  # beside the axes: no bar hidden
     fig.tight_layout()
     save_figure(fig, path, dpi=120)
