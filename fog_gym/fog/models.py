@@ -133,7 +133,7 @@ class Hahner:
         from fog_gym.fog.returns import apply_returns, field_tau, returns_into
 
         mode = context.lidar_returns
-        if mode == "dual":  # the clean sweep's return column (all 0) goes; apply_returns writes the fogged one
+        if mode == "dual":  # the clean sweep's return column (all 0) goes; the return rule writes the fogged one
             clean = unpack_points(obs, channel, columns=obs[channel].shape[1] - 1)
         else:
             clean = unpack_points(obs, channel)
