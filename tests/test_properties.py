@@ -129,7 +129,12 @@ def test_unpack_points_keeps_every_point_in_order_however_the_rows_lie(channel, 
     columns = data.draw(st.one_of(st.none(), st.integers(1, cols)))
     got = unpack_points(array, channel, columns=columns)
     assert np.array_equal(got, array[valid][:, :columns], equal_nan=True)
-    assert got.flags.c_contiguous and got.dtype == np.float32
+    assert got.flags.c_contiguous and got.dtype == np.float32 and not np.shares_memory(got, array)
+    seen = unpack_points(array, channel, columns=columns, copy=False)  # the same points; in place when packed
+    assert np.array_equal(seen, got, equal_nan=True)
+    packed = len(got) == 0 or np.array_equal(array[: len(got)][:, :columns], got, equal_nan=True) and not valid[len(got):].any()
+    if len(got) and packed and not np.any(array[len(got):] != 0):  # a packed channel (zeros after its points)
+        assert np.shares_memory(seen, array)
     if cols > 4:  # the same through a view of the leading columns (not contiguous)
         view = array[:, :4]
         keep = np.any(view != 0, axis=1) if channel is None else valid
@@ -141,6 +146,9 @@ def test_unpack_points_keeps_every_point_in_order_however_the_rows_lie(channel, 
 def test_unpack_points_refuses_a_bad_column_count(columns):
     with pytest.raises(ValueError, match=r"^columns must be a positive number of leading columns or None"):
         unpack_points(np.zeros((3, 4), np.float32), "LIDAR_TOP", columns=columns)
+    if not isinstance(columns, bool):
+        with pytest.raises(ValueError, match=r"^copy must be True or False"):
+            unpack_points(np.zeros((3, 4), np.float32), "LIDAR_TOP", copy=columns)
 
 
 @FAST

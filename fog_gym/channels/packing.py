@@ -51,17 +51,21 @@ def pack_points(points: np.ndarray, capacity: int) -> np.ndarray:
 
 
 def unpack_points(obs: Mapping[str, np.ndarray] | np.ndarray, channel: str | None = None,
-                  columns: int | None = None) -> np.ndarray:  # fmt: skip
+                  columns: int | None = None, copy: bool = True) -> np.ndarray:  # fmt: skip
     """The exact ``(N, 4)`` / ``(N, 6)`` / ``(N, 4)`` float32 points of ``LIDAR_TOP*``, ``SEM_LIDAR_TOP`` or
     ``RADAR_FRONT`` (or ``(N, C)`` of an added point sensor) from an observation dict (or from the channel's array
     itself); ``columns``: only the first ``columns`` columns of each point (the points are found on the whole
-    channel), e.g. a dual-return sweep without its ``return`` column.
+    channel), e.g. a dual-return sweep without its ``return`` column. ``copy=False``: when the channel is packed
+    (its points its first rows, as fog-gym writes it), the view ``channel[:N, :columns]`` instead of a copy — for
+    a reader that only reads; a channel with empty rows between its points still gives a compacted copy.
 
     >>> unpack_points(np.array([[1, 2, 3, 0.5, 1], [0, 0, 0, 0, 0]], np.float32), "LIDAR_TOP_DUAL", columns=4)
     array([[1. , 2. , 3. , 0.5]], dtype=float32)
     """
     if columns is not None and (isinstance(columns, bool) or not isinstance(columns, (int, np.integer)) or columns < 1):
         raise ValueError(f"columns must be a positive number of leading columns or None, got {columns!r}")
+    if not isinstance(copy, (bool, np.bool_)):
+        raise ValueError(f"copy must be True or False, got {copy!r}")
     kind = None if channel is None else channel_kind(channel)  # None: an added sensor, any non-zero row is a point
     if isinstance(obs, Mapping):
         if channel is None:
@@ -78,8 +82,11 @@ def unpack_points(obs: Mapping[str, np.ndarray] | np.ndarray, channel: str | Non
     rule = 1 if kind == RADAR else (0 if kind is not None else 2)
     if array.dtype == np.float32 and array.shape[1] >= (4 if rule == 1 else 3 if rule == 0 else 0):
         n, packed = _leading_rows(array, rule)  # one pass that stops reading at the first empty row it can
-        if packed:
-            return _copy_rows(array if columns is None else array[:, :columns], n)
+        if packed and not copy:
+            return array[:n, :columns]
+        if packed:  # whole rows of a C-contiguous channel are one block (numpy's copy); some columns, a strided copy
+            whole = (columns is None or columns >= array.shape[1]) and array.flags.c_contiguous
+            return array[:n].copy() if whole else _copy_rows(array if columns is None else array[:, :columns], n)
     if rule == 1:  # a detection has a non-zero depth
         valid = array[:, 3] != 0
     elif rule == 0:  # a LiDAR return has a non-zero position

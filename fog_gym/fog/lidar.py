@@ -102,7 +102,12 @@ def hahner_keeps(r0, intensity, table_i, table_r, alpha, beta_ratio):
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def _hahner(pts, table_i, table_r, alpha, beta_ratio, log_noise, u, out, attenuation, hard):
+def _hahner(pts, c_in, table_i, table_r, alpha, beta_ratio, log_noise, u, out, attenuation, hard, mode, floor, flags,
+            behind):  # fmt: skip
+    """Each beam's decision into row ``n`` of ``out`` from the first ``c_in`` columns of ``pts`` (its first ``c_in``
+    columns; further columns, a packed channel's ``return``, get 0). ``mode`` 0 strongest; 1 last (a hard target at or above ``floor`` behind a fog
+    return takes the row back); 2 dual (such a beam gets ``flags[n]`` 1 and its target's intensity in
+    ``behind[n]``, for :func:`_append_last` to add as an extra row)."""
     for n in prange(pts.shape[0]):
         x, y, z = np.float64(pts[n, 0]), np.float64(pts[n, 1]), np.float64(pts[n, 2])
         r0 = np.sqrt(x * x + y * y + z * z)
@@ -113,25 +118,61 @@ def _hahner(pts, table_i, table_r, alpha, beta_ratio, log_noise, u, out, attenua
         i_hard, i_soft, key = hahner_intensities(r0, np.float64(pts[n, 3]), table_i, alpha, ratio)
         if hard.shape[0] > 0:  # the attenuated hard echo, for the return modes
             hard[n] = i_hard
-        if i_soft > i_hard:  # the fog's own return is stronger: a fog point on the same ray
+        fx, fy, fz = np.float32(0.0), np.float32(0.0), np.float32(0.0)
+        seen = False  # dual: the hard target detected behind the fog's stronger echo (the beam's last return)
+        fog = i_soft > i_hard  # the fog's echo is the stronger: a point on the same ray
+        if fog:
             scale = table_r[key] / max(r0, 1e-12) * np.exp(log_noise * u[n])
-            out[n, 0] = np.float32(x * scale)
-            out[n, 1] = np.float32(y * scale)
-            out[n, 2] = np.float32(z * scale)
+            fx, fy, fz = np.float32(x * scale), np.float32(y * scale), np.float32(z * scale)
+            # the last echo differs where the target reaches the floor (a fog echo on the target itself is its echo)
+            later = mode > 0 and i_hard >= floor and not (fx == pts[n, 0] and fy == pts[n, 1] and fz == pts[n, 2])
+            fog = not (later and mode == 1)  # "last": the target takes the row back
+            seen = later and mode == 2
+        if fog:
+            out[n, 0] = fx
+            out[n, 1] = fy
+            out[n, 2] = fz
             out[n, 3] = np.float32(i_soft / 255.0)
         else:
             out[n, 0] = pts[n, 0]
             out[n, 1] = pts[n, 1]
             out[n, 2] = pts[n, 2]
             out[n, 3] = np.float32(i_hard / 255.0)
-        for c in range(4, pts.shape[1]):
+        for c in range(4, c_in):
             out[n, c] = pts[n, c]
+        for c in range(c_in, out.shape[1]):
+            out[n, c] = 0.0
+        if flags.shape[0] > 0:
+            flags[n] = seen
+            if seen:
+                behind[n] = i_hard
+
+
+@njit(cache=True, nogil=True)
+def _append_last(pts, c, flags, behind, out):
+    """The dual mode's extra rows after the first N: each flagged beam's hard target (the first ``c`` columns of
+    ``pts``) with its intensity and ``return`` 1. Returns the number of rows written in all."""
+    n = pts.shape[0]
+    r = n
+    words = flags[: n - n % 8].view(np.uint64)  # eight beams at a time: most words of a sweep hold no flag
+    for w in range(words.shape[0] + 1):
+        if w < words.shape[0] and words[w] == 0:
+            continue
+        for k in range(8 * w, min(8 * w + 8, n)):
+            if flags[k]:
+                for j in range(c):
+                    out[r, j] = pts[k, j]
+                out[r, 3] = np.float32(behind[k] / 255.0)
+                out[r, c] = 1.0
+                r += 1
+    return r
 
 
 _hahner_serial = serial_twin(_hahner)
 
 
 _NO_HARD = np.zeros(0)
+_NO_FLAGS = np.zeros(0, np.uint8)
 
 #: With reflectance intensities (:func:`fog_lidar`'s ``reflectance``), the reflectivity decided about as CARLA's
 #: intensities are under Hahner et al.'s constant Γ.
@@ -178,8 +219,8 @@ def fog_lidar(points: np.ndarray, level: FogLevel, rng: np.random.Generator, noi
     (:func:`fog_gym.fog.returns.apply_returns`'s ``i_hard``).
 
     ``out`` (an ``(N, C)`` float32 array, optional; a view will do, such as the first rows of a packed channel)
-    receives the result, which is then returned: the return modes write the fogged sweep into its channel this way
-    (:func:`fog_gym.fog.returns.returns_into`).
+    receives the result, which is then returned (:func:`fog_lidar_into` writes a packed channel with the return
+    modes).
     """
     pts = _checked_points(points, noise)
     if hard is not None and (hard.shape != (len(pts),) or hard.dtype != np.float64):
@@ -198,8 +239,65 @@ def fog_lidar(points: np.ndarray, level: FogLevel, rng: np.random.Generator, noi
     u = rng.uniform(-1.0, 1.0, len(pts))
     out = np.empty_like(pts) if out is None else out
     pick(_hahner, _hahner_serial, len(pts))(
-        pts, table_i, table_r, level.alpha, BETA_PER_MOR / level.visibility_m / (GAMMA / math.pi),
+        pts, pts.shape[1], table_i, table_r, level.alpha, BETA_PER_MOR / level.visibility_m / (GAMMA / math.pi),
         math.log(max(1.0, noise / 5.0)) if noise > 0 else 0.0, u, out, -1.0 if reflectance is None else float(reflectance),
-        _NO_HARD if hard is None else hard,
+        _NO_HARD if hard is None else hard, 0, 0.0, _NO_FLAGS, _NO_HARD,
     )  # fmt: skip
     return out
+
+
+def fog_lidar_into(points: np.ndarray, level: FogLevel, rng: np.random.Generator, channel: np.ndarray,
+                   mode: str = "strongest", noise: float = 10.0, reflectance: float | None = None,
+                   columns: int | None = None) -> int:  # fmt: skip
+    """:func:`fog_lidar` and the return rule (:mod:`fog_gym.fog.returns`) in one pass over the beams, written into a
+    packed point channel: ``channel`` a float32 ``(capacity, C)`` array (``"strongest"``, ``"last"``) or ``(capacity,
+    C + 1)`` (``"dual"``, its last column ``return``) for the ``(N, C)`` points, ``capacity`` ≥ N (2 N for dual).
+    Every row is written (the rows after the sweep become 0), so the channel may be uninitialised. Returns the
+    number of points written: the same rows as :func:`fog_lidar` then
+    :func:`~fog_gym.fog.returns.apply_returns` with the channel's capacity, from the same draws of ``rng``.
+    ``columns``: the points are the first ``columns`` columns of ``points`` (the rest ignored: a dual sweep's own
+    ``return`` column, read in place); C is then ``columns``.
+
+    >>> from fog_gym.fog.physics import parse_fog
+    >>> pts = np.array([[40.0, 0, 0, 0.9], [10.0, 0, 0, 0.96]], np.float32)
+    >>> channel = np.full((4, 5), np.nan, np.float32)
+    >>> fog_lidar_into(pts, parse_fog("dense"), np.random.default_rng(0), channel, "dual")  # the far car twice
+    3
+    >>> bool(channel[0, 0] < 10), channel[2].tolist(), channel[3].tolist()  # fog echo; last echo (return 1); empty
+    (True, [40.0, 0.0, 0.0, 0.007843137718737125, 1.0], [0.0, 0.0, 0.0, 0.0, 0.0])
+    """
+    from fog_gym.fog.returns import DETECTION_FLOOR, check_mode
+
+    check_mode(mode)
+    pts = _checked_points(points, noise)
+    n, c = pts.shape
+    if columns is not None:
+        if isinstance(columns, bool) or not isinstance(columns, (int, np.integer)) or not 4 <= columns <= c:
+            raise ValueError(f"columns must be a number of leading columns from 4 to {c} or None, got {columns!r}")
+        c = int(columns)
+    dual = mode == "dual"
+    if not (isinstance(channel, np.ndarray) and channel.dtype == np.float32 and channel.ndim == 2
+            and channel.flags.c_contiguous and channel.shape[1] == c + dual and len(channel) >= (2 * n if dual else n)):  # fmt: skip
+        raise ValueError(f"channel must be a C-contiguous float32 ({'2 × ' if dual else ''}{n} or more, {c + dual}) "
+                         f"point channel for the {mode} returns of {n} points, got "
+                         f"{getattr(channel, 'dtype', type(channel).__name__)} {getattr(channel, 'shape', '')}")  # fmt: skip
+    if level.is_clear:  # every mode is the clean sweep
+        channel[:n, :c] = pts[:, :c]
+        channel[:n, c:] = 0.0
+        channel[n:] = 0.0
+        return n
+    table_i, table_r = soft_response_table(level.alpha)
+    u = rng.uniform(-1.0, 1.0, n)
+    flags, behind = (np.empty(n, np.uint8), np.empty(n)) if dual else (_NO_FLAGS, _NO_HARD)
+    pick(_hahner, _hahner_serial, n)(
+        pts, c, table_i, table_r, level.alpha, BETA_PER_MOR / level.visibility_m / (GAMMA / math.pi),
+        math.log(max(1.0, noise / 5.0)) if noise > 0 else 0.0, u, channel, -1.0 if reflectance is None else float(reflectance),
+        _NO_HARD, RETURN_CODES[mode], DETECTION_FLOOR, flags, behind,
+    )  # fmt: skip
+    rows = _append_last(pts, c, flags, behind, channel) if dual else n
+    channel[rows:] = 0.0
+    return rows
+
+
+#: :func:`_hahner`'s ``mode`` per return mode.
+RETURN_CODES = {"strongest": 0, "last": 1, "dual": 2}

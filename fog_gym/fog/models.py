@@ -29,7 +29,7 @@ import numpy as np
 
 from fog_gym.fog.camera import fog_field_images, fog_images
 from fog_gym.fog.depth import field_pose
-from fog_gym.fog.lidar import fog_lidar
+from fog_gym.fog.lidar import fog_lidar_into
 from fog_gym.fog.lidar_field import fog_lidar_field
 from fog_gym.fog.physics import FogLevel, parse_fog  # noqa: F401  (parse_fog: the example)
 from fog_gym.channels.packing import pack_points, unpack_points
@@ -130,23 +130,24 @@ class Hahner:
     name = "hahner"
 
     def apply(self, obs, channel, levels, context):
-        from fog_gym.fog.returns import apply_returns, field_tau, returns_into
+        from fog_gym.fog.returns import apply_returns, field_tau
 
         mode = context.lidar_returns
-        if mode == "dual":  # the clean sweep's return column (all 0) goes; the return rule writes the fogged one
-            clean = unpack_points(obs, channel, columns=obs[channel].shape[1] - 1)
-        else:
-            clean = unpack_points(obs, channel)
-        # x, y, z, intensity feed the physics; further columns (a sweep's time) ride along with each beam
+        # the clean sweep read in place (the fog only reads it); in dual mode without its return column (all 0),
+        # which the return rule writes anew. x, y, z, intensity feed the physics; further columns (a sweep's time)
+        # ride along with each beam
+        rows = unpack_points(obs, channel, copy=False)
+        width = rows.shape[1] - (mode == "dual")
+        clean = rows if mode != "dual" else rows[:, :width]
         capacity = obs[channel].shape[0]
         out = {}
         for lv in levels:
-            if lv.is_homogeneous:  # the fog's pass writes the packed channel; the return rule works in it
-                hard = None if mode == "strongest" else np.empty(len(clean))  # the hard echo, from the fog's pass
-                packed = np.zeros(obs[channel].shape, np.float32)
-                fog_lidar(clean, lv, context.rngs[lv.name], context.lidar_noise, context.lidar_reflectance, hard=hard,
-                          out=packed[: len(clean), : clean.shape[1]])  # fmt: skip
-                returns_into(clean, packed, None, mode, i_hard=hard)
+            if not lv.is_homogeneous:
+                clean = np.ascontiguousarray(clean)  # the field kernels read whole rows
+            if lv.is_homogeneous:  # one pass of the fog and the return rule writes the packed channel
+                packed = np.empty(obs[channel].shape, np.float32)
+                fog_lidar_into(rows, lv, context.rngs[lv.name], packed, mode, context.lidar_noise,
+                               context.lidar_reflectance, columns=width)  # fmt: skip
                 out[lv.name] = packed
             else:  # a fog field: the local extinction along each beam
                 pose = field_pose(context.poses[channel], context.frame)

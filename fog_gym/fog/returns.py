@@ -83,35 +83,6 @@ def apply_returns(clean: np.ndarray, strongest: np.ndarray, tau: np.ndarray | No
     return out if capacity is not None or r == rows else out[:r].copy()
 
 
-def returns_into(clean: np.ndarray, channel: np.ndarray, tau: np.ndarray | None, mode: str,
-                 alpha: float | None = None, i_hard: np.ndarray | None = None) -> int:  # fmt: skip
-    """:func:`apply_returns` in place: ``channel`` a packed ``(capacity, C)`` (``"last"``) or ``(capacity, C + 1)``
-    (``"dual"``, its other rows and ``return`` column zero) point channel whose first N rows already hold the
-    strongest echoes of the N clean points (as :func:`fog_gym.fog.lidar.fog_lidar`'s ``out=`` writes them); the
-    return rule rewrites those rows (last) or appends the extra last echoes after them (dual). Returns the number of
-    points in the channel. One pass over the beams and no copy of the sweep: the LiDAR fog's own path.
-
-    >>> clean = np.array([[30.0, 0, 0, 0.8]], np.float32)
-    >>> channel = np.zeros((2, 5), np.float32); channel[0, :4] = [3.0, 0, 0, 0.2]  # the fog's echo is the strongest
-    >>> returns_into(clean, channel, np.array([0.9]), "dual"), channel[1].tolist()
-    (2, [30.0, 0.0, 0.0, 0.13333334028720856, 1.0])
-    """
-    check_mode(mode)
-    clean = np.ascontiguousarray(clean, np.float32)
-    if mode == "strongest":
-        return len(clean)
-    dual = mode == "dual"
-    n = len(clean)
-    if not (isinstance(channel, np.ndarray) and channel.dtype == np.float32 and channel.ndim == 2
-            and channel.shape[1] == clean.shape[1] + dual and len(channel) >= (2 * n if dual else n)):  # fmt: skip
-        raise ValueError(f"channel must be a float32 ({'2 × ' if dual else ''}{n} or more, {clean.shape[1] + dual}) "
-                         f"point channel for the {mode} returns of {n} beams, got "
-                         f"{getattr(channel, 'dtype', type(channel).__name__)} {getattr(channel, 'shape', '')}")  # fmt: skip
-    tau_arr, a, hard = _hard_inputs(clean, tau, alpha, i_hard)
-    return int(_returns_kernel(clean, np.zeros((0, clean.shape[1]), np.float32), channel, tau_arr, a, dual,
-                               DETECTION_FLOOR, hard))  # fmt: skip
-
-
 def _hard_inputs(clean: np.ndarray, tau: np.ndarray | None, alpha: float | None,
                  i_hard: np.ndarray | None) -> tuple[np.ndarray, float, np.ndarray]:  # fmt: skip
     """The kernel's ``tau``, ``alpha`` and ``hard`` arguments: the hard intensities when given, else the optical
@@ -131,17 +102,15 @@ def _hard_inputs(clean: np.ndarray, tau: np.ndarray | None, alpha: float | None,
 @njit(cache=True, nogil=True)
 def _returns_kernel(clean, strongest, out, tau, alpha, dual, floor, hard):
     """The return rule in one pass over the beams, into ``out`` (zeros after its first rows): its first N rows the
-    strongest echoes (copied there from ``strongest`` unless that is empty: already there); "last" (``dual``
+    strongest echoes (copied from ``strongest``); "last" (``dual``
     False) rewrites a row whose hard target reaches the floor behind the fog, "dual" appends it after the N rows
     with ``return`` 1. ``hard`` the hard intensities (0–255) when given, else from ``tau``, or with ``tau`` empty
     from ``α·R`` (homogeneous fog, as :func:`homogeneous_tau`). Returns the number of rows written."""
     n, c = clean.shape
-    copy = strongest.shape[0] > 0
     r = n  # the next extra row (dual)
     for k in range(n):
-        if copy:
-            for j in range(c):
-                out[k, j] = strongest[k, j]
+        for j in range(c):
+            out[k, j] = strongest[k, j]
         if out[k, 0] == clean[k, 0] and out[k, 1] == clean[k, 1] and out[k, 2] == clean[k, 2]:
             continue  # the strongest echo is the target itself
         if hard.shape[0] > 0:

@@ -222,35 +222,52 @@ def test_the_fog_pass_hard_echo_equals_the_return_rule_own(seed, visibility, ref
 
 
 @settings(max_examples=40, deadline=None)
-@given(seed=st.integers(0, 10**6), n=st.integers(1, 1500), fog=st.sampled_from(["light", "dense", 30.0]),
-       mode=st.sampled_from(["last", "dual"]), spare=st.integers(0, 50))  # fmt: skip
-def test_the_fog_pass_writing_the_channel_then_the_rule_in_place_equals_the_copying_path(seed, n, fog, mode, spare):
-    """``fog_lidar(..., out=)`` into a packed channel's first rows and ``returns_into`` give, row for row, what
-    ``fog_lidar`` then ``apply_returns(..., capacity=)`` give (the LiDAR fog's own path against the reference)."""
-    from fog_gym.fog.returns import returns_into
+@given(seed=st.integers(0, 10**6), n=st.integers(1, 1500), fog=st.sampled_from(["clear", "light", "dense", 30.0]),
+       mode=st.sampled_from(["strongest", "last", "dual"]), spare=st.integers(0, 50), reflect=st.booleans(),
+       timed=st.booleans(), ignored=st.integers(0, 2))  # fmt: skip
+def test_the_fused_fog_and_return_pass_equals_the_fog_then_the_rule(seed, n, fog, mode, spare, reflect, timed,
+                                                                     ignored):  # fmt: skip
+    """``fog_lidar_into`` (the fog and the return rule in one pass, into an uninitialised packed channel) gives, row
+    for row, what ``fog_lidar`` then ``apply_returns(..., capacity=)`` give: every mode and fog, reflectance
+    intensities, a ride-along time column, spare rows, trailing columns it is told to ignore (``columns=``: a dual
+    sweep's own return column, read in place) — the LiDAR fog's own path against the reference."""
+    from fog_gym.fog.lidar import fog_lidar_into
 
     clean = _cloud(seed, n)
+    if timed:  # a continuous sweep's time column rides along with each beam
+        clean = np.c_[clean, np.random.default_rng(seed).uniform(0, 0.1, n)].astype(np.float32)
     level = parse_fog(fog)
-    hard = np.empty(n)
-    strongest = fog_lidar(clean, level, np.random.default_rng(seed), hard=hard)
+    reflectance = 0.004 if reflect else None
+    strongest = fog_lidar(clean, level, np.random.default_rng(seed), reflectance=reflectance)
     dual = mode == "dual"
     capacity = (2 * n if dual else n) + spare
-    reference = apply_returns(clean, strongest, None, mode, alpha=level.alpha, capacity=capacity)
-    channel = np.zeros((capacity, 4 + dual), np.float32)
-    written = fog_lidar(clean, level, np.random.default_rng(seed), out=channel[:n, :4])
-    assert written.base is channel or np.shares_memory(written, channel)
-    rows = returns_into(clean, channel, None, mode, i_hard=hard)
+    if mode == "strongest":
+        reference = pack_points(strongest, capacity)
+    else:
+        reference = apply_returns(clean, strongest, None, mode, alpha=level.alpha, capacity=capacity)
+    channel = np.full((capacity, clean.shape[1] + dual), np.nan, np.float32)  # every row gets written
+    given = np.c_[clean, np.full((n, ignored), 7.0, np.float32)]  # columns the pass must not read into its rows
+    rows = fog_lidar_into(given, level, np.random.default_rng(seed), channel, mode, reflectance=reflectance,
+                          columns=clean.shape[1] if ignored else None)  # fmt: skip
     assert np.array_equal(channel, reference)
     assert rows == len(unpack_points(channel, "LIDAR_TOP_DUAL" if dual else "LIDAR_TOP"))
 
 
 def test_writing_into_a_channel_refuses_a_wrong_one_before_any_work():
-    from fog_gym.fog.returns import returns_into
+    from fog_gym.fog.lidar import fog_lidar_into
 
     clean = _cloud(0, 10)
     with pytest.raises(ValueError, match=r"^out must be a float32 array of the points' shape \(10, 4\)"):
         fog_lidar(clean, parse_fog("dense"), np.random.default_rng(0), out=np.zeros((10, 4)))
-    with pytest.raises(ValueError, match=r"^channel must be a float32 \(2 × 10 or more, 5\) point channel"):
-        returns_into(clean, np.zeros((15, 5), np.float32), None, "dual", alpha=0.05)
-    with pytest.raises(ValueError, match=r"^channel must be a float32 \(10 or more, 4\) point channel"):
-        returns_into(clean, np.zeros((10, 5), np.float32), None, "last", alpha=0.05)
+    rng = np.random.default_rng(0)
+    with pytest.raises(ValueError, match=r"^channel must be a C-contiguous float32 \(2 × 10 or more, 5\) point channel"):
+        fog_lidar_into(clean, parse_fog("dense"), rng, np.zeros((15, 5), np.float32), "dual")
+    with pytest.raises(ValueError, match=r"^channel must be a C-contiguous float32 \(10 or more, 4\) point channel"):
+        fog_lidar_into(clean, parse_fog("dense"), rng, np.zeros((10, 5), np.float32), "last")
+    with pytest.raises(ValueError, match=r"^channel must be a C-contiguous"):
+        fog_lidar_into(clean, parse_fog("dense"), rng, np.zeros((20, 8), np.float32)[:, :4])
+    with pytest.raises(ValueError, match=r"^columns must be a number of leading columns from 4 to 4"):
+        fog_lidar_into(clean, parse_fog("dense"), rng, np.zeros((20, 3), np.float32), columns=3)
+    with pytest.raises(ValueError, match="returns must be one of"):
+        fog_lidar_into(clean, parse_fog("dense"), rng, np.zeros((20, 4), np.float32), "first")
+    assert rng.uniform() == np.random.default_rng(0).uniform()  # no draw was taken
