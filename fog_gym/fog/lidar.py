@@ -102,8 +102,7 @@ def hahner_keeps(r0, intensity, table_i, table_r, alpha, beta_ratio):
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def _hahner(pts, c_in, table_i, table_r, alpha, beta_ratio, log_noise, u, out, attenuation, hard, mode, floor, flags,
-            behind):  # fmt: skip
+def _hahner(pts, c_in, table_i, table_r, alpha, beta_ratio, log_noise, u, out, attenuation, mode, floor, flags, behind):
     """Each beam's decision into row ``n`` of ``out`` from the first ``c_in`` columns of ``pts`` (its first ``c_in``
     columns; further columns, a packed channel's ``return``, get 0). ``mode`` 0 strongest; 1 last (a hard target at or above ``floor`` behind a fog
     return takes the row back); 2 dual (such a beam gets ``flags[n]`` 1 and its target's intensity in
@@ -116,8 +115,6 @@ def _hahner(pts, c_in, table_i, table_r, alpha, beta_ratio, log_noise, u, out, a
             rho = min(max(np.float64(pts[n, 3]) / np.exp(-attenuation * r0), 1e-3), 1.0)
             ratio = beta_ratio * REFERENCE_REFLECTIVITY / rho
         i_hard, i_soft, key = hahner_intensities(r0, np.float64(pts[n, 3]), table_i, alpha, ratio)
-        if hard.shape[0] > 0:  # the attenuated hard echo, for the return modes
-            hard[n] = i_hard
         fx, fy, fz = np.float32(0.0), np.float32(0.0), np.float32(0.0)
         seen = False  # dual: the hard target detected behind the fog's stronger echo (the beam's last return)
         fog = i_soft > i_hard  # the fog's echo is the stronger: a point on the same ray
@@ -192,8 +189,7 @@ def _checked_points(points: np.ndarray, noise: float) -> np.ndarray:
 
 
 def fog_lidar(points: np.ndarray, level: FogLevel, rng: np.random.Generator, noise: float = 10.0,
-              reflectance: float | None = None, hard: np.ndarray | None = None,
-              out: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
+              reflectance: float | None = None, out: np.ndarray | None = None) -> np.ndarray:  # fmt: skip
     """Hahner et al. fog on CARLA LiDAR points ``(N, 4)`` x, y, z, intensity ∈ [0, 1] → ``(N, 4)`` float32.
 
     Intensities are scaled to 0–255 and rounded; each point either stays with ``round(i·exp(−2αR))`` or, when the
@@ -214,23 +210,15 @@ def fog_lidar(points: np.ndarray, level: FogLevel, rng: np.random.Generator, noi
     0–255 intensities) and the hard return scales with ``ρ|cos θ|`` while the fog's own backscatter does not — bright
     surfaces (licence plates, lane markings) outlast dark paint.
 
-    ``hard`` (an ``(N,)`` float64 array, optional) receives each point's attenuated hard-target intensity on 0–255,
-    ``round(round(i·255)·exp(−2αR))``, the echo the return modes keep behind the fog
-    (:func:`fog_gym.fog.returns.apply_returns`'s ``i_hard``).
-
     ``out`` (an ``(N, C)`` float32 array, optional; a view will do, such as the first rows of a packed channel)
     receives the result, which is then returned (:func:`fog_lidar_into` writes a packed channel with the return
     modes).
     """
     pts = _checked_points(points, noise)
-    if hard is not None and (hard.shape != (len(pts),) or hard.dtype != np.float64):
-        raise ValueError(f"hard must be a float64 array of one value per point ({len(pts)}), got {hard.dtype} {hard.shape}")
     if out is not None and (not isinstance(out, np.ndarray) or out.shape != pts.shape or out.dtype != np.float32):
         raise ValueError(f"out must be a float32 array of the points' shape {pts.shape}, got "
                          f"{getattr(out, 'dtype', type(out).__name__)} {getattr(out, 'shape', '')}")  # fmt: skip
     if level.is_clear:
-        if hard is not None:
-            hard[:] = np.round(np.round(pts[:, 3].astype(np.float64) * 255.0))
         if out is not None:
             out[...] = pts
             return out
@@ -241,7 +229,7 @@ def fog_lidar(points: np.ndarray, level: FogLevel, rng: np.random.Generator, noi
     pick(_hahner, _hahner_serial, len(pts))(
         pts, pts.shape[1], table_i, table_r, level.alpha, BETA_PER_MOR / level.visibility_m / (GAMMA / math.pi),
         math.log(max(1.0, noise / 5.0)) if noise > 0 else 0.0, u, out, -1.0 if reflectance is None else float(reflectance),
-        _NO_HARD if hard is None else hard, 0, 0.0, _NO_FLAGS, _NO_HARD,
+        0, 0.0, _NO_FLAGS, _NO_HARD,
     )  # fmt: skip
     return out
 
@@ -292,7 +280,7 @@ def fog_lidar_into(points: np.ndarray, level: FogLevel, rng: np.random.Generator
     pick(_hahner, _hahner_serial, n)(
         pts, c, table_i, table_r, level.alpha, BETA_PER_MOR / level.visibility_m / (GAMMA / math.pi),
         math.log(max(1.0, noise / 5.0)) if noise > 0 else 0.0, u, channel, -1.0 if reflectance is None else float(reflectance),
-        _NO_HARD, RETURN_CODES[mode], DETECTION_FLOOR, flags, behind,
+        RETURN_CODES[mode], DETECTION_FLOOR, flags, behind,
     )  # fmt: skip
     rows = _append_last(pts, c, flags, behind, channel) if dual else n
     channel[rows:] = 0.0

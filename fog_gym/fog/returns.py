@@ -55,14 +55,11 @@ def hard_intensity(points: np.ndarray, tau: np.ndarray) -> np.ndarray:
 
 
 def apply_returns(clean: np.ndarray, strongest: np.ndarray, tau: np.ndarray | None, mode: str,
-                  alpha: float | None = None, i_hard: np.ndarray | None = None,
-                  capacity: int | None = None) -> np.ndarray:  # fmt: skip
+                  alpha: float | None = None, capacity: int | None = None) -> np.ndarray:  # fmt: skip
     """The sweep a LiDAR in ``mode`` reports, from the clean sweep, the model's strongest-echo output (same rows) and
     the optical depth ``tau`` (N,) from the sensor to each clean point (or, for homogeneous fog, ``tau`` None and the
     extinction ``alpha``: ``τ = α·R``): ``(N, C)`` for ``strongest`` and ``last``, ``(N + M, C + 1)`` for ``dual``
-    (the strongest rows first, in order, then the M extra last echoes, in order). ``i_hard`` (N,): each point's
-    attenuated hard intensity on 0–255 as the fog model computed it (:func:`fog_gym.fog.lidar.fog_lidar`'s
-    ``hard``), used instead of recomputing it from ``tau`` or ``alpha``. ``capacity``: the result packed into a
+    (the strongest rows first, in order, then the M extra last echoes, in order). ``capacity``: the result packed into a
     ``(capacity, …)`` point channel (:func:`fog_gym.channels.pack_points`), written there directly."""
     check_mode(mode)
     clean = np.asarray(clean, np.float32)
@@ -71,7 +68,10 @@ def apply_returns(clean: np.ndarray, strongest: np.ndarray, tau: np.ndarray | No
         raise ValueError(f"clean and strongest must be the same sweep, got shapes {clean.shape} and {strongest.shape}")
     if mode == "strongest":
         return strongest
-    tau_arr, a, hard = _hard_inputs(clean, tau, alpha, i_hard)
+    if tau is None and alpha is None:
+        raise ValueError("apply_returns needs the optical depths tau or, for homogeneous fog, alpha")
+    tau_arr = np.zeros(0) if tau is None else np.ascontiguousarray(np.broadcast_to(np.asarray(tau, np.float64), (len(clean),)))
+    a = 0.0 if tau is not None else float(alpha)
     dual = mode == "dual"
     n = len(clean)
     if capacity is not None and (int(capacity) < n or (dual and int(capacity) < 2 * n)):
@@ -79,33 +79,17 @@ def apply_returns(clean: np.ndarray, strongest: np.ndarray, tau: np.ndarray | No
     rows = (2 * n if dual else n) if capacity is None else int(capacity)
     out = np.zeros((rows, clean.shape[1] + dual), np.float32)
     r = _returns_kernel(np.ascontiguousarray(clean), np.ascontiguousarray(strongest), out, tau_arr, a, dual,
-                        DETECTION_FLOOR, hard)  # fmt: skip
+                        DETECTION_FLOOR)  # fmt: skip
     return out if capacity is not None or r == rows else out[:r].copy()
 
 
-def _hard_inputs(clean: np.ndarray, tau: np.ndarray | None, alpha: float | None,
-                 i_hard: np.ndarray | None) -> tuple[np.ndarray, float, np.ndarray]:  # fmt: skip
-    """The kernel's ``tau``, ``alpha`` and ``hard`` arguments: the hard intensities when given, else the optical
-    depths, else the extinction of homogeneous fog (empty arrays for what is not used)."""
-    if i_hard is not None:
-        hard = np.ascontiguousarray(i_hard, np.float64)
-        if hard.shape != (len(clean),):
-            raise ValueError(f"i_hard must hold one intensity per point ({len(clean)}), got shape {hard.shape}")
-        return np.zeros(0), 0.0, hard
-    if tau is None:
-        if alpha is None:
-            raise ValueError("apply_returns needs the optical depths tau or, for homogeneous fog, alpha (or i_hard)")
-        return np.zeros(0), float(alpha), np.zeros(0)
-    return np.ascontiguousarray(np.broadcast_to(np.asarray(tau, np.float64), (len(clean),))), 0.0, np.zeros(0)
-
-
 @njit(cache=True, nogil=True)
-def _returns_kernel(clean, strongest, out, tau, alpha, dual, floor, hard):
+def _returns_kernel(clean, strongest, out, tau, alpha, dual, floor):
     """The return rule in one pass over the beams, into ``out`` (zeros after its first rows): its first N rows the
-    strongest echoes (copied from ``strongest``); "last" (``dual``
-    False) rewrites a row whose hard target reaches the floor behind the fog, "dual" appends it after the N rows
-    with ``return`` 1. ``hard`` the hard intensities (0–255) when given, else from ``tau``, or with ``tau`` empty
-    from ``α·R`` (homogeneous fog, as :func:`homogeneous_tau`). Returns the number of rows written."""
+    strongest echoes (copied from ``strongest``); "last" (``dual`` False) rewrites a row whose hard target reaches
+    the floor behind the fog, "dual" appends it after the N rows with ``return`` 1. The hard intensities (0–255) from
+    ``tau``, or with ``tau`` empty from ``α·R`` (homogeneous fog, as :func:`homogeneous_tau`). Returns the number of
+    rows written."""
     n, c = clean.shape
     r = n  # the next extra row (dual)
     for k in range(n):
@@ -113,15 +97,12 @@ def _returns_kernel(clean, strongest, out, tau, alpha, dual, floor, hard):
             out[k, j] = strongest[k, j]
         if out[k, 0] == clean[k, 0] and out[k, 1] == clean[k, 1] and out[k, 2] == clean[k, 2]:
             continue  # the strongest echo is the target itself
-        if hard.shape[0] > 0:
-            h = hard[k]
+        if tau.shape[0] > 0:
+            t = tau[k]
         else:
-            if tau.shape[0] > 0:
-                t = tau[k]
-            else:
-                x, y, z = np.float64(clean[k, 0]), np.float64(clean[k, 1]), np.float64(clean[k, 2])
-                t = alpha * np.sqrt(x * x + y * y + z * z)
-            h = np.round(np.round(np.float64(clean[k, 3]) * 255.0) * np.exp(-2.0 * t))
+            x, y, z = np.float64(clean[k, 0]), np.float64(clean[k, 1]), np.float64(clean[k, 2])
+            t = alpha * np.sqrt(x * x + y * y + z * z)
+        h = np.round(np.round(np.float64(clean[k, 3]) * 255.0) * np.exp(-2.0 * t))
         if h < floor:  # nothing the receiver detects behind the fog
             continue
         row = r if dual else k  # "last": the hard target replaces the fog's echo; "dual": an extra row

@@ -196,29 +196,23 @@ def test_homogeneous_alpha_path_equals_the_optical_depths(seed, alpha):
 
 
 @settings(max_examples=20, deadline=None)
-@given(seed=st.integers(0, 10_000), visibility=st.floats(20.0, 400.0), reflect=st.booleans())
-def test_the_fog_pass_hard_echo_equals_the_return_rule_own(seed, visibility, reflect):
-    """fog_lidar's ``hard`` output (the fog pass's attenuated hard echo) gives the same last and dual sweeps as the
-    return rule recomputing it from α·R; the strongest sweep does not depend on asking for it."""
+@given(seed=st.integers(0, 10_000), visibility=st.floats(20.0, 400.0))
+def test_the_return_rule_packed_into_a_channel_equals_its_sweep_padded(seed, visibility):
+    """``apply_returns(..., capacity=)`` writes the packed channel itself: the unpacked sweep padded with zero rows;
+    a capacity that cannot hold the dual returns is refused."""
     rng = np.random.default_rng(seed)
     clean = np.c_[rng.uniform(-80, 80, (400, 3)), rng.uniform(0.01, 1, 400)].astype(np.float32)
     level = parse_fog(visibility)
-    hard = np.empty(len(clean))
-    with_hard = fog_lidar(clean, level, np.random.default_rng(1), reflectance=0.004 if reflect else None, hard=hard)
-    plain = fog_lidar(clean, level, np.random.default_rng(1), reflectance=0.004 if reflect else None)
-    assert np.array_equal(with_hard, plain)
-    np.testing.assert_array_equal(hard, hard_intensity(clean, homogeneous_tau(clean, level.alpha)))
+    plain = fog_lidar(clean, level, np.random.default_rng(1))
     for mode in ("last", "dual"):
-        assert np.array_equal(apply_returns(clean, plain, None, mode, i_hard=hard),
-                              apply_returns(clean, plain, None, mode, alpha=level.alpha))
-        packed = apply_returns(clean, plain, None, mode, i_hard=hard, capacity=2 * len(clean) + 5)
-        assert np.array_equal(packed, pack_points(apply_returns(clean, plain, None, mode, i_hard=hard), len(packed)))
-    with pytest.raises(ValueError, match="one intensity per point"):
-        apply_returns(clean, plain, None, "last", i_hard=hard[:-1])
+        by_alpha = apply_returns(clean, plain, None, mode, alpha=level.alpha)
+        assert np.array_equal(by_alpha, apply_returns(clean, plain, homogeneous_tau(clean, level.alpha), mode))
+        packed = apply_returns(clean, plain, None, mode, alpha=level.alpha, capacity=2 * len(clean) + 5)
+        assert np.array_equal(packed, pack_points(by_alpha, len(packed)))
     with pytest.raises(ValueError, match="cannot hold the dual returns"):
-        apply_returns(clean, plain, None, "dual", i_hard=hard, capacity=len(clean))
-    with pytest.raises(ValueError, match="hard must be a float64 array"):
-        fog_lidar(clean, level, np.random.default_rng(1), hard=np.empty(3))
+        apply_returns(clean, plain, None, "dual", alpha=level.alpha, capacity=len(clean))
+    with pytest.raises(ValueError, match="needs the optical depths tau"):
+        apply_returns(clean, plain, None, "last")
 
 
 @settings(max_examples=40, deadline=None)
