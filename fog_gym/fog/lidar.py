@@ -223,15 +223,20 @@ def fog_lidar(points: np.ndarray, level: FogLevel, rng: np.random.Generator, noi
             out[...] = pts
             return out
         return pts.copy()
+    out = np.empty_like(pts) if out is None else out
+    _run_hahner(pts, pts.shape[1], level, rng, noise, reflectance, out, 0, 0.0, _NO_FLAGS, _NO_HARD)
+    return out
+
+
+def _run_hahner(pts, c, level, rng, noise, reflectance, out, mode, floor, flags, behind) -> None:
+    """One draw of the range noise per point and :func:`_hahner` over the points (both fog entry points)."""
     table_i, table_r = soft_response_table(level.alpha)
     u = rng.uniform(-1.0, 1.0, len(pts))
-    out = np.empty_like(pts) if out is None else out
     pick(_hahner, _hahner_serial, len(pts))(
-        pts, pts.shape[1], table_i, table_r, level.alpha, BETA_PER_MOR / level.visibility_m / (GAMMA / math.pi),
+        pts, c, table_i, table_r, level.alpha, BETA_PER_MOR / level.visibility_m / (GAMMA / math.pi),
         math.log(max(1.0, noise / 5.0)) if noise > 0 else 0.0, u, out, -1.0 if reflectance is None else float(reflectance),
-        0, 0.0, _NO_FLAGS, _NO_HARD,
+        mode, floor, flags, behind,
     )  # fmt: skip
-    return out
 
 
 def fog_lidar_into(points: np.ndarray, level: FogLevel, rng: np.random.Generator, channel: np.ndarray,
@@ -274,14 +279,8 @@ def fog_lidar_into(points: np.ndarray, level: FogLevel, rng: np.random.Generator
         channel[:n, c:] = 0.0
         channel[n:] = 0.0
         return n
-    table_i, table_r = soft_response_table(level.alpha)
-    u = rng.uniform(-1.0, 1.0, n)
     flags, behind = (np.empty(n, np.uint8), np.empty(n)) if dual else (_NO_FLAGS, _NO_HARD)
-    pick(_hahner, _hahner_serial, n)(
-        pts, c, table_i, table_r, level.alpha, BETA_PER_MOR / level.visibility_m / (GAMMA / math.pi),
-        math.log(max(1.0, noise / 5.0)) if noise > 0 else 0.0, u, channel, -1.0 if reflectance is None else float(reflectance),
-        RETURN_CODES[mode], DETECTION_FLOOR, flags, behind,
-    )  # fmt: skip
+    _run_hahner(pts, c, level, rng, noise, reflectance, channel, RETURN_CODES[mode], DETECTION_FLOOR, flags, behind)
     rows = _append_last(pts, c, flags, behind, channel) if dual else n
     channel[rows:] = 0.0
     return rows
