@@ -81,6 +81,33 @@ def test_kernel_draws_follow_the_table_and_are_reproducible_and_independent():
     assert (img == 64).all()  # the input is not changed
 
 
+def _reference_noise(img: np.ndarray, table: np.ndarray, key: int) -> np.ndarray:
+    """The kernel's draws in numpy: pixel p (row-major) hashes key + (p + 1)·φ with SplitMix64; bits 0-9, 12-21 and
+    24-33 are its red, green and blue quantiles."""
+    with np.errstate(over="ignore"):
+        p = np.arange(img.shape[0] * img.shape[1], dtype=np.uint64)
+        z = np.uint64(key) + (p + np.uint64(1)) * np.uint64(0x9E3779B97F4A7C15)
+        z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
+        z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
+        z ^= z >> np.uint64(31)
+    m = np.uint64(TABLE_SIZE - 1)
+    u = np.stack([(z >> np.uint64(s)) & m for s in (0, 12, 24)], axis=1).astype(np.intp)
+    return table[img.reshape(-1, 3), u].reshape(img.shape)
+
+
+@settings(max_examples=20, deadline=None)
+@given(st.integers(1, 90), st.integers(1, 90), st.integers(0, 2**64 - 1), st.integers(0, 2**32))
+def test_kernel_is_splitmix_over_the_pixels_on_one_thread_and_in_parallel(h, w, key, seed):
+    from fog_gym.sensors.camera_noise import _noise_kernel, _noise_kernel_serial
+
+    img = np.random.default_rng(seed).integers(0, 256, (h, w, 3), dtype=np.uint8)
+    table = noise_table(DEFAULT_NOISE, 2.0, True)
+    want = _reference_noise(img, table, key)
+    assert (add_noise(img, table, key) == want).all()
+    for kernel in (_noise_kernel, _noise_kernel_serial):  # every span split: fewer pixels than spans too
+        assert (kernel(img, table, np.uint64(key), np.empty_like(img)) == want).all()
+
+
 def test_bad_noise_configs_are_one_line_errors_naming_the_field():
     for kwargs, field in (({"full_well_e": 0}, "full_well_e"), ({"read_noise_e": -1}, "read_noise_e"),
                           ({"night_gain": 0.5}, "night_gain"), ({"motion_blur": 1}, "motion_blur"),
