@@ -270,6 +270,37 @@ def _lidar_points(dirs, dist, index, noise, uniform, attenuation, limit, alpha, 
     return out, src
 
 
+@njit(cache=True, nogil=True)
+def _slice_sort(rays, dirs, col_slice, order, sorted_dirs, bounds):
+    """The traced rays of a sweep that takes time sorted by slice, stably (laser order within a slice), by counting:
+    ``rays`` the traced rays' laser indices, ascending (channel-major: ``len(col_slice)`` columns a channel),
+    ``dirs`` every ray's direction, ``col_slice`` each column's slice. Writes ``order`` (each sorted ray's position
+    in ``rays``), ``sorted_dirs`` (its direction) and ``bounds`` (slice ``k`` is ``bounds[k]:bounds[k + 1]``): what
+    :func:`fog_gym.sensors.motion.sweep_order` and a take give, in two passes without a division."""
+    n, m, n_slices = rays.shape[0], col_slice.shape[0], bounds.shape[0] - 1
+    slice_of = np.empty(n, np.int32)
+    start = np.zeros(n_slices + 1, np.int64)
+    row = 0  # the laser index of the current channel's first column
+    for i in range(n):
+        while rays[i] >= row + m:
+            row += m
+        k = col_slice[rays[i] - row]
+        slice_of[i] = k
+        start[k + 1] += 1
+    for k in range(n_slices):
+        start[k + 1] += start[k]
+    bounds[:] = start
+    for i in range(n):
+        k = slice_of[i]
+        p = start[k]
+        start[k] = p + 1
+        order[p] = i
+        r = rays[i]
+        sorted_dirs[p, 0] = dirs[r, 0]
+        sorted_dirs[p, 1] = dirs[r, 1]
+        sorted_dirs[p, 2] = dirs[r, 2]
+
+
 _NONE = np.zeros(0)
 
 
@@ -307,7 +338,7 @@ def simulate_lidar(
     True
     """
     rot, origin = split_transform(sensor_to_world)
-    dirs = lidar_directions(cfg, simulation_frequency, start_angle)
+    dirs = all_dirs = lidar_directions(cfg, simulation_frequency, start_angle)
     rays = None
     if cfg.dropoff_general_rate > _EPS:  # rays skipped before tracing
         rays = np.flatnonzero(rng.random(dirs.shape[0]) >= cfg.dropoff_general_rate)
@@ -318,12 +349,14 @@ def simulate_lidar(
         hits = cast_rays(origin, dirs, cfg.range, prims, rotation=rot)
         reflect = _NONE32 if cfg.intensity == "carla" else reflectance(hits, dirs, rot, origin, surface, prims.colors)
     else:  # a sweep that takes time: each slice of columns from where the sensor and the world are at its time
-        from fog_gym.sensors.motion import slice_times, sweep_order
+        from fog_gym.sensors.motion import MOTION_SLICES, slice_times
 
         m = cfg.points_per_channel(simulation_frequency)
-        order, bounds = sweep_order((np.arange(n) if rays is None else rays) % m, m)
-        times_of = slice_times(simulation_frequency, len(bounds) - 1)
-        sorted_dirs = dirs.take(order, axis=0)  # the slices' rays contiguous: each slice casts a view
+        n_slices = max(1, min(MOTION_SLICES, m))
+        order, bounds, sorted_dirs = np.empty(n, np.int64), np.empty(n_slices + 1, np.int64), np.empty((n, 3))
+        _slice_sort(np.arange(n) if rays is None else rays, all_dirs, (np.arange(m) * n_slices // m).astype(np.int32),
+                    order, sorted_dirs, bounds)  # fmt: skip  (the slices' rays contiguous: each slice casts a view)
+        times_of = slice_times(simulation_frequency, n_slices)
         at = [motion(float(t)) for t in times_of]  # each slice's sensor → world and world
         frames = [split_transform(s2w) for s2w, _ in at]
         hits = RayHits(np.empty(n, np.float32), np.empty(n, np.int32), np.empty(n, np.float32), np.empty(n, np.uint8))

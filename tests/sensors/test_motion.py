@@ -140,6 +140,23 @@ def test_sweep_slices_cover_every_ray_once():
     assert all((np.diff(cols[s] * MOTION_SLICES // 1016) == 0).all() for s in slices if s.size)
 
 
+@settings(max_examples=40, deadline=None)
+@given(st.integers(1, 5), st.integers(1, 300), st.integers(1, 40), st.floats(0.0, 0.95), st.integers(0, 2**32))
+def test_counting_sort_of_a_sweep_equals_sweep_order_and_a_take(channels, m, n_slices, drop, seed):
+    from fog_gym.sensors.lidar import _slice_sort
+    from fog_gym.sensors.motion import sweep_order
+
+    rng = np.random.default_rng(seed)
+    rays = np.flatnonzero(rng.random(channels * m) >= drop)
+    dirs = rng.normal(size=(channels * m, 3))
+    s = max(1, min(n_slices, m))
+    order, bounds, got = np.empty(len(rays), np.int64), np.empty(s + 1, np.int64), np.empty((len(rays), 3))
+    _slice_sort(rays, dirs, (np.arange(m) * s // m).astype(np.int32), order, got, bounds)
+    want_order, want_bounds = sweep_order(rays % m, m, s)
+    assert np.array_equal(order, want_order) and np.array_equal(bounds, want_bounds)
+    assert np.array_equal(got, dirs[rays][want_order])
+
+
 def test_bad_motion_values_are_one_line_errors():
     with pytest.raises(ValueError, match="motion must be one of"):
         LidarConfig(motion="smooth")
