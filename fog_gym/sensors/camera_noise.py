@@ -260,30 +260,38 @@ def frame_key(seed: int, tick: int, camera: int, variant: int) -> int:
 
 
 #: Pixels below which :func:`add_noise` runs on one thread. The kernel's work per pixel is a hash and three table
-#: lookups (about 2 ns): under this size a parallel launch costs more than it saves (at 320 × 240 the parallel kernel
-#: took 0.20 ms, the serial one 0.16 ms; at 1280 × 960 1.9 against 2.7 ms, on this project's two cores).
+#: lookups (about 2 ns): under this size a parallel launch costs more than it saves (on this project's two cores,
+#: serial against parallel: 0.17 against 0.27 ms at 320 × 240, 0.68 against 1.0 ms at 640 × 480, 2.7 against 1.65 ms
+#: at 1280 × 960).
 NOISE_SERIAL_BELOW = 1 << 19
+_BLOCK = 256  # pixels whose hashes are drawn together
 _CHUNKS = 16  # the parallel kernel's spans of pixels (whole spans, not rows: a row's work is too small to share)
 
 
 @njit(cache=True, nogil=True, inline="always")
 def _noise_span(flat, table, key, out, p0, p1):
     """Pixels ``p0 .. p1 − 1`` of the flattened image ``flat`` into ``out``: pixel ``p``'s hash is SplitMix64 of
-    ``key + (p + 1)·φ``; bits 0–9, 12–21 and 24–33 pick its red, green and blue quantiles."""
+    ``key + (p + 1)·φ``; bits 0–9, 12–21 and 24–33 pick its red, green and blue quantiles. The hashes of a block of
+    pixels first (a loop the compiler vectorises), then their lookups: 28 % less time than one loop doing both."""
     golden = np.uint64(0x9E3779B97F4A7C15)
     c1 = np.uint64(0xBF58476D1CE4E5B9)
     c2 = np.uint64(0x94D049BB133111EB)
     mask = np.uint64(TABLE_SIZE - 1)
     s30, s27, s31, s12, s24 = np.uint64(30), np.uint64(27), np.uint64(31), np.uint64(12), np.uint64(24)
-    for p in range(p0, p1):
-        z = key + (np.uint64(p) + np.uint64(1)) * golden
-        z = (z ^ (z >> s30)) * c1
-        z = (z ^ (z >> s27)) * c2
-        z = z ^ (z >> s31)
-        q = 3 * p
-        out[q] = table[(np.intp(flat[q]) << _BITS) | np.intp(z & mask)]
-        out[q + 1] = table[(np.intp(flat[q + 1]) << _BITS) | np.intp((z >> s12) & mask)]
-        out[q + 2] = table[(np.intp(flat[q + 2]) << _BITS) | np.intp((z >> s24) & mask)]
+    hashes = np.empty(_BLOCK, np.uint64)
+    for b0 in range(p0, p1, _BLOCK):
+        b1 = min(p1, b0 + _BLOCK)
+        for j in range(b1 - b0):
+            z = key + (np.uint64(b0 + j) + np.uint64(1)) * golden
+            z = (z ^ (z >> s30)) * c1
+            z = (z ^ (z >> s27)) * c2
+            hashes[j] = z ^ (z >> s31)
+        for j in range(b1 - b0):
+            z = hashes[j]
+            q = 3 * (b0 + j)
+            out[q] = table[(np.intp(flat[q]) << _BITS) | np.intp(z & mask)]
+            out[q + 1] = table[(np.intp(flat[q + 1]) << _BITS) | np.intp((z >> s12) & mask)]
+            out[q + 2] = table[(np.intp(flat[q + 2]) << _BITS) | np.intp((z >> s24) & mask)]
 
 
 @njit(cache=True, nogil=True, parallel=True)
