@@ -64,10 +64,11 @@ def serial_twin(kernel):
     return njit(cache=True, **options)(copy)
 
 
-def pick(kernel, twin, work: int):
-    """``kernel`` for ``work`` pixels, rays or points of at least :data:`SERIAL_BELOW`, else its serial ``twin`` (and
-    always the twin in a :func:`worker_pool`'s thread)."""
-    return kernel if work >= SERIAL_BELOW and not _THREAD.worker else twin
+def pick(kernel, twin, work: int, below: int = SERIAL_BELOW):
+    """``kernel`` for ``work`` pixels, rays or points of at least ``below`` (default :data:`SERIAL_BELOW`; a kernel
+    with less work per item passes its own), else its serial ``twin`` (and always the twin in a
+    :func:`worker_pool`'s thread)."""
+    return kernel if work >= below and not _THREAD.worker else twin
 
 
 class _ThreadState(threading.local):

@@ -316,6 +316,5 @@ def add_noise(rgb: np.ndarray, table: np.ndarray, key: int) -> np.ndarray:
     if table.shape != (256, TABLE_SIZE) or table.dtype != np.uint8:
         raise ValueError(f"table must be a (256, {TABLE_SIZE}) uint8 noise table, got {table.dtype} {table.shape}")
     out = np.empty_like(img)
-    n = img.shape[0] * img.shape[1]
-    kernel = pick(_noise_kernel, _noise_kernel_serial, n) if n >= NOISE_SERIAL_BELOW else _noise_kernel_serial
+    kernel = pick(_noise_kernel, _noise_kernel_serial, img.shape[0] * img.shape[1], NOISE_SERIAL_BELOW)
     return kernel(img, table, np.uint64(int(key) & _M64), out)

@@ -349,10 +349,10 @@ def simulate_lidar(
         hits = cast_rays(origin, dirs, cfg.range, prims, rotation=rot)
         reflect = _NONE32 if cfg.intensity == "carla" else reflectance(hits, dirs, rot, origin, surface, prims.colors)
     else:  # a sweep that takes time: each slice of columns from where the sensor and the world are at its time
-        from fog_gym.sensors.motion import MOTION_SLICES, slice_times
+        from fog_gym.sensors.motion import slice_count, slice_times
 
         m = cfg.points_per_channel(simulation_frequency)
-        n_slices = max(1, min(MOTION_SLICES, m))
+        n_slices = slice_count(m)
         order, bounds, sorted_dirs = np.empty(n, np.int64), np.empty(n_slices + 1, np.int64), np.empty((n, 3))
         _slice_sort(np.arange(n) if rays is None else rays, all_dirs, (np.arange(m) * n_slices // m).astype(np.int32),
                     order, sorted_dirs, bounds)  # fmt: skip  (the slices' rays contiguous: each slice casts a view)
@@ -517,11 +517,11 @@ class LidarSensor(PointSensor):
         cfg = self.config
         motion = None
         if cfg.motion == "continuous":
-            from fog_gym.sensors.motion import MOTION_SLICES, slice_times
+            from fog_gym.sensors.motion import slice_count, slice_times
             from fog_gym.world.motion import SceneMotion
 
             sm = SceneMotion(scene.vehicles, getattr(scene, "previous", None))
-            n_slices = min(MOTION_SLICES, cfg.points_per_channel(self.simulation_frequency))
+            n_slices = slice_count(cfg.points_per_channel(self.simulation_frequency))
             times = slice_times(self.simulation_frequency, n_slices)
             poses = [sm.ego_pose_at(t, scene.ego_id) for t in times]
             mp = Pose.coerce(cfg.pose)

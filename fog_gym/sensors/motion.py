@@ -37,6 +37,12 @@ import numpy as np
 MOTION_SLICES = 16
 
 
+def slice_count(n_columns: int, n_slices: int = MOTION_SLICES) -> int:
+    """The slices a sweep of ``n_columns`` azimuth columns is cast in: ``n_slices``, but at least 1 and at most one a
+    column."""
+    return max(1, min(int(n_slices), int(n_columns)))
+
+
 def slice_times(simulation_frequency: float, n_slices: int = MOTION_SLICES) -> np.ndarray:
     """Each slice's firing time [s] from the tick's end: ``−T + (k + ½)·T/S``."""
     tick = 1.0 / float(simulation_frequency)
@@ -46,7 +52,7 @@ def slice_times(simulation_frequency: float, n_slices: int = MOTION_SLICES) -> n
 def sweep_order(columns: np.ndarray, n_columns: int, n_slices: int = MOTION_SLICES) -> tuple[np.ndarray, np.ndarray]:
     """The rays sorted by slice (stably: laser order within a slice) and each slice's bounds in that order: slice
     ``k`` is ``order[bounds[k]:bounds[k + 1]]``. One radix pass (the slice numbers fit a byte or two)."""
-    n_slices = max(1, min(int(n_slices), int(n_columns)))
+    n_slices = slice_count(n_columns, n_slices)
     k = np.asarray(columns, np.int64) * n_slices // int(n_columns)
     order = np.argsort(k.astype(np.uint8 if n_slices <= 256 else np.uint16), kind="stable")
     bounds = np.zeros(n_slices + 1, np.int64)
@@ -58,7 +64,7 @@ def sweep_slices(columns: np.ndarray, n_columns: int, simulation_frequency: floa
                  n_slices: int = MOTION_SLICES) -> tuple[list[np.ndarray], np.ndarray]:  # fmt: skip
     """The rays of each slice (indices into ``columns``, each ray's azimuth column of ``n_columns``) and each slice's
     time [s] from the tick's end."""
-    n_slices = max(1, min(int(n_slices), int(n_columns)))
+    n_slices = slice_count(n_columns, n_slices)
     order, bounds = sweep_order(columns, n_columns, n_slices)
     return [order[bounds[i]: bounds[i + 1]] for i in range(n_slices)], slice_times(simulation_frequency, n_slices)
 
