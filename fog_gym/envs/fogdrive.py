@@ -276,9 +276,10 @@ class FogDriveEnv(gym.Env):
         fx = self.camera_effects
         if fx:
             fx.prepare(self._noise_seed, self._steps, self.cameras.exposure, self.scene.lighting.night, self._flows())
+        recorded = fx.apply_all({name: f.rgb for name, f in self.frames.items()}, 0) if fx else {}
         obs: dict[str, np.ndarray] = {}
         for name, f in self.frames.items():
-            obs[name] = fx.apply(name, f.rgb, 0) if fx else f.rgb
+            obs[name] = recorded.get(name, f.rgb)
             obs[f"{name}_DEPTH"] = f.depth
             obs[f"{name}_SEM"] = f.semantic
         tick = max(self.world.tick - 1, 0)  # the simulation tick this keyframe closes

@@ -1,10 +1,11 @@
 """What a real camera does to the rendered light: motion blur over the exposure, then sensor noise, per frame.
 
 :class:`CameraEffects` holds, for the cameras of a rig that have a :class:`~fog_gym.sensors.camera_noise.CameraNoise`,
-the frame's noise tables (one per camera: the gain follows that camera's auto-exposure), image flows (with motion
+the frame's noise laws (one per camera: the gain follows that camera's auto-exposure), image flows (with motion
 blur) and noise keys. :meth:`CameraEffects.prepare` sets them up once per frame; :meth:`CameraEffects.apply` turns a
 noise-free RGB image of the frame — the clean one or any fogged variant (fog is light in the scene, so it comes
-before the sensor) — into what the camera records, each variant with its own draws from the episode's one seed.
+before the sensor) — into what the camera records, each variant with its own draws from the episode's one seed;
+:meth:`CameraEffects.apply_all` does it for every camera of the frame in one kernel launch.
 
 Example:
     >>> from fog_gym.sensors.camera import CameraConfig
@@ -15,6 +16,8 @@ Example:
     >>> a, b = fx.apply("CAM_FRONT", img, 0), fx.apply("CAM_FRONT", img, 1)
     >>> bool((a != img).any()), bool((a != b).any()), abs(float(a.mean()) - 100) < 1
     (True, True, True)
+    >>> bool((fx.apply_all({"CAM_FRONT": img}, 1)["CAM_FRONT"] == b).all())
+    True
 """
 
 from __future__ import annotations
@@ -25,10 +28,10 @@ from typing import Any
 
 import numpy as np
 
-from fog_gym.sensors.camera_noise import CameraNoise, add_noise, frame_key, noise_table
+from fog_gym.sensors.camera_noise import CameraNoise, NoiseLaw, add_noise_many, frame_key, noise_law
 from fog_gym.sensors.motion_blur import blur_motion, image_flow
 
-#: Noise tables kept per (sensor, gain, night) (day frames all share gain 1).
+#: Noise laws kept per (sensor, gain, night) (day frames all share gain 1).
 TABLE_CACHE = 32
 
 
@@ -38,22 +41,22 @@ class CameraEffects:
     def __init__(self, cameras: Sequence[Any]) -> None:
         self.noise: dict[str, CameraNoise] = {c.name: c.noise for c in cameras if getattr(c, "noise", None) is not None}
         self._index = {c.name: i for i, c in enumerate(cameras)}
-        self._tables: OrderedDict[tuple, np.ndarray] = OrderedDict()
-        self._frame: dict[str, tuple[np.ndarray, int, np.ndarray | None]] = {}
+        self._laws: OrderedDict[tuple, NoiseLaw] = OrderedDict()
+        self._frame: dict[str, tuple[NoiseLaw, int, np.ndarray | None]] = {}
 
     def __bool__(self) -> bool:
         return bool(self.noise)
 
-    def table(self, noise: CameraNoise, gain: float, night: bool) -> np.ndarray:
+    def law(self, noise: CameraNoise, gain: float, night: bool) -> NoiseLaw:
         key = (noise, float(gain), bool(night))
-        t = self._tables.get(key)
-        if t is None:
-            t = self._tables[key] = noise_table(noise, gain, night)
-            if len(self._tables) > TABLE_CACHE:
-                self._tables.popitem(last=False)
+        law = self._laws.get(key)
+        if law is None:
+            law = self._laws[key] = noise_law(noise, gain, night)
+            if len(self._laws) > TABLE_CACHE:
+                self._laws.popitem(last=False)
         else:
-            self._tables.move_to_end(key)
-        return t
+            self._laws.move_to_end(key)
+        return law
 
     def prepare(self, seed: int, tick: int, exposure: Mapping[str, float], night: bool,
                 flows: Mapping[str, Any] | None = None) -> None:  # fmt: skip
@@ -65,15 +68,26 @@ class CameraEffects:
             flow = None
             if noise.motion_blur and flows is not None and name in flows:
                 flow = image_flow(*flows[name], noise.exposure_s[1] if night else noise.exposure_s[0])
-            self._frame[name] = (self.table(noise, exposure.get(name, 1.0), night),
+            self._frame[name] = (self.law(noise, exposure.get(name, 1.0), night),
                                  frame_key(seed, tick, self._index[name], 0), flow)  # fmt: skip
 
     def apply(self, name: str, rgb: np.ndarray, variant: int) -> np.ndarray:
         """The recorded image of noise-free ``rgb`` of camera ``name`` in this frame; ``variant`` 0 the clean frame,
         another integer a fogged one (its own draws). Cameras without noise get ``rgb`` back."""
-        if name not in self._frame:
-            return rgb
-        table, key, flow = self._frame[name]
-        if flow is not None:
-            rgb = blur_motion(rgb, flow)
-        return add_noise(rgb, table, frame_key(key, variant, 0, 0) if variant else key)
+        return self.apply_all({name: rgb}, variant)[name]
+
+    def apply_all(self, images: Mapping[str, np.ndarray], variant: int) -> dict[str, np.ndarray]:
+        """:meth:`apply` to every camera's image of ``images`` (name → noise-free RGB), the noise of all of them
+        drawn in one kernel launch."""
+        out = dict(images)
+        names = [n for n in images if n in self._frame]
+        if not names:
+            return out
+        rgbs, laws, keys = [], [], []
+        for name in names:
+            law, key, flow = self._frame[name]
+            rgbs.append(blur_motion(images[name], flow) if flow is not None else images[name])
+            laws.append(law)
+            keys.append(frame_key(key, variant, 0, 0) if variant else key)
+        out.update(zip(names, add_noise_many(rgbs, laws, keys)))
+        return out

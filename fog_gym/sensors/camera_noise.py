@@ -29,10 +29,23 @@ read noise ``σ_r = 2.5 e⁻`` is an assumption (the 2–3 e⁻ of the pixel fam
 :class:`CameraNoise` takes other values.
 
 **How it is drawn.** The output of a pixel depends only on its noise-free level ``v`` (0–255), the gain and its
-random draw, so per camera and frame :func:`noise_table` tabulates the exact distribution of the model for every
-``v`` as :data:`TABLE_SIZE` quantiles (the Poisson ⊛ Gaussian law summed exactly, :func:`_cdf_table`), and the kernel (:func:`add_noise`) looks each pixel's channel up at a quantile drawn by a
-counter-based hash (SplitMix64) of the frame's key and the pixel's index: the same key gives the same noise on any
-machine and thread count, and every (episode, frame, camera, fog variant) has its own key (:func:`frame_key`).
+random draw, so per camera and frame :func:`noise_law` holds the exact distribution of the model for every ``v``
+(the Poisson ⊛ Gaussian law summed exactly, :func:`_cdf_table`), tabulated as :data:`TABLE_SIZE` quantiles
+(:func:`noise_table`). Two kernels draw from it (:func:`add_noise`, :func:`add_noise_many`), both from a
+counter-based hash of the frame's key and the value's index, so the same key gives the same noise on any machine
+and thread count, and every (episode, frame, camera, fog variant) has its own key (:func:`frame_key`):
+
+* **the exact table** — each pixel's SplitMix64 hash picks its three channels' quantiles, one table look-up each;
+* **the Gaussian draw** — where the exact law *is* Gaussian to within a grey level's rounding, as by day, where the
+  darkest level still collects 49 electrons (a Poisson count of 49 has skewness 1/7, and the read-out divides it
+  by 50 electrons a grey level): ``round(v + σ_v·z)``, ``σ_v² = c₀ + c₁·v`` (:func:`predicted_variance` without
+  the rounding's 1/12), ``z`` the sum of the four bytes of a 32-bit hash (Irwin–Hall, standardised) with a cubic
+  Cornish–Fisher correction (:data:`GAUSS_CF`) — all of it vector arithmetic, about twice as fast as the table's
+  look-ups, which the compiler cannot vectorise. :func:`noise_law` uses it only when the draw's law (its
+  output histogram, computed exactly from the 1 021 values of the byte sum) is within a total variation of
+  :data:`GAUSSIAN_TV` of the exact law at every level; else the table. Default sensor by day: 0.0077 (the table's own
+  rounding to 1/1024 quantiles: 0.0036), so day frames take the Gaussian draw; at night the darkest levels hold a
+  few electrons and the shoulder of the tone curve bends the law, so night frames take the table.
 
 **Motion blur** (``motion_blur=True``, opt-in): the frame is averaged over the exposure time along each pixel's image
 motion (:func:`blur_motion`, a velocity-buffer blur: the ego's motion for the static world and each vehicle's own
@@ -47,16 +60,22 @@ Example:
     >>> img = np.full((4, 4, 3), 128, np.uint8)
     >>> bool((add_noise(img, table, frame_key(0, 0, 0, 0)) == add_noise(img, table, frame_key(0, 0, 0, 0))).all())
     True
+    >>> day, night = noise_law(DEFAULT_NOISE, 1.0, False), noise_law(DEFAULT_NOISE, 4.0, True)
+    >>> day.gaussian, round(day.tv, 4), night.gaussian
+    (True, 0.0077, False)
 """
 
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Any
+from collections.abc import Sequence
+from typing import Any, NamedTuple
 
 import numpy as np
-from numba import njit, prange
+from llvmlite import ir
+from numba import njit, prange, types
+from numba.extending import intrinsic
 
 import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
 from fog_gym._numba import pick, serial_twin
@@ -151,21 +170,82 @@ def _thresholds(noise: CameraNoise, gain: float, night: bool) -> np.ndarray:
     return x * noise.full_well_e / gain
 
 
-def noise_table(noise: CameraNoise, gain: float, night: bool) -> np.ndarray:
-    """``(256, TABLE_SIZE)`` uint8: row ``v`` holds the model's output levels for a noise-free level ``v`` at the
-    quantiles ``(m + ½)/TABLE_SIZE`` (module docstring; ``gain`` is the frame's auto-exposure gain)."""
+def _exact_cdf(noise: CameraNoise, gain: float, night: bool) -> np.ndarray:
+    """``(256, 255)``: ``P(output <= d)`` for a noise-free level ``v`` (row) and ``d = 0..254`` (column)."""
     a = noise.gain(gain, night)
     lam = level_signal(np.arange(256), night) * noise.full_well_e / a  # mean electrons per level
     t = _thresholds(noise, a, night)
     t = np.where(t > noise.full_well_e, np.inf, t)  # a full well reads above every threshold it reaches
-    cdf = _cdf_table(lam, np.where(np.isfinite(t), t, -1.0), noise.read_noise_e)
+    return np.minimum(_cdf_table(lam, np.where(np.isfinite(t), t, -1.0), noise.read_noise_e), 1.0)
+
+
+def _quantiles(cdf: np.ndarray) -> np.ndarray:
     # the level of quantile u_m = (m + ½)/M is the number of thresholds with F(t_d) <= u_m: threshold d is reached
     # from m = ceil(F·M − ½) on, so a histogram of those first quantiles, summed along m, is the table
-    first = np.clip(np.ceil(np.minimum(cdf, 1.0) * TABLE_SIZE - 0.5), 0, TABLE_SIZE).astype(np.int64)
+    first = np.clip(np.ceil(cdf * TABLE_SIZE - 0.5), 0, TABLE_SIZE).astype(np.int64)
     first += (TABLE_SIZE + 1) * np.arange(256)[:, None]
     counts = np.bincount(first.ravel(), minlength=256 * (TABLE_SIZE + 1)).reshape(256, TABLE_SIZE + 1)
-    table = np.cumsum(counts[:, :TABLE_SIZE], axis=1)
-    return table.astype(np.uint8)
+    return np.cumsum(counts[:, :TABLE_SIZE], axis=1).astype(np.uint8)
+
+
+def noise_table(noise: CameraNoise, gain: float, night: bool) -> np.ndarray:
+    """``(256, TABLE_SIZE)`` uint8: row ``v`` holds the model's output levels for a noise-free level ``v`` at the
+    quantiles ``(m + ½)/TABLE_SIZE`` (module docstring; ``gain`` is the frame's auto-exposure gain)."""
+    return _quantiles(_exact_cdf(noise, gain, night))
+
+
+class NoiseLaw(NamedTuple):
+    """A frame's noise (:func:`noise_law`): the exact law's ``table`` (:func:`noise_table`); whether the kernels
+    draw the Gaussian law instead (``gaussian``), its variance ``c0 + c1·v`` [DN²] and ``tv``, the largest total
+    variation between that draw's law and the exact one over the 256 levels."""
+
+    table: np.ndarray
+    gaussian: bool
+    c0: float
+    c1: float
+    tv: float
+
+
+#: The largest total variation between the Gaussian draw's law and the exact law, over the levels, for which
+#: :func:`noise_law` draws the Gaussian (module docstring): about three times the exact table's own rounding.
+GAUSSIAN_TV = 0.01
+#: The byte sum ``s`` of a 32-bit hash (Irwin–Hall of four bytes) standardised, ``g = (s − 510)/√21845``, and
+#: corrected ``z = g·(a + b·g²)``: ``(a, b)`` the weighted least-squares fit of ``Φ⁻¹(F(s))`` (``F`` the byte sum's
+#: mid-step distribution function) over the 1 021 sums (a test refits it).
+GAUSS_CF = (0.951406, 0.017765)
+_IH_SD = math.sqrt(4 * (256 * 256 - 1) / 12.0)
+
+
+def _byte_sum_law() -> tuple[np.ndarray, np.ndarray]:
+    """The byte sum's 1 021 values as the kernel's ``z`` (float32, the kernel's own arithmetic) and their
+    probabilities."""
+    u = np.full(256, 1.0 / 256)
+    p = np.convolve(np.convolve(u, u), np.convolve(u, u))
+    s = np.arange(p.size, dtype=np.float32)
+    g = s * np.float32(1.0 / _IH_SD) - np.float32(510.0 / _IH_SD)
+    return g * (np.float32(GAUSS_CF[0]) + np.float32(GAUSS_CF[1]) * (g * g)), p
+
+
+def gaussian_levels(c0: float, c1: float, z: np.ndarray) -> np.ndarray:
+    """``(256, len(z))`` uint8: the Gaussian draw's output for every level and each ``z``, in the kernel's float32
+    arithmetic (``round(v + σ_v·z)``, clipped to 0–255)."""
+    v = np.arange(256, dtype=np.float32)[:, None]
+    y = v + np.float32(0.5) + np.sqrt(np.float32(c0) + np.float32(c1) * v) * np.asarray(z, np.float32)[None, :]
+    return np.clip(y.astype(np.int32), 0, 255).astype(np.uint8)
+
+
+def noise_law(noise: CameraNoise, gain: float, night: bool) -> NoiseLaw:
+    """The noise of a frame with auto-exposure gain ``gain`` (module docstring): the exact table, and the Gaussian
+    draw where its law is within :data:`GAUSSIAN_TV` of the exact one at every level."""
+    cdf = _exact_cdf(noise, gain, night)
+    k = 255.0 * noise.gain(gain, night) / noise.full_well_e  # DN per electron
+    c0, c1 = (k * noise.read_noise_e) ** 2, k  # K²(σ_r² + μ_e), μ_e = v/K electrons
+    exact = np.diff(np.c_[np.zeros(256), cdf, np.ones(256)], axis=1)  # P(output = d)
+    z, p = _byte_sum_law()
+    out = gaussian_levels(c0, c1, z).astype(np.int64) + 256 * np.arange(256)[:, None]
+    drawn = np.bincount(out.ravel(), weights=np.tile(p, 256), minlength=256 * 256).reshape(256, 256)
+    tv = float(0.5 * np.abs(drawn - exact).sum(axis=1).max())
+    return NoiseLaw(_quantiles(cdf), tv <= GAUSSIAN_TV, float(c0), float(c1), tv)
 
 
 @njit(cache=True, nogil=True)
@@ -259,20 +339,20 @@ def frame_key(seed: int, tick: int, camera: int, variant: int) -> int:
     return z
 
 
-#: Pixels below which :func:`add_noise` runs on one thread. The kernel's work per pixel is a hash and three table
-#: lookups (about 2 ns): under this size a parallel launch costs more than it saves (on this project's two cores,
-#: serial against parallel: 0.17 against 0.27 ms at 320 × 240, 0.68 against 1.0 ms at 640 × 480, 2.7 against 1.65 ms
-#: at 1280 × 960).
+#: Pixels (all images of a call together) below which the kernels run on one thread: under this size a parallel
+#: launch costs more than it saves (on this project's two cores, the table's kernel serial against parallel: 0.17
+#: against 0.27 ms at 320 × 240, 0.68 against 1.0 ms at 640 × 480, 2.7 against 1.65 ms at 1280 × 960).
 NOISE_SERIAL_BELOW = 1 << 19
 _BLOCK = 256  # pixels whose hashes are drawn together
-_CHUNKS = 16  # the parallel kernel's spans of pixels (whole spans, not rows: a row's work is too small to share)
+_CHUNKS = 16  # each image's spans in the parallel kernel (whole spans, not rows: a row's work is too small to share)
 
 
 @njit(cache=True, nogil=True, inline="always")
 def _noise_span(flat, table, key, out, p0, p1):
-    """Pixels ``p0 .. p1 − 1`` of the flattened image ``flat`` into ``out``: pixel ``p``'s hash is SplitMix64 of
-    ``key + (p + 1)·φ``; bits 0–9, 12–21 and 24–33 pick its red, green and blue quantiles. The hashes of a block of
-    pixels first (a loop the compiler vectorises), then their lookups: 28 % less time than one loop doing both."""
+    """The exact table: pixels ``p0 .. p1 − 1`` of the flattened image ``flat`` into ``out``: pixel ``p``'s hash is
+    SplitMix64 of ``key + (p + 1)·φ``; bits 0–9, 12–21 and 24–33 pick its red, green and blue quantiles. The hashes
+    of a block of pixels first (a loop the compiler vectorises), then their lookups: 28 % less time than one loop
+    doing both."""
     golden = np.uint64(0x9E3779B97F4A7C15)
     c1 = np.uint64(0xBF58476D1CE4E5B9)
     c2 = np.uint64(0x94D049BB133111EB)
@@ -294,27 +374,109 @@ def _noise_span(flat, table, key, out, p0, p1):
             out[q + 2] = table[(np.intp(flat[q + 2]) << _BITS) | np.intp((z >> s24) & mask)]
 
 
+# -- 32-bit integer operations: numba widens uint32 arithmetic to 64 bits, which halves the lanes of a vector and
+# -- needs 64-bit multiplies; these stay in 32 bits (wrapping), as a C compiler's would
+def _u32_op(name):
+    @intrinsic
+    def op(typingctx, a, b):
+        def codegen(context, builder, signature, args):
+            return getattr(builder, name)(*args)
+
+        return types.uint32(types.uint32, types.uint32), codegen
+
+    return op
+
+
+_add32, _mul32, _xor32, _and32, _shr32 = (_u32_op(n) for n in ("add", "mul", "xor", "and_", "lshr"))
+
+
+@intrinsic
+def _to_level(typingctx, y):
+    """A float32 output to its 8-bit level: truncated, clipped to 0–255 (a saturating conversion)."""
+
+    def codegen(context, builder, signature, args):
+        i32 = ir.IntType(32)
+        i = builder.fptosi(args[0], i32)
+        lo, hi = ir.Constant(i32, 0), ir.Constant(i32, 255)
+        i = builder.select(builder.icmp_signed("<", i, lo), lo, i)
+        i = builder.select(builder.icmp_signed(">", i, hi), hi, i)
+        return builder.trunc(i, ir.IntType(8))
+
+    return types.uint8(types.float32), codegen
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _gauss_span(flat, out, k1, k2, c0, c1, p0, p1):
+    """The Gaussian draw: channel values ``p0 .. p1 − 1`` of the flattened image (module docstring). Value ``i``'s
+    hash is ``i ^ k1`` through a 32-bit mixer (two multiply–xorshift rounds, ``k2`` added between them); its four
+    bytes' sum ``s`` gives ``g = (s − 510)/√21845``, ``z = g·(a + b·g²)``; the output is ``v + ½ + σ_v·z``
+    truncated and clipped, ``σ_v = √(c0 + c1·v)``, in float32 without fast-math (the same bits as numpy's)."""
+    inv, off = np.float32(1.0 / _IH_SD), np.float32(510.0 / _IH_SD)
+    a, b = np.float32(GAUSS_CF[0]), np.float32(GAUSS_CF[1])
+    s8, s15, s16 = np.uint32(8), np.uint32(15), np.uint32(16)
+    m1, m2 = np.uint32(0x7FEB352D), np.uint32(0x846CA68B)
+    bytes2, low16 = np.uint32(0x00FF00FF), np.uint32(0xFFFF)
+    f, o, base = flat[p0:p1], out[p0:p1], np.uint32(p0)
+    for i in range(f.shape[0]):  # from 0 over slices: the compiler sees unit strides and no negative index
+        x = _xor32(_add32(np.uint32(i), base), k1)
+        x = _mul32(_xor32(x, _shr32(x, s16)), m1)
+        x = _add32(x, k2)
+        x = _mul32(_xor32(x, _shr32(x, s15)), m2)
+        x = _xor32(x, _shr32(x, s16))
+        t = _add32(_and32(x, bytes2), _and32(_shr32(x, s8), bytes2))  # two pairs of bytes summed
+        g = np.float32(_add32(_and32(t, low16), _shr32(t, s16))) * inv - off
+        g = g * (a + b * (g * g))
+        v = np.float32(f[i])
+        o[i] = _to_level(v + np.float32(0.5) + math.sqrt(c0 + c1 * v) * g)
+
+
 @njit(cache=True, nogil=True, parallel=True)
-def _noise_kernel(rgb, table, key, out):
-    n = rgb.shape[0] * rgb.shape[1]
-    flat, dst, lut = rgb.reshape(-1), out.reshape(-1), table.reshape(-1)
-    step = (n + _CHUNKS - 1) // _CHUNKS
-    for c in prange(_CHUNKS):
-        _noise_span(flat, lut, key, dst, c * step, min(n, (c + 1) * step))
-    return out
+def _noise_kernel(flats, outs, tables, gauss, c0, c1, keys):
+    """Every image of a frame in one launch (a launch per camera pays the pool's wake-up each time): image ``i``
+    (flattened) by the Gaussian draw where ``gauss[i]``, else by its exact table (flattened)."""
+    for t in prange(len(flats) * _CHUNKS):
+        i, c = t // _CHUNKS, t % _CHUNKS
+        flat, out = flats[i], outs[i]
+        if gauss[i]:
+            n = flat.shape[0]
+            step = (n + _CHUNKS - 1) // _CHUNKS
+            k1, k2 = np.uint32(keys[i] & np.uint64(0xFFFFFFFF)), np.uint32(keys[i] >> np.uint64(32))
+            _gauss_span(flat, out, k1, k2, c0[i], c1[i], c * step, min(n, (c + 1) * step))
+        else:
+            n = flat.shape[0] // 3
+            step = (n + _CHUNKS - 1) // _CHUNKS
+            _noise_span(flat, tables[i], keys[i], out, c * step, min(n, (c + 1) * step))
+    return outs
 
 
 _noise_kernel_serial = serial_twin(_noise_kernel)
 
 
-def add_noise(rgb: np.ndarray, table: np.ndarray, key: int) -> np.ndarray:
-    """``rgb`` (H, W, 3) uint8 with the noise of ``table`` (:func:`noise_table`) drawn from ``key``
-    (:func:`frame_key`); a new array, the input is not changed."""
-    img = np.ascontiguousarray(rgb)
-    if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
-        raise ValueError(f"rgb must be an (H, W, 3) uint8 image, got {img.dtype} {img.shape}")
-    if table.shape != (256, TABLE_SIZE) or table.dtype != np.uint8:
-        raise ValueError(f"table must be a (256, {TABLE_SIZE}) uint8 noise table, got {table.dtype} {table.shape}")
-    out = np.empty_like(img)
-    kernel = pick(_noise_kernel, _noise_kernel_serial, img.shape[0] * img.shape[1], NOISE_SERIAL_BELOW)
-    return kernel(img, table, np.uint64(int(key) & _M64), out)
+def add_noise_many(images: Sequence[np.ndarray], laws: Sequence[NoiseLaw | np.ndarray], keys: Sequence[int]) -> list[np.ndarray]:
+    """Each (H, W, 3) uint8 image of ``images`` with the noise of its law (a :class:`NoiseLaw`, or a bare
+    :func:`noise_table`: the exact table) drawn from its key (:func:`frame_key`), in one kernel launch; new arrays,
+    the inputs are not changed."""
+    if not (len(images) == len(laws) == len(keys)) or not images:
+        raise ValueError(f"images, laws and keys must be non-empty and as many, got {len(images)}, {len(laws)}, {len(keys)}")
+    imgs = [np.ascontiguousarray(x) for x in images]
+    for img in imgs:
+        if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
+            raise ValueError(f"rgb must be an (H, W, 3) uint8 image, got {img.dtype} {img.shape}")
+    laws = [law if isinstance(law, NoiseLaw) else NoiseLaw(law, False, 0.0, 0.0, 1.0) for law in laws]
+    for law in laws:
+        t = law.table
+        if not isinstance(t, np.ndarray) or t.shape != (256, TABLE_SIZE) or t.dtype != np.uint8:
+            raise ValueError(f"table must be a (256, {TABLE_SIZE}) uint8 noise table, got {getattr(t, 'dtype', type(t))} {getattr(t, 'shape', '')}")
+    outs = [np.empty_like(x) for x in imgs]
+    kernel = pick(_noise_kernel, _noise_kernel_serial, sum(x.shape[0] * x.shape[1] for x in imgs), NOISE_SERIAL_BELOW)
+    kernel(tuple(x.reshape(-1) for x in imgs), tuple(o.reshape(-1) for o in outs),
+           tuple(law.table.reshape(-1) for law in laws), np.array([law.gaussian for law in laws]),
+           np.array([law.c0 for law in laws], np.float32), np.array([law.c1 for law in laws], np.float32),
+           np.array([int(k) & _M64 for k in keys], np.uint64))  # fmt: skip
+    return outs
+
+
+def add_noise(rgb: np.ndarray, law: NoiseLaw | np.ndarray, key: int) -> np.ndarray:
+    """``rgb`` (H, W, 3) uint8 with the noise of ``law`` (a :func:`noise_law`, or a :func:`noise_table`: the exact
+    table) drawn from ``key`` (:func:`frame_key`); a new array, the input is not changed."""
+    return add_noise_many([rgb], [law], [key])[0]

@@ -11,8 +11,9 @@ from hypothesis import strategies as st
 from fog_gym.envs.fogdrive import FogDriveEnv
 from fog_gym.geometry import Pose
 from fog_gym.sensors.camera import CameraConfig
-from fog_gym.sensors.camera_noise import (DEFAULT_NOISE, TABLE_SIZE, CameraNoise, add_noise, frame_key, level_signal,
-                                          noise_table, parse_noise, predicted_variance)  # fmt: skip
+from fog_gym.sensors.camera_noise import (DEFAULT_NOISE, GAUSS_CF, GAUSSIAN_TV, TABLE_SIZE, CameraNoise, NoiseLaw,
+                                          add_noise, add_noise_many, frame_key, gaussian_levels, level_signal,
+                                          noise_law, noise_table, parse_noise, predicted_variance)  # fmt: skip
 from fog_gym.sensors.motion_blur import blur_motion, image_flow
 from fog_gym.wrappers import FogWrapper
 
@@ -105,7 +106,96 @@ def test_kernel_is_splitmix_over_the_pixels_on_one_thread_and_in_parallel(h, w, 
     want = _reference_noise(img, table, key)
     assert (add_noise(img, table, key) == want).all()
     for kernel in (_noise_kernel, _noise_kernel_serial):  # every span split: fewer pixels than spans too
-        assert (kernel(img, table, np.uint64(key), np.empty_like(img)) == want).all()
+        assert (_run(kernel, [img], [NoiseLaw(table, False, 0.0, 0.0, 1.0)], [key])[0] == want).all()
+
+
+def _run(kernel, imgs, laws, keys):
+    outs = [np.empty_like(x) for x in imgs]
+    kernel(tuple(x.reshape(-1) for x in imgs), tuple(o.reshape(-1) for o in outs), tuple(law.table.reshape(-1) for law in laws),
+           np.array([law.gaussian for law in laws]), np.array([law.c0 for law in laws], np.float32),
+           np.array([law.c1 for law in laws], np.float32), np.array(keys, np.uint64))  # fmt: skip
+    return outs
+
+
+def _reference_gauss(img: np.ndarray, law: NoiseLaw, key: int) -> np.ndarray:
+    """The Gaussian draw in numpy: channel value i (row-major) hashes i ^ k1 with two multiply–xorshift rounds (k2
+    added between them); its four bytes' sum, standardised and Cornish–Fisher corrected, scales σ_v; float32 without
+    fused operations, truncated and clipped."""
+    k1, k2 = np.uint32(key & 0xFFFFFFFF), np.uint32(key >> 32)
+    x = np.arange(img.size, dtype=np.uint32) ^ k1
+    x = (x ^ (x >> np.uint32(16))) * np.uint32(0x7FEB352D) + k2
+    x = (x ^ (x >> np.uint32(15))) * np.uint32(0x846CA68B)
+    x ^= x >> np.uint32(16)
+    s = sum((x >> np.uint32(b)) & np.uint32(255) for b in (0, 8, 16, 24))
+    sd = np.float32(1.0) / np.float32(np.sqrt(21845.0))
+    g = s.astype(np.float32) * sd - np.float32(510.0) * sd
+    z = g * (np.float32(GAUSS_CF[0]) + np.float32(GAUSS_CF[1]) * (g * g))
+    v = img.reshape(-1).astype(np.float32)
+    y = v + np.float32(0.5) + np.sqrt(np.float32(law.c0) + np.float32(law.c1) * v) * z
+    return np.clip(y.astype(np.int32), 0, 255).astype(np.uint8).reshape(img.shape)
+
+
+@settings(max_examples=20, deadline=None)
+@given(st.lists(st.tuples(st.integers(1, 70), st.integers(1, 70), st.booleans()), min_size=1, max_size=4),
+       st.integers(0, 2**64 - 1), st.integers(0, 2**32))  # fmt: skip
+def test_gaussian_draw_is_its_numpy_reference_and_mixes_with_tables_in_one_launch(shapes, key, seed):
+    from fog_gym.sensors.camera_noise import _noise_kernel, _noise_kernel_serial
+
+    rng = np.random.default_rng(seed)
+    day, night = noise_law(DEFAULT_NOISE, 1.0, False), noise_law(DEFAULT_NOISE, 2.0, True)
+    imgs = [rng.integers(0, 256, (h, w, 3), dtype=np.uint8) for h, w, _ in shapes]
+    laws = [day if gauss else night for _, _, gauss in shapes]
+    keys = [(key + 7919 * i) % 2**64 for i in range(len(imgs))]
+    want = [_reference_gauss(x, law, k) if law.gaussian else _reference_noise(x, law.table, k)
+            for x, law, k in zip(imgs, laws, keys)]  # fmt: skip
+    assert all((a == b).all() for a, b in zip(add_noise_many(imgs, laws, keys), want))
+    for kernel in (_noise_kernel, _noise_kernel_serial):
+        assert all((a == b).all() for a, b in zip(_run(kernel, imgs, laws, keys), want))
+
+
+def test_day_draws_the_gaussian_within_its_bound_and_night_the_exact_table():
+    day = noise_law(DEFAULT_NOISE, 1.0, False)
+    assert day.gaussian and day.tv <= GAUSSIAN_TV
+    assert (day.table == noise_table(DEFAULT_NOISE, 1.0, False)).all()
+    k = 255 / DEFAULT_NOISE.full_well_e
+    assert day.c1 == pytest.approx(k) and day.c0 == pytest.approx((k * DEFAULT_NOISE.read_noise_e) ** 2)
+    for gain in (1.0, 4.0, 16.0):  # the darkest levels hold a few electrons, the tone curve bends: the table
+        assert not noise_law(DEFAULT_NOISE, gain, True).gaussian
+    few = CameraNoise(full_well_e=600.0)  # by day too, when a grey level is a couple of electrons
+    assert not noise_law(few, 1.0, False).gaussian
+
+
+def test_cornish_fisher_constants_are_the_least_squares_fit_of_the_byte_sum():
+    from statistics import NormalDist
+
+    u = np.full(256, 1 / 256)
+    p = np.convolve(np.convolve(u, u), np.convolve(u, u))
+    g = (np.arange(p.size) - 510) / np.sqrt(21845.0)
+    target = np.array([NormalDist().inv_cdf(f) for f in np.cumsum(p) - p / 2])
+    a = np.stack([g, g**3], 1) * np.sqrt(p)[:, None]
+    fit = np.linalg.lstsq(a, target * np.sqrt(p), rcond=None)[0]
+    assert fit == pytest.approx(GAUSS_CF, abs=2e-6)
+
+
+def test_gaussian_draws_follow_their_law_the_emva_moments_and_are_independent():
+    law = noise_law(DEFAULT_NOISE, 1.0, False)
+    img = np.full((600, 800, 3), 128, np.uint8)
+    img[300:] = 230
+    a = add_noise(img, law, frame_key(3, 1, 0, 0))
+    for level, rows in ((128, slice(0, 300)), (230, slice(300, None))):
+        x = a[rows].astype(np.float64)
+        assert x.mean() == pytest.approx(level, abs=0.01)
+        assert x.var() == pytest.approx(predicted_variance(DEFAULT_NOISE, level, 1.0), rel=0.02)
+        hist = np.bincount(a[rows].ravel(), minlength=256) / x.size
+        from fog_gym.sensors.camera_noise import _byte_sum_law
+
+        z, p = _byte_sum_law()
+        drawn = np.bincount(gaussian_levels(law.c0, law.c1, z)[level], weights=p, minlength=256)
+        assert 0.5 * np.abs(hist - drawn).sum() < 0.005  # the histogram is the law noise_law checked
+    r = a[:300].astype(np.float64) - 128
+    b = add_noise(img, law, frame_key(3, 1, 0, 1))[:300].astype(np.float64) - 128
+    for u, v in ((r[..., 0], r[..., 1]), (r[:, :-1, 0], r[:, 1:, 0]), (r[:-1, :, 2], r[1:, :, 2]), (r, b)):
+        assert abs(np.corrcoef(u.ravel(), v.ravel())[0, 1]) < 0.01  # channels, neighbours, variants independent
 
 
 def test_bad_noise_configs_are_one_line_errors_naming_the_field():
