@@ -11,9 +11,9 @@ from hypothesis import strategies as st
 from fog_gym.envs.fogdrive import FogDriveEnv
 from fog_gym.geometry import Pose
 from fog_gym.sensors.camera import CameraConfig
-from fog_gym.sensors.camera_noise import (DEFAULT_NOISE, GAUSS_CF, GAUSSIAN_TV, TABLE_SIZE, CameraNoise, NoiseLaw,
-                                          add_noise, add_noise_many, frame_key, gaussian_levels, level_signal,
-                                          noise_law, noise_table, parse_noise, predicted_variance)  # fmt: skip
+from fog_gym.sensors.camera_noise import (DEFAULT_NOISE, DRAW_MEAN, DRAW_SD, GAUSSIAN_TV, TABLE_SIZE, CameraNoise,
+                                          NoiseLaw, add_noise, add_noise_many, fma32, frame_key, gaussian_levels,
+                                          level_signal, noise_law, noise_table, parse_noise, predicted_variance)  # fmt: skip
 from fog_gym.sensors.motion_blur import blur_motion, image_flow
 from fog_gym.wrappers import FogWrapper
 
@@ -119,19 +119,18 @@ def _run(kernel, imgs, laws, keys):
 
 def _reference_gauss(img: np.ndarray, law: NoiseLaw, key: int) -> np.ndarray:
     """The Gaussian draw in numpy: channel value i (row-major) hashes i ^ k1 with two multiply–xorshift rounds (k2
-    added between them); its four bytes' sum, standardised and Cornish–Fisher corrected, scales σ_v; float32 without
-    fused operations, truncated and clipped."""
+    added between them); 256 × the set bits of its low 16 plus its two high bytes, standardised, scales σ_v; float32
+    with fused multiply–adds (fma32), truncated and clipped."""
     k1, k2 = np.uint32(key & 0xFFFFFFFF), np.uint32(key >> 32)
     x = np.arange(img.size, dtype=np.uint32) ^ k1
     x = (x ^ (x >> np.uint32(16))) * np.uint32(0x7FEB352D) + k2
     x = (x ^ (x >> np.uint32(15))) * np.uint32(0x846CA68B)
     x ^= x >> np.uint32(16)
-    s = sum((x >> np.uint32(b)) & np.uint32(255) for b in (0, 8, 16, 24))
-    sd = np.float32(1.0) / np.float32(np.sqrt(21845.0))
-    g = s.astype(np.float32) * sd - np.float32(510.0) * sd
-    z = g * (np.float32(GAUSS_CF[0]) + np.float32(GAUSS_CF[1]) * (g * g))
+    bits = np.unpackbits((x & np.uint32(0xFFFF)).astype("<u2").view(np.uint8)).reshape(-1, 16).sum(1)
+    t = 256 * bits.astype(np.uint32) + ((x >> np.uint32(16)) & np.uint32(255)) + (x >> np.uint32(24))
+    z = fma32(t.astype(np.float32), np.float32(1.0 / DRAW_SD), np.float32(-DRAW_MEAN / DRAW_SD))
     v = img.reshape(-1).astype(np.float32)
-    y = v + np.float32(0.5) + np.sqrt(np.float32(law.c0) + np.float32(law.c1) * v) * z
+    y = fma32(np.sqrt(fma32(law.c1, v, law.c0)), z, v + np.float32(0.5))
     return np.clip(y.astype(np.int32), 0, 255).astype(np.uint8).reshape(img.shape)
 
 
@@ -165,16 +164,17 @@ def test_day_draws_the_gaussian_within_its_bound_and_night_the_exact_table():
     assert not noise_law(few, 1.0, False).gaussian
 
 
-def test_cornish_fisher_constants_are_the_least_squares_fit_of_the_byte_sum():
-    from statistics import NormalDist
+def test_the_draws_law_is_standard_and_its_constants_are_the_bits_moments():
+    from fog_gym.sensors.camera_noise import _draw_law
 
-    u = np.full(256, 1 / 256)
-    p = np.convolve(np.convolve(u, u), np.convolve(u, u))
-    g = (np.arange(p.size) - 510) / np.sqrt(21845.0)
-    target = np.array([NormalDist().inv_cdf(f) for f in np.cumsum(p) - p / 2])
-    a = np.stack([g, g**3], 1) * np.sqrt(p)[:, None]
-    fit = np.linalg.lstsq(a, target * np.sqrt(p), rcond=None)[0]
-    assert fit == pytest.approx(GAUSS_CF, abs=2e-6)
+    z, p = _draw_law()
+    assert p.sum() == pytest.approx(1.0, abs=1e-12) and len(z) == 16 * 256 + 511
+    assert (p * z).sum() == pytest.approx(0.0, abs=1e-6) and (p * z * z).sum() == pytest.approx(1.0, abs=1e-6)
+    x = np.random.default_rng(0).integers(0, 2**32, 400_000, dtype=np.uint64).astype(np.uint32)  # uniform hashes
+    bits = np.unpackbits((x & np.uint32(0xFFFF)).astype("<u2").view(np.uint8)).reshape(-1, 16).sum(1)
+    t = 256.0 * bits + ((x >> np.uint32(16)) & np.uint32(255)) + (x >> np.uint32(24))
+    assert t.mean() == pytest.approx(DRAW_MEAN, abs=3.0) and t.std() == pytest.approx(DRAW_SD, rel=0.005)
+    assert fma32(np.float32(3.0), np.float32(1 / 3), np.float32(-1.0)) != np.float32(3.0) * np.float32(1 / 3) - 1  # one rounding
 
 
 def test_gaussian_draws_follow_their_law_the_emva_moments_and_are_independent():
@@ -187,9 +187,9 @@ def test_gaussian_draws_follow_their_law_the_emva_moments_and_are_independent():
         assert x.mean() == pytest.approx(level, abs=0.01)
         assert x.var() == pytest.approx(predicted_variance(DEFAULT_NOISE, level, 1.0), rel=0.02)
         hist = np.bincount(a[rows].ravel(), minlength=256) / x.size
-        from fog_gym.sensors.camera_noise import _byte_sum_law
+        from fog_gym.sensors.camera_noise import _draw_law
 
-        z, p = _byte_sum_law()
+        z, p = _draw_law()
         drawn = np.bincount(gaussian_levels(law.c0, law.c1, z)[level], weights=p, minlength=256)
         assert 0.5 * np.abs(hist - drawn).sum() < 0.005  # the histogram is the law noise_law checked
     r = a[:300].astype(np.float64) - 128
