@@ -178,7 +178,10 @@ def test_the_draws_law_is_standard_and_its_constants_are_the_bits_moments():
 
 
 def test_gaussian_draws_follow_their_law_the_emva_moments_and_are_independent():
+    from fog_gym.sensors.camera_noise import _draw_law
+
     law = noise_law(DEFAULT_NOISE, 1.0, False)
+    z, p = _draw_law()
     img = np.full((600, 800, 3), 128, np.uint8)
     img[300:] = 230
     a = add_noise(img, law, frame_key(3, 1, 0, 0))
@@ -187,9 +190,6 @@ def test_gaussian_draws_follow_their_law_the_emva_moments_and_are_independent():
         assert x.mean() == pytest.approx(level, abs=0.01)
         assert x.var() == pytest.approx(predicted_variance(DEFAULT_NOISE, level, 1.0), rel=0.02)
         hist = np.bincount(a[rows].ravel(), minlength=256) / x.size
-        from fog_gym.sensors.camera_noise import _draw_law
-
-        z, p = _draw_law()
         drawn = np.bincount(gaussian_levels(law.c0, law.c1, z)[level], weights=p, minlength=256)
         assert 0.5 * np.abs(hist - drawn).sum() < 0.005  # the histogram is the law noise_law checked
     r = a[:300].astype(np.float64) - 128
