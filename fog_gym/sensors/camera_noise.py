@@ -230,9 +230,10 @@ def fma32(a, b, c) -> np.ndarray:
 @functools.cache
 def _draw_law() -> tuple[np.ndarray, np.ndarray]:
     """The draw's 4 607 values of ``t`` as the kernel's ``z`` (its own float32 arithmetic) and their probabilities."""
-    binomial = np.array([math.comb(16, j) for j in range(17)], np.float64) / 2.0**16
+    spikes = np.zeros(16 * 256 + 1)  # the binomial's 17 values, 256 apart
+    spikes[::256] = [math.comb(16, j) / 2.0**16 for j in range(17)]
     u = np.full(256, 1.0 / 256)
-    p = np.convolve(np.repeat(binomial, 256) * np.tile(np.r_[1.0, np.zeros(255)], 17), np.convolve(u, u))[:16 * 256 + 511]
+    p = np.convolve(spikes, np.convolve(u, u))  # plus the two dither bytes: 4 607 values
     return fma32(np.arange(p.size, dtype=np.float32), _DRAW_INV, _DRAW_OFF), p
 
 
@@ -242,6 +243,11 @@ def gaussian_levels(c0: float, c1: float, z: np.ndarray, levels: np.ndarray | No
     v = (np.arange(256) if levels is None else np.asarray(levels)).astype(np.float32)[:, None]
     y = fma32(np.sqrt(fma32(c1, v, c0)), np.asarray(z, np.float32)[None, :], v + np.float32(0.5))
     return np.clip(y.astype(np.int32), 0, 255).astype(np.uint8)
+
+
+#: :func:`noise_law`'s levels checked first (the darkest and brightest: where a law fails) and the others
+_FIRST_CHECKED = np.r_[0:8, 248:256]
+_REST_CHECKED = np.r_[8:248]
 
 
 def noise_law(noise: CameraNoise, gain: float, night: bool) -> NoiseLaw:
@@ -261,10 +267,6 @@ def noise_law(noise: CameraNoise, gain: float, night: bool) -> NoiseLaw:
         if tv > GAUSSIAN_TV:
             break  # the table, whatever the other levels give (tv is then the largest among those checked)
     return NoiseLaw(_quantiles(cdf), tv <= GAUSSIAN_TV, float(c0), float(c1), tv)
-
-
-_FIRST_CHECKED = np.r_[0:8, 248:256]
-_REST_CHECKED = np.r_[8:248]
 
 
 @njit(cache=True, nogil=True)

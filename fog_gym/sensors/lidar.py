@@ -349,13 +349,14 @@ def simulate_lidar(
         hits = cast_rays(origin, dirs, cfg.range, prims, rotation=rot)
         reflect = _NONE32 if cfg.intensity == "carla" else reflectance(hits, dirs, rot, origin, surface, prims.colors)
     else:  # a sweep that takes time: each slice of columns from where the sensor and the world are at its time
-        from fog_gym.sensors.motion import slice_count, slice_times
+        from fog_gym.sensors.motion import column_slices, slice_count, slice_times
 
         m = cfg.points_per_channel(simulation_frequency)
         n_slices = slice_count(m)
         order, bounds, sorted_dirs = np.empty(n, np.int64), np.empty(n_slices + 1, np.int64), np.empty((n, 3))
-        _slice_sort(np.arange(n) if rays is None else rays, all_dirs, (np.arange(m) * n_slices // m).astype(np.int32),
-                    order, sorted_dirs, bounds)  # fmt: skip  (the slices' rays contiguous: each slice casts a view)
+        col_slice = column_slices(np.arange(m), m, n_slices).astype(np.int32)
+        _slice_sort(np.arange(n) if rays is None else rays, all_dirs, col_slice, order, sorted_dirs,
+                    bounds)  # fmt: skip  (the slices' rays contiguous: each slice casts a view)
         times_of = slice_times(simulation_frequency, n_slices)
         at = [motion(float(t)) for t in times_of]  # each slice's sensor → world and world
         frames = [split_transform(s2w) for s2w, _ in at]

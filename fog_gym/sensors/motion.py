@@ -43,6 +43,11 @@ def slice_count(n_columns: int, n_slices: int = MOTION_SLICES) -> int:
     return max(1, min(int(n_slices), int(n_columns)))
 
 
+def column_slices(columns: np.ndarray, n_columns: int, n_slices: int) -> np.ndarray:
+    """Each azimuth column's slice (of ``n_slices``, already :func:`slice_count`'s): ``column·S // n_columns``."""
+    return np.asarray(columns, np.int64) * int(n_slices) // int(n_columns)
+
+
 def slice_times(simulation_frequency: float, n_slices: int = MOTION_SLICES) -> np.ndarray:
     """Each slice's firing time [s] from the tick's end: ``−T + (k + ½)·T/S``."""
     tick = 1.0 / float(simulation_frequency)
@@ -53,7 +58,7 @@ def sweep_order(columns: np.ndarray, n_columns: int, n_slices: int = MOTION_SLIC
     """The rays sorted by slice (stably: laser order within a slice) and each slice's bounds in that order: slice
     ``k`` is ``order[bounds[k]:bounds[k + 1]]``. One radix pass (the slice numbers fit a byte or two)."""
     n_slices = slice_count(n_columns, n_slices)
-    k = np.asarray(columns, np.int64) * n_slices // int(n_columns)
+    k = column_slices(columns, n_columns, n_slices)
     order = np.argsort(k.astype(np.uint8 if n_slices <= 256 else np.uint16), kind="stable")
     bounds = np.zeros(n_slices + 1, np.int64)
     np.cumsum(np.bincount(k, minlength=n_slices)[:n_slices], out=bounds[1:])
