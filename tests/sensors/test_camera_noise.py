@@ -289,3 +289,21 @@ def test_night_recording_is_noisier_than_day():
         mid = (env.frames["CAM_FRONT"].rgb > 10) & (env.frames["CAM_FRONT"].rgb < 150)
         sds[tod] = (d[mid] / np.sqrt(env.frames["CAM_FRONT"].rgb[mid].astype(float))).std()  # per unit shot noise
     assert sds["night"] > 2 * sds["day"]
+
+
+@settings(max_examples=30, deadline=None)
+@given(st.sampled_from(["lengths", "empty", "dtype", "shape", "table", "law"]))
+def test_bad_images_laws_and_keys_are_one_line_errors_before_any_draw(case):
+    law = noise_law(DEFAULT_NOISE, 1.0, False)
+    img = np.zeros((4, 5, 3), np.uint8)
+    args, match = {
+        "lengths": (([img, img], [law], [1]), "as many"),
+        "empty": (([], [], []), "non-empty"),
+        "dtype": (([img.astype(np.float32)], [law], [1]), "uint8 image"),
+        "shape": (([img[..., :2]], [law], [1]), "uint8 image"),
+        "table": (([img], [np.zeros((256, 7), np.uint8)], [1]), "noise table"),
+        "law": (([img], [NoiseLaw(np.zeros((3, 3)), True, 0.0, 1.0, 0.0)], [1]), "noise table"),
+    }[case]
+    with pytest.raises(ValueError, match=match) as err:
+        add_noise_many(*args)
+    assert "\n" not in str(err.value)
