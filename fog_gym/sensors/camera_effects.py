@@ -28,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from fog_gym.sensors.camera_noise import CameraNoise, NoiseLaw, add_noise_many, frame_key, noise_law
+from fog_gym.sensors.camera_noise import CameraNoise, NoiseLaw, add_noise_many, frame_key, noise_laws
 from fog_gym.sensors.motion_blur import blur_motion, image_flow
 
 #: Noise laws kept per (sensor, gain, night) (day frames all share gain 1).
@@ -47,16 +47,24 @@ class CameraEffects:
     def __bool__(self) -> bool:
         return bool(self.noise)
 
-    def law(self, noise: CameraNoise, gain: float, night: bool) -> NoiseLaw:
-        key = (noise, float(gain), bool(night))
-        law = self._laws.get(key)
-        if law is None:
-            law = self._laws[key] = noise_law(noise, gain, night)
-            if len(self._laws) > TABLE_CACHE:
-                self._laws.popitem(last=False)
-        else:
+    def laws(self, noises: Sequence[CameraNoise], gains: Sequence[float], night: bool) -> list[NoiseLaw]:
+        """The noise law of each (sensor, gain) pair: cached ones as they are, the others computed together
+        (:func:`~fog_gym.sensors.camera_noise.noise_laws`: one kernel launch for all of a frame's cameras)."""
+        keys = [(noise, float(gain), bool(night)) for noise, gain in zip(noises, gains)]
+        missing = list(dict.fromkeys(k for k in keys if k not in self._laws))
+        for key, law in zip(missing, noise_laws([k[0] for k in missing], [k[1] for k in missing], night)):
+            self._laws[key] = law
+        out = []
+        for key in keys:
             self._laws.move_to_end(key)
-        return law
+            out.append(self._laws[key])
+        while len(self._laws) > max(TABLE_CACHE, len(keys)):
+            self._laws.popitem(last=False)
+        return out
+
+    def law(self, noise: CameraNoise, gain: float, night: bool) -> NoiseLaw:
+        """The noise law of one camera (:meth:`laws`)."""
+        return self.laws([noise], [gain], night)[0]
 
     def prepare(self, seed: int, tick: int, exposure: Mapping[str, float], night: bool,
                 flows: Mapping[str, Any] | None = None) -> None:  # fmt: skip
@@ -64,12 +72,14 @@ class CameraEffects:
         auto-exposure gain ``exposure[name]``; ``flows[name]`` the arguments of
         :func:`~fog_gym.sensors.motion_blur.image_flow` but the exposure, for cameras with motion blur."""
         self._frame = {}
-        for name, noise in self.noise.items():
+        names = list(self.noise)
+        laws = self.laws([self.noise[n] for n in names], [exposure.get(n, 1.0) for n in names], night)
+        for name, law in zip(names, laws):
+            noise = self.noise[name]
             flow = None
             if noise.motion_blur and flows is not None and name in flows:
                 flow = image_flow(*flows[name], noise.exposure_s[1] if night else noise.exposure_s[0])
-            self._frame[name] = (self.law(noise, exposure.get(name, 1.0), night),
-                                 frame_key(seed, tick, self._index[name], 0), flow)  # fmt: skip
+            self._frame[name] = (law, frame_key(seed, tick, self._index[name], 0), flow)
 
     def apply(self, name: str, rgb: np.ndarray, variant: int) -> np.ndarray:
         """The recorded image of noise-free ``rgb`` of camera ``name`` in this frame; ``variant`` 0 the clean frame,

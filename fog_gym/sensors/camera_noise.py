@@ -30,7 +30,7 @@ read noise ``σ_r = 2.5 e⁻`` is an assumption (the 2–3 e⁻ of the pixel fam
 
 **How it is drawn.** The output of a pixel depends only on its noise-free level ``v`` (0–255), the gain and its
 random draw, so per camera and frame :func:`noise_law` holds the exact distribution of the model for every ``v``
-(the Poisson ⊛ Gaussian law summed exactly, :func:`_cdf_table`), tabulated as :data:`TABLE_SIZE` quantiles
+(the Poisson ⊛ Gaussian law summed exactly, :func:`_cdf_tables`), tabulated as :data:`TABLE_SIZE` quantiles
 (:func:`noise_table`). Two kernels draw from it (:func:`add_noise`, :func:`add_noise_many`), both from a
 counter-based hash of the frame's key and the value's index, so the same key gives the same noise on any machine
 and thread count, and every (episode, frame, camera, fog variant) has its own key (:func:`frame_key`):
@@ -173,22 +173,33 @@ def _thresholds(noise: CameraNoise, gain: float, night: bool) -> np.ndarray:
     return x * noise.full_well_e / gain
 
 
+def _exact_cdfs(noises: Sequence[CameraNoise], gains: Sequence[float], night: bool) -> np.ndarray:
+    """``(n, 256, 255)``: ``P(output <= d)`` for law ``i`` (sensor ``noises[i]`` at auto-exposure gain ``gains[i]``),
+    a noise-free level ``v`` (row) and ``d = 0..254`` (column); every law in one kernel launch."""
+    lam = np.empty((len(noises), 256))
+    thresholds = np.empty((len(noises), 255))
+    for i, (noise, gain) in enumerate(zip(noises, gains)):
+        a = noise.gain(gain, night)
+        lam[i] = level_signal(np.arange(256), night) * noise.full_well_e / a  # mean electrons per level
+        t = _thresholds(noise, a, night)
+        t = np.where(t > noise.full_well_e, np.inf, t)  # a full well reads above every threshold it reaches
+        thresholds[i] = np.where(np.isfinite(t), t, -1.0)
+    sigma = np.array([noise.read_noise_e for noise in noises], np.float64)
+    return pick(_cdf_tables, _cdf_tables_serial, len(noises), 1)(lam, thresholds, sigma)
+
+
 def _exact_cdf(noise: CameraNoise, gain: float, night: bool) -> np.ndarray:
     """``(256, 255)``: ``P(output <= d)`` for a noise-free level ``v`` (row) and ``d = 0..254`` (column)."""
-    a = noise.gain(gain, night)
-    lam = level_signal(np.arange(256), night) * noise.full_well_e / a  # mean electrons per level
-    t = _thresholds(noise, a, night)
-    t = np.where(t > noise.full_well_e, np.inf, t)  # a full well reads above every threshold it reaches
-    return np.minimum(_cdf_table(lam, np.where(np.isfinite(t), t, -1.0), noise.read_noise_e), 1.0)
+    return _exact_cdfs([noise], [gain], night)[0]
 
 
 def _quantiles(cdf: np.ndarray) -> np.ndarray:
-    # the level of quantile u_m = (m + ½)/M is the number of thresholds with F(t_d) <= u_m: threshold d is reached
-    # from m = ceil(F·M − ½) on, so a histogram of those first quantiles, summed along m, is the table
-    first = np.clip(np.ceil(cdf * TABLE_SIZE - 0.5), 0, TABLE_SIZE).astype(np.int64)
-    first += (TABLE_SIZE + 1) * np.arange(256)[:, None]
-    counts = np.bincount(first.ravel(), minlength=256 * (TABLE_SIZE + 1)).reshape(256, TABLE_SIZE + 1)
-    return np.cumsum(counts[:, :TABLE_SIZE], axis=1).astype(np.uint8)
+    """``(..., 256, TABLE_SIZE)`` uint8 tables of ``(..., 256, 255)`` CDFs: the level of quantile ``u_m = (m + ½)/M``
+    is the number of thresholds with ``F(t_d) <= u_m``; threshold ``d`` is reached from ``m = ceil(F·M − ½)`` on, so
+    a histogram of those first quantiles, summed along ``m``, is the table."""
+    rows = np.ascontiguousarray(cdf).reshape(-1, cdf.shape[-1])
+    kernel = pick(_quantile_rows, _quantile_rows_serial, len(rows), 512)
+    return kernel(rows, TABLE_SIZE).reshape(*cdf.shape[:-1], TABLE_SIZE)
 
 
 def noise_table(noise: CameraNoise, gain: float, night: bool) -> np.ndarray:
@@ -245,87 +256,157 @@ def gaussian_levels(c0: float, c1: float, z: np.ndarray, levels: np.ndarray | No
     return np.clip(y.astype(np.int32), 0, 255).astype(np.uint8)
 
 
-#: :func:`noise_law`'s levels checked first (the darkest and brightest: where a law fails) and the others
-_FIRST_CHECKED = np.r_[0:8, 248:256]
-_REST_CHECKED = np.r_[8:248]
+#: :func:`noise_law`'s levels checked in turn: first the darkest and the brightest (where a law fails: too few
+#: electrons, the night tone curve's shoulder), then the rest of the darkest and brightest eight, then the others
+_CHECKED = (np.r_[0, 254, 255], np.r_[1:8, 248:254], np.r_[8:248])
 
 
 def noise_law(noise: CameraNoise, gain: float, night: bool) -> NoiseLaw:
     """The noise of a frame with auto-exposure gain ``gain`` (module docstring): the exact table, and the Gaussian
     draw where its law is within :data:`GAUSSIAN_TV` of the exact one at every level (when it is not, ``tv`` is the
-    largest over the levels checked up to the first that failed: the darkest and brightest eight come first)."""
-    cdf = _exact_cdf(noise, gain, night)
-    k = 255.0 * noise.gain(gain, night) / noise.full_well_e  # DN per electron
-    c0, c1 = (k * noise.read_noise_e) ** 2, k  # K²(σ_r² + μ_e), μ_e = v/K electrons
-    exact = np.diff(np.c_[np.zeros(256), cdf, np.ones(256)], axis=1)  # P(output = d)
+    largest over the levels checked up to the first group that failed: the darkest and brightest come first)."""
+    return noise_laws([noise], [gain], night)[0]
+
+
+def noise_laws(noises: Sequence[CameraNoise], gains: Sequence[float], night: bool) -> list[NoiseLaw]:
+    """:func:`noise_law` of each (sensor, gain) pair — a frame's cameras — with every exact law summed in one
+    kernel launch and tabulated in another."""
+    if len(noises) != len(gains):
+        raise ValueError(f"noises and gains must be as many, got {len(noises)} and {len(gains)}")
+    if not len(noises):
+        return []
+    cdfs = _exact_cdfs(noises, gains, night)
+    tables = _quantiles(cdfs)
     z, p = _draw_law()
-    tv = 0.0
-    for rows in (_FIRST_CHECKED, _REST_CHECKED):  # the levels that fail first (dark, the shoulder) before the others
-        out = gaussian_levels(c0, c1, z, rows).astype(np.int64) + 256 * np.arange(len(rows))[:, None]
-        drawn = np.bincount(out.ravel(), weights=np.tile(p, len(rows)), minlength=256 * len(rows)).reshape(-1, 256)
-        tv = max(tv, float(0.5 * np.abs(drawn - exact[rows]).sum(axis=1).max()))
-        if tv > GAUSSIAN_TV:
-            break  # the table, whatever the other levels give (tv is then the largest among those checked)
-    return NoiseLaw(_quantiles(cdf), tv <= GAUSSIAN_TV, float(c0), float(c1), tv)
-
-
-@njit(cache=True, nogil=True)
-def _cdf_table(lam, thresholds, sigma):
-    """``F[v, d] = P(N_v + R < t_d)``, ``N_v ~ Poisson(lam[v])``, ``R ~ N(0, sigma²)``, exactly: the Poisson mass
-    over ``λ ± (8√λ + 10)`` by recurrence from its mode, the read noise's Φ over ``t ± 7σ`` (tabulated once per
-    threshold; below that window each count adds its whole mass). A negative threshold stands for one beyond the full well (never reached: F = 1)."""
-    n_lv, n_t = lam.shape[0], thresholds.shape[0]
-    out = np.empty((n_lv, n_t))
-    r = int(math.ceil(7.0 * sigma)) + 1  # counts farther than 7σ from a threshold are wholly below or above it
-    # phi[d, j] = Φ((t_d − k)/σ) for the count k = floor(t_d) − r + j: the same for every level
-    phi = np.zeros((n_t, 2 * r + 1))
-    for d in range(n_t):
-        t = thresholds[d]
-        if t >= 0.0 and sigma > 0.0:
-            base = math.floor(t) - r
-            for j in range(2 * r + 1):
-                phi[d, j] = 0.5 * math.erfc(-(t - (base + j)) / (sigma * math.sqrt(2.0)))
-    for v in range(n_lv):
-        L = lam[v]
-        half = 8.0 * math.sqrt(L) + 10.0
-        k0 = max(0, int(L - half))
-        k1 = int(L + half) + 1
-        n = k1 - k0 + 1
-        p = np.empty(n)
-        mode = int(L)
-        if L > 0.0:
-            p[mode - k0] = math.exp(mode * math.log(L) - L - math.lgamma(mode + 1.0))
-            for k in range(mode + 1, k1 + 1):
-                p[k - k0] = p[k - 1 - k0] * L / k
-            for k in range(mode - 1, k0 - 1, -1):
-                p[k - k0] = p[k + 1 - k0] * (k + 1) / L
-        else:
-            p[:] = 0.0
-            p[0] = 1.0
-        p /= p.sum()
-        cum = np.cumsum(p)  # cum[i] = P(N <= k0 + i)
-        for d in range(n_t):
-            t = thresholds[d]
-            if t < 0.0:
-                out[v, d] = 1.0
-                continue
-            if sigma == 0.0:
-                m = int(math.ceil(t)) - 1 - k0  # P(N < t) = P(N <= ceil(t) − 1)
-                out[v, d] = 0.0 if m < 0 else (1.0 if m >= n else cum[m])
-                continue
-            base = int(math.floor(t)) - r  # counts below base add their whole mass, above base + 2r none
-            if base > k1:
-                out[v, d] = 1.0
-                continue
-            if base + 2 * r < k0:
-                out[v, d] = 0.0
-                continue
-            f = cum[base - 1 - k0] if base - 1 - k0 >= 0 else 0.0
-            for j in range(max(k0 - base, 0), min(k1 - base, 2 * r) + 1):
-                f += p[base + j - k0] * phi[d, j]
-            out[v, d] = min(f, 1.0)
+    out = []
+    for noise, gain, cdf, table in zip(noises, gains, cdfs, tables):
+        k = 255.0 * noise.gain(gain, night) / noise.full_well_e  # DN per electron
+        c0, c1 = (k * noise.read_noise_e) ** 2, k  # K²(σ_r² + μ_e), μ_e = v/K electrons
+        tv = 0.0
+        for rows in _CHECKED:  # the levels that fail first (dark, the shoulder) before the others
+            exact = np.diff(np.c_[np.zeros(len(rows)), cdf[rows], np.ones(len(rows))], axis=1)  # P(output = d)
+            drawn = gaussian_levels(c0, c1, z, rows).astype(np.int64) + 256 * np.arange(len(rows))[:, None]
+            drawn = np.bincount(drawn.ravel(), weights=np.tile(p, len(rows)), minlength=256 * len(rows)).reshape(-1, 256)
+            tv = max(tv, float(0.5 * np.abs(drawn - exact).sum(axis=1).max()))
+            if tv > GAUSSIAN_TV:
+                break  # the table, whatever the other levels give (tv is then the largest among those checked)
+        out.append(NoiseLaw(table, tv <= GAUSSIAN_TV, float(c0), float(c1), tv))
     return out
 
+
+@njit(cache=True, nogil=True, inline="always")
+def _phi_row(t, sigma, r, row):
+    """``row[j] = Φ((t − k)/σ)`` for the counts ``k = floor(t) − r + j``, ``j = 0..2r`` (the read noise's CDF around
+    threshold ``t``; zeros for a threshold beyond the well or no read noise)."""
+    if t >= 0.0 and sigma > 0.0:
+        base = math.floor(t) - r
+        for j in range(2 * r + 1):
+            row[j] = 0.5 * math.erfc(-(t - (base + j)) / (sigma * math.sqrt(2.0)))
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _level_cdf(L, thresholds, sigma, r, phi, out, scratch):
+    """``out[d] = P(N + R < t_d)``, ``N ~ Poisson(L)``, ``R ~ N(0, σ²)``, for one level (:func:`_cdf_tables`);
+    ``scratch`` holds at least ``2·(16√L + 22)`` values."""
+    n_t = thresholds.shape[0]
+    half = 8.0 * math.sqrt(L) + 10.0
+    k0 = max(0, int(L - half))
+    k1 = int(L + half) + 1
+    n = k1 - k0 + 1
+    p = scratch[:n]
+    cum = scratch[n:2 * n]
+    mode = int(L)
+    if L > 0.0:
+        p[mode - k0] = math.exp(mode * math.log(L) - L - math.lgamma(mode + 1.0))
+        for k in range(mode + 1, k1 + 1):
+            p[k - k0] = p[k - 1 - k0] * L / k
+        for k in range(mode - 1, k0 - 1, -1):
+            p[k - k0] = p[k + 1 - k0] * (k + 1) / L
+    else:
+        p[:] = 0.0
+        p[0] = 1.0
+    total = p.sum()
+    acc = 0.0
+    for i in range(n):  # cum[i] = P(N <= k0 + i)
+        p[i] /= total
+        acc += p[i]
+        cum[i] = acc
+    for d in range(n_t):
+        t = thresholds[d]
+        if t < 0.0:
+            out[d] = 1.0
+            continue
+        if sigma == 0.0:
+            m = int(math.ceil(t)) - 1 - k0  # P(N < t) = P(N <= ceil(t) − 1)
+            out[d] = 0.0 if m < 0 else (1.0 if m >= n else min(cum[m], 1.0))
+            continue
+        base = int(math.floor(t)) - r  # counts below base add their whole mass, above base + 2r none
+        if base > k1:
+            out[d] = 1.0
+            continue
+        if base + 2 * r < k0:
+            out[d] = 0.0
+            continue
+        f = cum[base - 1 - k0] if base - 1 - k0 >= 0 else 0.0
+        for j in range(max(k0 - base, 0), min(k1 - base, 2 * r) + 1):
+            f += p[base + j - k0] * phi[d, j]
+        out[d] = min(f, 1.0)
+
+
+_CDF_CHUNKS = 8  # each law's levels split over this many tasks
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _cdf_tables(lam, thresholds, sigma):
+    """``F[i, v, d] = P(N_v + R < t_d)`` of law ``i``: ``N_v ~ Poisson(lam[i, v])``, ``R ~ N(0, sigma[i]²)``, exactly:
+    the Poisson mass over ``λ ± (8√λ + 10)`` by recurrence from its mode, the read noise's Φ over ``t ± 7σ``
+    (tabulated once per threshold; below that window each count adds its whole mass). A negative threshold stands
+    for one beyond the full well (never reached: F = 1); rounding never takes F above 1. Every law's levels in one
+    launch."""
+    n_law, n_lv, n_t = lam.shape[0], lam.shape[1], thresholds.shape[1]
+    out = np.empty((n_law, n_lv, n_t))
+    rs = np.empty(n_law, np.int64)
+    for i in range(n_law):
+        rs[i] = int(math.ceil(7.0 * sigma[i])) + 1  # counts farther than 7σ from a threshold are wholly below or above
+    width = 2 * rs.max() + 1 if n_law else 1
+    # phi[i, d, j] = Φ((t_d − k)/σ) for the count k = floor(t_d) − r + j: the same for every level of a law
+    phi = np.zeros((n_law, n_t, width))
+    for task in prange(n_law * n_t):
+        i, d = task // n_t, task % n_t
+        _phi_row(thresholds[i, d], sigma[i], rs[i], phi[i, d])
+    # a level's Poisson window is longer the brighter it is: each chunk takes every _CDF_CHUNKS-th level (dark and
+    # bright alike) and allocates its scratch once (allocating in the loop serialises the threads on the allocator)
+    longest = 2 * (int(16.0 * math.sqrt(max(lam.max(), 0.0))) + 24) if n_law else 0
+    for task in prange(n_law * _CDF_CHUNKS):
+        i, c = task // _CDF_CHUNKS, task % _CDF_CHUNKS
+        scratch = np.empty(longest)
+        for v in range(c, n_lv, _CDF_CHUNKS):
+            _level_cdf(lam[i, v], thresholds[i], sigma[i], rs[i], phi[i], out[i, v], scratch)
+    return out
+
+
+_cdf_tables_serial = serial_twin(_cdf_tables)
+
+
+@njit(cache=True, nogil=True, parallel=True)
+def _quantile_rows(cdf, size):
+    """``(rows, size)`` uint8: per row of ``cdf`` (``P(output <= d)``, ``d = 0..254``) the output level at each
+    quantile ``(m + ½)/size`` (:func:`_quantiles`)."""
+    rows, n_t = cdf.shape
+    out = np.empty((rows, size), np.uint8)
+    for row in prange(rows):
+        counts = np.zeros(size + 1, np.int64)
+        for d in range(n_t):
+            q = math.ceil(cdf[row, d] * size - 0.5)
+            counts[0 if q < 0 else (size if q > size else q)] += 1
+        acc = 0
+        for m in range(size):
+            acc += counts[m]
+            out[row, m] = acc
+    return out
+
+
+_quantile_rows_serial = serial_twin(_quantile_rows)
 
 
 def predicted_variance(noise: CameraNoise, level: float, gain: float, night: bool = False) -> float:

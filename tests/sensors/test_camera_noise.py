@@ -13,7 +13,7 @@ from fog_gym.geometry import Pose
 from fog_gym.sensors.camera import CameraConfig
 from fog_gym.sensors.camera_noise import (DEFAULT_NOISE, DRAW_MEAN, DRAW_SD, GAUSSIAN_TV, TABLE_SIZE, CameraNoise,
                                           NoiseLaw, add_noise, add_noise_many, fma32, frame_key, gaussian_levels,
-                                          level_signal, noise_law, noise_table, parse_noise, predicted_variance)  # fmt: skip
+                                          level_signal, noise_law, noise_laws, noise_table, parse_noise, predicted_variance)  # fmt: skip
 from fog_gym.sensors.motion_blur import blur_motion, image_flow
 from fog_gym.wrappers import FogWrapper
 
@@ -162,6 +162,53 @@ def test_day_draws_the_gaussian_within_its_bound_and_night_the_exact_table():
         assert not noise_law(DEFAULT_NOISE, gain, True).gaussian
     few = CameraNoise(full_well_e=600.0)  # by day too, when a grey level is a couple of electrons
     assert not noise_law(few, 1.0, False).gaussian
+
+
+def _reference_quantiles(cdf: np.ndarray) -> np.ndarray:
+    """The table of a law's CDF in numpy: quantile m's level counts the thresholds d with ceil(F_d·M − ½) <= m."""
+    first = np.clip(np.ceil(cdf * TABLE_SIZE - 0.5), 0, TABLE_SIZE).astype(np.int64)
+    return (first[..., None, :] <= np.arange(TABLE_SIZE)[:, None]).sum(-1).astype(np.uint8)
+
+
+@settings(max_examples=15, deadline=None)
+@given(full=st.floats(300, 50_000), read=st.one_of(st.just(0.0), st.floats(0.1, 20)), night=st.booleans(),
+       gains=st.lists(st.floats(0.5, 16), min_size=1, max_size=4))  # fmt: skip
+def test_a_frames_laws_computed_together_are_each_computed_alone(full, read, night, gains):
+    """One launch for a frame's cameras (parallel and serial twins alike) gives each camera's own law, its table the
+    quantiles of its CDF (a numpy reference), its CDF a distribution function within [0, 1]."""
+    from fog_gym.sensors.camera_noise import (_cdf_tables, _cdf_tables_serial, _exact_cdf, _exact_cdfs,
+                                              _quantile_rows, _quantile_rows_serial)  # fmt: skip
+
+    noise = CameraNoise(full_well_e=full, read_noise_e=read)
+    together = noise_laws([noise] * len(gains), gains, night)
+    cdfs = _exact_cdfs([noise] * len(gains), gains, night)
+    for gain, law, cdf in zip(gains, together, cdfs):
+        alone = noise_law(noise, gain, night)
+        assert (law.table == alone.table).all() and (law.gaussian, law.c0, law.c1, law.tv) == alone[1:]
+        assert (cdf == _exact_cdf(noise, gain, night)).all() and (cdf >= 0).all() and (cdf <= 1).all()
+        assert (np.diff(cdf, axis=1) >= -1e-12).all()
+        assert (law.table == _reference_quantiles(cdf)).all()
+    rows = np.ascontiguousarray(cdfs.reshape(-1, 255))
+    assert (_quantile_rows(rows, TABLE_SIZE) == _quantile_rows_serial(rows, TABLE_SIZE)).all()
+    lam = np.random.default_rng(0).uniform(0, full, (len(gains), 256))
+    t = np.sort(np.random.default_rng(1).uniform(-1, full, (len(gains), 255)), axis=1)
+    sigma = np.full(len(gains), read)
+    assert (_cdf_tables(lam, t, sigma) == _cdf_tables_serial(lam, t, sigma)).all()
+
+
+def test_a_night_law_is_decided_by_its_first_levels():
+    """The darkest and brightest levels are checked first: a night law fails there (the tone curve's shoulder bends
+    the brightest), so its check stops at them; a day law checks every level."""
+    night = noise_law(DEFAULT_NOISE, 2.0, True)
+    assert not night.gaussian and night.tv > 0.5
+    day = noise_law(DEFAULT_NOISE, 1.0, False)
+    assert day.gaussian and 0.005 < day.tv <= GAUSSIAN_TV
+
+
+def test_noise_laws_wants_a_gain_per_sensor():
+    assert noise_laws([], [], False) == []
+    with pytest.raises(ValueError, match="noises and gains must be as many"):
+        noise_laws([DEFAULT_NOISE], [1.0, 2.0], False)
 
 
 def test_the_draws_law_is_standard_and_its_constants_are_the_bits_moments():
