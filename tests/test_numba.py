@@ -48,8 +48,11 @@ def _kernels():
 
     from numba.core.registry import CPUDispatcher
 
+    def fail(name: str) -> None:
+        raise  # walk_packages skips a package whose import fails; a kernel missing from the scan must say why
+
     out = []
-    for info in pkgutil.walk_packages(fog_gym.__path__, "fog_gym."):
+    for info in pkgutil.walk_packages(fog_gym.__path__, "fog_gym.", onerror=fail):
         if ".experiments." in info.name or info.name.endswith("__main__"):
             continue
         module = importlib.import_module(info.name)
@@ -74,8 +77,10 @@ def test_every_parallel_kernel_is_called_through_pick_or_launch():
     import re
     from pathlib import Path
 
-    parallel = {n for _, n, d in _kernels() if d.targetoptions.get("parallel")}
-    assert {"_cast", "_raster_bands", "_shade_pass", "_glow_rows"} <= parallel
+    kernels = _kernels()
+    parallel = {n for _, n, d in kernels if d.targetoptions.get("parallel")}
+    missing = {"_cast", "_raster_bands", "_shade_pass", "_glow_rows"} - parallel
+    assert not missing, (missing, sorted(parallel), sorted({m for m, _, _ in kernels}))
     root = Path(fog_gym.__file__).parent
     bad = []
     for path in root.rglob("*.py"):
