@@ -71,6 +71,21 @@ def test_every_kernel_called_from_python_releases_the_gil():
     assert held == []
 
 
+def test_parallel_options_survive_compilation():
+    """numba empties a dict of parallel options (``parallel={"fusion": False}``) when it first compiles the kernel:
+    a later signature would be compiled fused and a scan of the options would take the kernel for a serial one
+    (seen once: the scan below missed ``_glow_rows`` after the kernel had compiled in the same process). Options go
+    as ``ParallelOptions``, which numba copies."""
+    from numba.core.cpu import ParallelOptions
+
+    from fog_gym.fog import glow
+
+    assert [f"{m}.{n}" for m, n, d in _kernels() if isinstance(d.targetoptions.get("parallel"), dict)] == []
+    options = glow._glow_rows.targetoptions["parallel"]
+    assert isinstance(options, ParallelOptions) and options.enabled and not options.fusion
+    assert not ParallelOptions(options).fusion and not options.fusion  # copied, not consumed
+
+
 def test_every_parallel_kernel_is_called_through_pick_or_launch():
     """The workqueue layer aborts the process when two threads launch at once: a worker thread must take a serial
     twin (``pick``) or the launch lock (``launch``). Scans every call of a parallel kernel in the package's source."""
@@ -78,7 +93,7 @@ def test_every_parallel_kernel_is_called_through_pick_or_launch():
     from pathlib import Path
 
     kernels = _kernels()
-    parallel = {n for _, n, d in kernels if d.targetoptions.get("parallel")}
+    parallel = {n for _, n, d in kernels if d.targetoptions.get("parallel") not in (None, False)}
     missing = {"_cast", "_raster_bands", "_shade_pass", "_glow_rows"} - parallel
     assert not missing, (missing, sorted(parallel), sorted({m for m, _, _ in kernels}))
     root = Path(fog_gym.__file__).parent

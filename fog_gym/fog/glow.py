@@ -23,6 +23,7 @@ from concurrent.futures import ThreadPoolExecutor
 import cv2
 import numpy as np
 from numba import njit, prange
+from numba.core.cpu import ParallelOptions
 
 import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
 from fog_gym._numba import FASTMATH, launch, pick, serial_twin
@@ -237,8 +238,9 @@ def _span(mask):
     return lo, hi
 
 
-# (its loops read their neighbours' rows: unfused)
-@njit(cache=True, nogil=True, parallel={"fusion": False}, fastmath=FASTMATH)
+# (its loops read their neighbours' rows: unfused; as ParallelOptions, since numba empties a dict of options on the
+# first compilation, so a second signature, or a scan of the options, would find plain parallel with fusion)
+@njit(cache=True, nogil=True, parallel=ParallelOptions({"fusion": False}), fastmath=FASTMATH)
 def _glow_rows(grids, gofs, hcs, wcs, x0s, wxs, firsts, fofs, wide):
     # Stages 1 and 2 of the glow's addition (stage 3: _blend_glow); returns each grid row's span of active intervals
     # (span_lo, span_hi, in the order of the levels' rows; row r of level lv is rofs[lv] + cy). Level lv's grid is grids[gofs[lv]:…] as (hcs[lv], 3 wcs[lv]) float32 (a margin of
