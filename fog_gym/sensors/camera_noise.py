@@ -318,10 +318,14 @@ def _level_cdf(L, thresholds, sigma, r, phi, out, scratch):
     mode = int(L)
     if L > 0.0:
         p[mode - k0] = math.exp(mode * math.log(L) - L - math.lgamma(mode + 1.0))
-        for k in range(mode + 1, k1 + 1):
-            p[k - k0] = p[k - 1 - k0] * L / k
-        for k in range(mode - 1, k0 - 1, -1):
-            p[k - k0] = p[k + 1 - k0] * (k + 1) / L
+        up, down = k1 - mode, mode - k0  # both recurrences in one loop: two chains of divisions in flight at once
+        for i in range(1, max(up, down) + 1):
+            if i <= up:
+                k = mode + i
+                p[k - k0] = p[k - 1 - k0] * L / k
+            if i <= down:
+                k = mode - i
+                p[k - k0] = p[k + 1 - k0] * (k + 1) / L
     else:
         p[:] = 0.0
         p[0] = 1.0
@@ -331,6 +335,7 @@ def _level_cdf(L, thresholds, sigma, r, phi, out, scratch):
         p[i] /= total
         acc += p[i]
         cum[i] = acc
+    waiting, b1 = -1, 0
     for d in range(n_t):
         t = thresholds[d]
         if t < 0.0:
@@ -347,10 +352,33 @@ def _level_cdf(L, thresholds, sigma, r, phi, out, scratch):
         if base + 2 * r < k0:
             out[d] = 0.0
             continue
-        f = cum[base - 1 - k0] if base - 1 - k0 >= 0 else 0.0
-        for j in range(max(k0 - base, 0), min(k1 - base, 2 * r) + 1):
-            f += p[base + j - k0] * phi[d, j]
-        out[d] = min(f, 1.0)
+        if waiting < 0:  # summed with the next such threshold: two chains of additions in flight at once
+            waiting, b1 = d, base
+            continue
+        _two_sums(p, cum, phi, k0, k1, r, waiting, b1, d, base, out)
+        waiting = -1
+    if waiting >= 0:
+        _two_sums(p, cum, phi, k0, k1, r, waiting, b1, waiting, b1, out)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _two_sums(p, cum, phi, k0, k1, r, d1, b1, d2, b2, out):
+    """``out[d] = P(N < base) + Σ_j P(N = base + j)·phi[d, j]`` for thresholds ``d1`` and ``d2`` (bases ``b1``,
+    ``b2``), each sum in its own order (j ascending), the two interleaved."""
+    f1 = cum[b1 - 1 - k0] if b1 - 1 - k0 >= 0 else 0.0
+    f2 = cum[b2 - 1 - k0] if b2 - 1 - k0 >= 0 else 0.0
+    lo1, lo2 = max(k0 - b1, 0), max(k0 - b2, 0)
+    n1 = min(k1 - b1, 2 * r) + 1 - lo1
+    n2 = min(k1 - b2, 2 * r) + 1 - lo2
+    for s in range(min(n1, n2)):
+        f1 += p[b1 + lo1 + s - k0] * phi[d1, lo1 + s]
+        f2 += p[b2 + lo2 + s - k0] * phi[d2, lo2 + s]
+    for s in range(min(n1, n2), n1):
+        f1 += p[b1 + lo1 + s - k0] * phi[d1, lo1 + s]
+    for s in range(min(n1, n2), n2):
+        f2 += p[b2 + lo2 + s - k0] * phi[d2, lo2 + s]
+    out[d1] = min(f1, 1.0)
+    out[d2] = min(f2, 1.0)
 
 
 _CDF_CHUNKS = 8  # each law's levels split over this many tasks

@@ -6,7 +6,8 @@ one run (so the machine's drift falls on both sides of each ratio):
 * a sweep that takes time: the LiDAR's sweep (``motion="continuous"``, 16 slices cast from where the ego and the
   vehicles are at each slice's time) against the instantaneous sweep — target ≤ 1.5×;
 * camera noise: a full-rig frame (``FogDrive-v0``'s step: four cameras at 1280 × 960, the LiDAR, semantic LiDAR,
-  radar and labels) with ``camera_noise="default"`` against one without — target ≤ 1.1×;
+  radar and labels) with ``camera_noise="default"`` against one without — target ≤ 1.1×; by day and at night (the
+  exact law's table, its laws summed afresh every frame);
 * anti-aliasing: the full-rig day frame with ``antialias=True`` against one without — default on at ≤ 1.25×, else
   opt-in with the cost documented.
 
@@ -31,7 +32,8 @@ from fog_gym.experiments.bench.common import (
 )  # fmt: skip
 
 #: The issue's targets: the ratio of each option's cost to the cost without it.
-TARGETS = {"dual returns": 1.2, "continuous sweep": 1.5, "camera noise": 1.1, "anti-aliasing": 1.25}
+TARGETS = {"dual returns": 1.2, "continuous sweep": 1.5, "camera noise": 1.1, "camera noise, night": 1.1,
+           "anti-aliasing": 1.25}
 
 
 def paired(a: Callable[[], Any], b: Callable[[], Any], repeats: int) -> tuple[dict[str, Any], dict[str, Any], float]:
@@ -81,9 +83,11 @@ def bench_realism(repeats: int, resolution: tuple[int, int] = (1280, 960)) -> di
                                      lambda: hahner.apply(obs5, "LIDAR_TOP_DUAL", [dense], ctx["dual"]), repeats)  # fmt: skip
     results["points"] = int(len(sweep))
     # full-rig frames
-    for name, kwargs in (("camera noise", {"camera_noise": "default"}), ("anti-aliasing", {"antialias": True})):
-        plain = FogDriveEnv(town="highway", resolution=resolution)
-        option = FogDriveEnv(town="highway", resolution=resolution, **kwargs)
+    for name, kwargs, light in (("camera noise", {"camera_noise": "default"}, "day"),
+                                ("camera noise, night", {"camera_noise": "default"}, "night"),
+                                ("anti-aliasing", {"antialias": True}, "day")):  # fmt: skip
+        plain = FogDriveEnv(town="highway", resolution=resolution, time_of_day=light)
+        option = FogDriveEnv(town="highway", resolution=resolution, time_of_day=light, **kwargs)
         plain.reset(seed=1)
         option.reset(seed=1)
         results[name] = paired(lambda: plain.step(plain.idle_action), lambda: option.step(option.idle_action), repeats)
@@ -96,10 +100,13 @@ def render_realism(results: dict[str, Any], repeats: int) -> list[str]:
         "dual returns": f"LiDAR fog of one dense-fog sweep ({results['points'] // 1000} k points): strongest → dual",
         "continuous sweep": "the LiDAR's sweep: instantaneous → continuous (16 slices)",
         "camera noise": f"full-rig frame, 4 cameras {w} × {h}: noise-free → camera_noise='default'",
+        "camera noise, night": f"full-rig night frame, 4 cameras {w} × {h}: noise-free → camera_noise='default'",
         "anti-aliasing": f"full-rig day frame, 4 cameras {w} × {h}: point-sampled → antialias=True",
     }
     rows = []
     for key, label in what.items():
+        if key not in results:  # a result file written before this figure existed
+            continue
         a, b, ratio = results[key]
         target = TARGETS[key]
         rows.append([label, fmt_ms(a), fmt_ms(b), f"**{ratio:.2f}×**", f"≤ {target:g}×: {'met' if ratio <= target else 'not met'}"])
