@@ -271,8 +271,8 @@ class FogDriveEnv(gym.Env):
 
     def _observe(self) -> dict[str, np.ndarray]:
         self.scene = self.build_scene()
-        prims = self.cameras.primitives(self.scene, in_view=False)  # every sensor's world
-        self.frames = self.cameras.render(self.scene, self.cameras.in_view(prims, self.scene))
+        prims, seen = self.cameras.scene_primitives(self.scene)  # every sensor's world, and what the cameras see
+        self.frames = self.cameras.render(self.scene, seen)
         fx = self.camera_effects
         if fx:
             fx.prepare(self._noise_seed, self._steps, self.cameras.exposure, self.scene.lighting.night, self._flows())

@@ -121,6 +121,38 @@ class CameraFrame:
     instance: np.ndarray  # (H, W) uint16, vehicle id (0 = static world and sky)
 
 
+@dataclass(frozen=True)
+class _NearProps:
+    """The props within ``render_radius + NEAR_MARGIN`` of where the ego was (``ego``): a box within render_radius of
+    the ego lies within that of a point less than NEAR_MARGIN away (1 m spare for rounding), so selecting from this
+    subset gives the same boxes in order. ``table`` holds their boxes (the first ``n_boxes`` rows) and then, for a
+    static world with meshes, the detailed primitives of those boxes, each with its box's row (``owner``)."""
+
+    ego: np.ndarray
+    table: Primitives
+    n_boxes: int
+    owner: np.ndarray | None
+    centers: np.ndarray  # the boxes' centres and half diagonals (what the distance test reads)
+    diagonals: np.ndarray
+    table_diagonals: np.ndarray  # every row's half diagonal (the view test's bounding circles)
+
+    @classmethod
+    def select(cls, boxes: Primitives, detail: tuple | None, ego: np.ndarray, render_radius: float,
+               detail_radius: float) -> _NearProps:  # fmt: skip
+        keep = boxes.near_mask(ego, render_radius + NEAR_MARGIN)
+        near = boxes.take(keep)
+        owner = None
+        table = near
+        if detail is not None:
+            local = np.full(len(keep), -1, np.int64)
+            local[keep] = np.arange(int(keep.sum()))
+            rows = local[detail[1]] >= 0
+            owner = local[detail[1]][rows]
+            table = Primitives.concat(near, detail[0].take(rows))
+        diagonals = np.linalg.norm(table.halves, axis=1)
+        return cls(ego, table, len(near), owner, near.centers, diagonals[: len(near)], diagonals)
+
+
 class CameraRig:
     """Renders every camera of a :class:`~fog_gym.sensors.rig.RigConfig` (or of a sequence of
     :class:`~fog_gym.sensors.camera.CameraConfig`) from a :class:`Scene`."""
@@ -145,7 +177,7 @@ class CameraRig:
         self._shadows: dict[tuple[int, int], ShadowCache] = {}  # per image size
         #: Props within this distance of the ego [m] are drawn as their meshes and parts, farther ones as their boxes.
         self.detail_radius = DETAIL_RADIUS
-        self._near_cache: tuple[np.ndarray, Primitives] | None = None
+        self._near_cache: _NearProps | None = None
         self._lamps_cache: tuple | None = None
         #: Auto-exposure gain of each camera in the latest frame (1 by day).
         self.exposure: dict[str, float] = {}
@@ -168,32 +200,32 @@ class CameraRig:
     def primitives(self, scene: Scene, in_view: bool = True) -> Primitives:
         """Render primitives near the ego: static props (cached per static world) + vehicles; with ``in_view`` only the
         props some camera can see (other sensors, the LiDAR's 360° sweep, take ``in_view=False``)."""
+        every, seen = self.scene_primitives(scene)
+        return seen if in_view else every
+
+    def scene_primitives(self, scene: Scene) -> tuple[Primitives, Primitives]:
+        """(every sensor's primitives, the cameras' ones): :meth:`primitives` of the scene with ``in_view`` False and
+        True, from one selection of the props."""
         self._static_props(scene)
         ego = np.asarray(scene.ego_pose[:2], np.float64)
         near = self._near_cache
-        detail = self._props_cache[3]
-        if near is None or math.hypot(ego[0] - near[0][0], ego[1] - near[0][1]) > NEAR_MARGIN - 1.0:
-            # a box within render_radius of the ego lies within render_radius + NEAR_MARGIN of a point less than
-            # NEAR_MARGIN away (1 m spare for rounding), so selecting from this subset gives the same boxes in order;
-            # with the detailed props of those boxes (and, per detailed row, its box's index in the subset)
-            keep = self._props_cache[1].near_mask(ego, self.render_radius + NEAR_MARGIN)
-            near_detail = None
-            if detail is not None:
-                local = np.full(len(keep), -1, np.int64)
-                local[keep] = np.arange(int(keep.sum()))
-                rows = local[detail[1]] >= 0
-                near_detail = (detail[0].take(rows), local[detail[1]][rows])
-            near = self._near_cache = (ego, self._props_cache[1].take(keep), near_detail)
-        within = near[1].near_mask(ego, self.render_radius)
-        if detail is None:
-            props = near[1].take(within)
-        else:  # the props near enough for their detail to show (or for the LiDAR to reach) as their meshes and parts
-            close = within & near[1].near_mask(ego, self.detail_radius)
-            detailed, owner = near[2]
-            props = Primitives.concat(near[1].take(within & ~close), detailed.take(close[owner]))
-        if in_view:
-            props = self._in_view(props, scene.ego_pose)
-        return Primitives.concat(props, scene.primitives)
+        if near is None or math.hypot(ego[0] - near.ego[0], ego[1] - near.ego[1]) > NEAR_MARGIN - 1.0:
+            near = self._near_cache = _NearProps.select(self._props_cache[1], self._props_cache[3], ego,
+                                                        self.render_radius, self.detail_radius)  # fmt: skip
+        # a box is kept within render_radius of the ego (centre distance less its half diagonal), drawn as its
+        # meshes and parts within detail_radius (when the static world has them)
+        d = np.hypot(near.centers[:, 0] - ego[0], near.centers[:, 1] - ego[1]) - near.diagonals
+        within = d <= self.render_radius
+        if near.owner is None:
+            rows = np.flatnonzero(within)
+        else:
+            close = within & (d <= self.detail_radius)
+            rows = np.concatenate((np.flatnonzero(within & ~close), near.n_boxes + np.flatnonzero(close[near.owner])))
+        every = Primitives.concat(near.table.take(rows), scene.primitives)
+        if not self._flat or len(rows) == 0:
+            return every, every
+        seen = self._view_mask(near.table.centers[rows], near.table_diagonals[rows] + 0.5, scene.ego_pose)
+        return every, Primitives.concat(near.table.take(rows[seen]), scene.primitives)
 
     def in_view(self, prims: Primitives, scene: Scene) -> Primitives:
         """``prims`` without the props no camera can see (vehicles are few and always kept)."""
@@ -208,18 +240,21 @@ class CameraRig:
         outside every camera's horizontal field of view (cameras with pitch or roll keep everything)."""
         if not self._flat or len(prims) == 0:
             return prims
+        return prims.take(self._view_mask(prims.centers, np.linalg.norm(prims.halves, axis=1) + 0.5, ego_pose))
+
+    def _view_mask(self, centers: np.ndarray, radius: np.ndarray, ego_pose: tuple[float, float, float]) -> np.ndarray:
+        """Which boxes (centres, bounding-circle radii) some camera can see (:meth:`_in_view`)."""
         ex, ey, eyaw = ego_pose
         c, s = np.cos(eyaw), np.sin(eyaw)
-        radius = np.linalg.norm(prims.halves, axis=1) + 0.5
-        keep = np.zeros(len(prims), bool)
+        keep = np.zeros(len(centers), bool)
         for px, py, yaw, half in self._views:
             cx, cy = ex + c * px - s * py, ey + s * px + c * py
-            dx, dy = prims.centers[:, 0] - cx, prims.centers[:, 1] - cy
+            dx, dy = centers[:, 0] - cx, centers[:, 1] - cy
             dist = np.hypot(dx, dy)
             off = np.abs((np.arctan2(dy, dx) - (eyaw + yaw) + np.pi) % (2 * np.pi) - np.pi)
             margin = np.arcsin(np.clip(radius / np.maximum(dist, 1e-9), 0.0, 1.0))
             keep |= (dist <= radius) | (off <= half + margin + 1e-3)
-        return prims.take(keep)
+        return keep
 
     def render(self, scene: Scene, prims: Primitives | None = None) -> dict[str, CameraFrame]:
         """Every camera's buffers; ``prims`` defaults to :meth:`primitives` of the scene."""
