@@ -15,6 +15,8 @@ Example:
 
 from __future__ import annotations
 
+import functools
+
 import math
 from collections.abc import Sequence
 
@@ -182,6 +184,15 @@ def check_fog_inputs(rgb: np.ndarray, depth: np.ndarray, K: np.ndarray, alphas: 
         raise ValueError(f"airlight must be three values in [0, 255], got {A.tolist()}")
 
 
+@functools.lru_cache(maxsize=64)
+def _ray_slopes(fx: float, fy: float, cx: float, cy: float, w: int, h: int) -> tuple[np.ndarray, np.ndarray]:
+    """Squared ray slopes of the pixel centres of a camera, per column and per row (float32; a camera's own, kept
+    across its frames: the kernels only read them)."""
+    col = (((np.arange(w) + 0.5 - cx) / fx) ** 2).astype(np.float32)
+    row = (((np.arange(h) + 0.5 - cy) / fy) ** 2).astype(np.float32)
+    return col, row
+
+
 def fog_images(rgb: np.ndarray, depth: np.ndarray, K: np.ndarray, alphas: Sequence[float], airlight: np.ndarray,
                validate: bool = True, glow: bool = False) -> np.ndarray:  # fmt: skip
     """Koschmieder fog at several extinctions in one pass: ``(L, H, W, 3)`` uint8 for ``alphas`` (all > 0).
@@ -196,8 +207,7 @@ def fog_images(rgb: np.ndarray, depth: np.ndarray, K: np.ndarray, alphas: Sequen
         check_fog_inputs(rgb, depth, K, alphas, airlight)
     rows = _glow_rows_of(rgb, depth, K, alphas) if glow else None
     h, w = depth.shape
-    col = (((np.arange(w) + 0.5 - K[0, 2]) / K[0, 0]) ** 2).astype(np.float32)
-    row = (((np.arange(h) + 0.5 - K[1, 2]) / K[1, 1]) ** 2).astype(np.float32)
+    col, row = _ray_slopes(float(K[0, 0]), float(K[1, 1]), float(K[0, 2]), float(K[1, 2]), w, h)
     out = np.empty((len(alphas), h, w, 3), np.uint8)
     airlight_row = np.tile(np.asarray(airlight, np.float32), w)
     pick(_koschmieder, _koschmieder_serial, len(alphas) * h * w)(

@@ -248,25 +248,27 @@ def _mesh_primitives(state: VehicleState, night: bool, exclude_id: int | None) -
     keep = np.ones(len(state), bool) if exclude_id is None else state.ids != exclude_id
     ids, classes = state.ids[keep], state.classes[keep]
     key = (ids.tobytes(), classes.tobytes())
-    meshes = _BODIES.get(key)
-    if meshes is None:
-        meshes = np.array([body_mesh_id(body_type_of(int(i), int(c))) for i, c in zip(ids, classes)], np.int32)
+    bodies = _BODIES.get(key)
+    if bodies is None:  # each vehicle's mesh and tag, per set of vehicles (shared by their frames; only read)
+        bodies = (np.array([body_mesh_id(body_type_of(int(i), int(c))) for i, c in zip(ids, classes)], np.int32),
+                  np.array([CLASS_TAGS[int(k)] for k in classes], np.uint8).reshape(len(ids)))  # fmt: skip
         evict_oldest(_BODIES, 256)
-        _BODIES[key] = meshes
+        _BODIES[key] = bodies
+    meshes, tags = bodies
     n = len(ids)
     return Primitives(
         centers=np.ascontiguousarray(state.centers[keep], np.float64),
         halves=np.ascontiguousarray(state.sizes[keep] / 2, np.float64),
         yaws=np.ascontiguousarray(state.yaws[keep], np.float64),
         colors=np.ascontiguousarray(state.colors[keep], np.float64),
-        tags=np.array([CLASS_TAGS[int(k)] for k in classes], np.uint8).reshape(n),
+        tags=tags,
         insts=ids.astype(np.uint16),
         emissive=np.full(n, bool(night)),
         meshes=meshes,
     )
 
 
-_BODIES: dict[tuple, np.ndarray] = {}
+_BODIES: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
 
 
 def ego_primitives(scene: Scene) -> Primitives:
