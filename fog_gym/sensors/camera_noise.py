@@ -307,7 +307,7 @@ def _phi_row(t, sigma, r, row):
 @njit(cache=True, nogil=True, inline="always")
 def _level_cdf(L, thresholds, sigma, r, phi, out, scratch):
     """``out[d] = P(N + R < t_d)``, ``N ~ Poisson(L)``, ``R ~ N(0, σ²)``, for one level (:func:`_cdf_tables`);
-    ``scratch`` holds at least ``2·(16√L + 22)`` values."""
+    ``scratch`` holds at least ``2·(16√L + 23)`` values (the Poisson window's masses and their running sum)."""
     n_t = thresholds.shape[0]
     half = 8.0 * math.sqrt(L) + 10.0
     k0 = max(0, int(L - half))
@@ -422,15 +422,18 @@ def _quantile_rows(cdf, size):
     quantile ``(m + ½)/size`` (:func:`_quantiles`)."""
     rows, n_t = cdf.shape
     out = np.empty((rows, size), np.uint8)
-    for row in prange(rows):
-        counts = np.zeros(size + 1, np.int64)
-        for d in range(n_t):
-            q = math.ceil(cdf[row, d] * size - 0.5)
-            counts[0 if q < 0 else (size if q > size else q)] += 1
-        acc = 0
-        for m in range(size):
-            acc += counts[m]
-            out[row, m] = acc
+    chunks = min(rows, 16)
+    for c in prange(chunks):  # a histogram per chunk of rows, allocated once
+        counts = np.empty(size + 1, np.int64)
+        for row in range(c * rows // chunks, (c + 1) * rows // chunks):
+            counts[:] = 0
+            for d in range(n_t):
+                q = math.ceil(cdf[row, d] * size - 0.5)
+                counts[0 if q < 0 else (size if q > size else q)] += 1
+            acc = 0
+            for m in range(size):
+                acc += counts[m]
+                out[row, m] = acc
     return out
 
 
