@@ -30,7 +30,7 @@ read noise ``σ_r = 2.5 e⁻`` is an assumption (the 2–3 e⁻ of the pixel fam
 
 **How it is drawn.** The output of a pixel depends only on its noise-free level ``v`` (0–255), the gain and its
 random draw, so per camera and frame :func:`noise_law` holds the exact distribution of the model for every ``v``
-(the Poisson ⊛ Gaussian law summed exactly, :func:`_cdf_tables`), tabulated as :data:`TABLE_SIZE` quantiles
+(the Poisson ⊛ Gaussian law summed exactly, :func:`fog_gym.sensors.poisson_gauss._cdf_tables`), tabulated as :data:`TABLE_SIZE` quantiles
 (:func:`noise_table`). Two kernels draw from it (:func:`add_noise`, :func:`add_noise_many`), both from a
 counter-based hash of the frame's key and the value's index, so the same key gives the same noise on any machine
 and thread count, and every (episode, frame, camera, fog variant) has its own key (:func:`frame_key`):
@@ -82,6 +82,7 @@ from numba.extending import intrinsic
 
 import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
 from fog_gym._numba import pick, serial_twin
+from fog_gym.sensors.poisson_gauss import _cdf_tables, _cdf_tables_serial, _quantile_rows, _quantile_rows_serial
 from fog_gym.checks import finite
 from fog_gym.render.shading import KNEE
 
@@ -292,152 +293,6 @@ def noise_laws(noises: Sequence[CameraNoise], gains: Sequence[float], night: boo
                 break  # the table, whatever the other levels give (tv is then the largest among those checked)
         out.append(NoiseLaw(table, tv <= GAUSSIAN_TV, float(c0), float(c1), tv))
     return out
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _phi_row(t, sigma, r, row):
-    """``row[j] = Φ((t − k)/σ)`` for the counts ``k = floor(t) − r + j``, ``j = 0..2r`` (the read noise's CDF around
-    threshold ``t``; zeros for a threshold beyond the well or no read noise)."""
-    if t >= 0.0 and sigma > 0.0:
-        base = math.floor(t) - r
-        for j in range(2 * r + 1):
-            row[j] = 0.5 * math.erfc(-(t - (base + j)) / (sigma * math.sqrt(2.0)))
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _level_cdf(L, thresholds, sigma, r, phi, out, scratch):
-    """``out[d] = P(N + R < t_d)``, ``N ~ Poisson(L)``, ``R ~ N(0, σ²)``, for one level (:func:`_cdf_tables`);
-    ``scratch`` holds at least ``2·(16√L + 23)`` values (the Poisson window's masses and their running sum)."""
-    n_t = thresholds.shape[0]
-    half = 8.0 * math.sqrt(L) + 10.0
-    k0 = max(0, int(L - half))
-    k1 = int(L + half) + 1
-    n = k1 - k0 + 1
-    p = scratch[:n]
-    cum = scratch[n:2 * n]
-    mode = int(L)
-    if L > 0.0:
-        p[mode - k0] = math.exp(mode * math.log(L) - L - math.lgamma(mode + 1.0))
-        up, down = k1 - mode, mode - k0  # both recurrences in one loop: two chains of divisions in flight at once
-        for i in range(1, max(up, down) + 1):
-            if i <= up:
-                k = mode + i
-                p[k - k0] = p[k - 1 - k0] * L / k
-            if i <= down:
-                k = mode - i
-                p[k - k0] = p[k + 1 - k0] * (k + 1) / L
-    else:
-        p[:] = 0.0
-        p[0] = 1.0
-    total = p.sum()
-    acc = 0.0
-    for i in range(n):  # cum[i] = P(N <= k0 + i)
-        p[i] /= total
-        acc += p[i]
-        cum[i] = acc
-    waiting, b1 = -1, 0
-    for d in range(n_t):
-        t = thresholds[d]
-        if t < 0.0:
-            out[d] = 1.0
-            continue
-        if sigma == 0.0:
-            m = int(math.ceil(t)) - 1 - k0  # P(N < t) = P(N <= ceil(t) − 1)
-            out[d] = 0.0 if m < 0 else (1.0 if m >= n else min(cum[m], 1.0))
-            continue
-        base = int(math.floor(t)) - r  # counts below base add their whole mass, above base + 2r none
-        if base > k1:
-            out[d] = 1.0
-            continue
-        if base + 2 * r < k0:
-            out[d] = 0.0
-            continue
-        if waiting < 0:  # summed with the next such threshold: two chains of additions in flight at once
-            waiting, b1 = d, base
-            continue
-        _two_sums(p, cum, phi, k0, k1, r, waiting, b1, d, base, out)
-        waiting = -1
-    if waiting >= 0:
-        _two_sums(p, cum, phi, k0, k1, r, waiting, b1, waiting, b1, out)
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _two_sums(p, cum, phi, k0, k1, r, d1, b1, d2, b2, out):
-    """``out[d] = P(N < base) + Σ_j P(N = base + j)·phi[d, j]`` for thresholds ``d1`` and ``d2`` (bases ``b1``,
-    ``b2``), each sum in its own order (j ascending), the two interleaved."""
-    f1 = cum[b1 - 1 - k0] if b1 - 1 - k0 >= 0 else 0.0
-    f2 = cum[b2 - 1 - k0] if b2 - 1 - k0 >= 0 else 0.0
-    lo1, lo2 = max(k0 - b1, 0), max(k0 - b2, 0)
-    n1 = min(k1 - b1, 2 * r) + 1 - lo1
-    n2 = min(k1 - b2, 2 * r) + 1 - lo2
-    for s in range(min(n1, n2)):
-        f1 += p[b1 + lo1 + s - k0] * phi[d1, lo1 + s]
-        f2 += p[b2 + lo2 + s - k0] * phi[d2, lo2 + s]
-    for s in range(min(n1, n2), n1):
-        f1 += p[b1 + lo1 + s - k0] * phi[d1, lo1 + s]
-    for s in range(min(n1, n2), n2):
-        f2 += p[b2 + lo2 + s - k0] * phi[d2, lo2 + s]
-    out[d1] = min(f1, 1.0)
-    out[d2] = min(f2, 1.0)
-
-
-_CDF_CHUNKS = 8  # each law's levels split over this many tasks
-
-
-@njit(cache=True, nogil=True, parallel=True)
-def _cdf_tables(lam, thresholds, sigma):
-    """``F[i, v, d] = P(N_v + R < t_d)`` of law ``i``: ``N_v ~ Poisson(lam[i, v])``, ``R ~ N(0, sigma[i]²)``, exactly:
-    the Poisson mass over ``λ ± (8√λ + 10)`` by recurrence from its mode, the read noise's Φ over ``t ± 7σ``
-    (tabulated once per threshold; below that window each count adds its whole mass). A negative threshold stands
-    for one beyond the full well (never reached: F = 1); rounding never takes F above 1. Every law's levels in one
-    launch."""
-    n_law, n_lv, n_t = lam.shape[0], lam.shape[1], thresholds.shape[1]
-    out = np.empty((n_law, n_lv, n_t))
-    rs = np.empty(n_law, np.int64)
-    for i in range(n_law):
-        rs[i] = int(math.ceil(7.0 * sigma[i])) + 1  # counts farther than 7σ from a threshold are wholly below or above
-    width = 2 * rs.max() + 1 if n_law else 1
-    # phi[i, d, j] = Φ((t_d − k)/σ) for the count k = floor(t_d) − r + j: the same for every level of a law
-    phi = np.zeros((n_law, n_t, width))
-    for task in prange(n_law * n_t):
-        i, d = task // n_t, task % n_t
-        _phi_row(thresholds[i, d], sigma[i], rs[i], phi[i, d])
-    # a level's Poisson window is longer the brighter it is: each chunk takes every _CDF_CHUNKS-th level (dark and
-    # bright alike) and allocates its scratch once (allocating in the loop serialises the threads on the allocator)
-    longest = 2 * (int(16.0 * math.sqrt(max(lam.max(), 0.0))) + 24) if n_law else 0
-    for task in prange(n_law * _CDF_CHUNKS):
-        i, c = task // _CDF_CHUNKS, task % _CDF_CHUNKS
-        scratch = np.empty(longest)
-        for v in range(c, n_lv, _CDF_CHUNKS):
-            _level_cdf(lam[i, v], thresholds[i], sigma[i], rs[i], phi[i], out[i, v], scratch)
-    return out
-
-
-_cdf_tables_serial = serial_twin(_cdf_tables)
-
-
-@njit(cache=True, nogil=True, parallel=True)
-def _quantile_rows(cdf, size):
-    """``(rows, size)`` uint8: per row of ``cdf`` (``P(output <= d)``, ``d = 0..254``) the output level at each
-    quantile ``(m + ½)/size`` (:func:`_quantiles`)."""
-    rows, n_t = cdf.shape
-    out = np.empty((rows, size), np.uint8)
-    chunks = min(rows, 16)
-    for c in prange(chunks):  # a histogram per chunk of rows, allocated once
-        counts = np.empty(size + 1, np.int64)
-        for row in range(c * rows // chunks, (c + 1) * rows // chunks):
-            counts[:] = 0
-            for d in range(n_t):
-                q = math.ceil(cdf[row, d] * size - 0.5)
-                counts[0 if q < 0 else (size if q > size else q)] += 1
-            acc = 0
-            for m in range(size):
-                acc += counts[m]
-                out[row, m] = acc
-    return out
-
-
-_quantile_rows_serial = serial_twin(_quantile_rows)
 
 
 def predicted_variance(noise: CameraNoise, level: float, gain: float, night: bool = False) -> float:

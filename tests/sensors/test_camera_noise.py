@@ -176,8 +176,8 @@ def _reference_quantiles(cdf: np.ndarray) -> np.ndarray:
 def test_a_frames_laws_computed_together_are_each_computed_alone(full, read, night, gains):
     """One launch for a frame's cameras (parallel and serial twins alike) gives each camera's own law, its table the
     quantiles of its CDF (a numpy reference), its CDF a distribution function within [0, 1]."""
-    from fog_gym.sensors.camera_noise import (_cdf_tables, _cdf_tables_serial, _exact_cdf, _exact_cdfs,
-                                              _quantile_rows, _quantile_rows_serial)  # fmt: skip
+    from fog_gym.sensors.camera_noise import _exact_cdf, _exact_cdfs
+    from fog_gym.sensors.poisson_gauss import _cdf_tables, _cdf_tables_serial, _quantile_rows, _quantile_rows_serial
 
     noise = CameraNoise(full_well_e=full, read_noise_e=read)
     together = noise_laws([noise] * len(gains), gains, night)
