@@ -16,7 +16,6 @@ Example:
 from __future__ import annotations
 
 import functools
-
 import math
 from collections.abc import Sequence
 
