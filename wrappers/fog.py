@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import math
 import zlib
 from collections.abc import Sequence
@@ -326,7 +327,16 @@ class FogWrapper(gym.Wrapper):
 
 
 def _level_key(level: FogField) -> int:
-    """The fog noise stream of a level: its visibility in mm (homogeneous), a checksum of a field's parameters."""
-    if not level.is_homogeneous:
-        return zlib.crc32(field_json(level).encode())
-    return 0 if level.is_clear else int(round(level.visibility_m * 1000))
+    """The fog noise stream of a level: its visibility in mm (homogeneous), a checksum of a field's parameters
+    (remembered per field: a frame asks for it once per level)."""
+    if level.is_homogeneous:
+        return 0 if level.is_clear else int(round(level.visibility_m * 1000))
+    try:
+        return _field_key(level)
+    except TypeError:  # a field with an unhashable parameter
+        return _field_key.__wrapped__(level)
+
+
+@functools.lru_cache(maxsize=256)
+def _field_key(level: FogField) -> int:
+    return zlib.crc32(field_json(level).encode())

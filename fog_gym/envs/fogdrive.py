@@ -177,6 +177,7 @@ class FogDriveEnv(gym.Env):
         self.point_sensors = PointSensors(c.rig, c.simulation_frequency)
         # ground truth lives in the LiDAR frame (FogDrive's 3D boxes); the FogDrive roof pose if the rig has no LiDAR
         label_lidar = c.rig.lidar or c.rig.semantic_lidar
+        self._mounts: dict[str, np.ndarray] = {}  # channel → its sensor's frame → vehicle (sensor_to_world)
         self._label_lidar_to_vehicle = sensor_to_world(label_lidar.pose if label_lidar else (0.0, 0.0, 2.0))
         self._extrinsics = {
             cam.name: geo.lidar_to_camera(self._label_lidar_to_vehicle, self.cameras.sensor_to_vehicle[cam.name])
@@ -391,13 +392,18 @@ class FogDriveEnv(gym.Env):
         y down, z forward: what its intrinsics project) → world, or a point sensor's own frame → world."""
         if self.scene is None:
             raise RuntimeError("call reset() before sensor_to_world()")
-        ego = geo.yaw_transform(*self.scene.ego_pose)
-        if channel in self.cameras.sensor_to_vehicle:
-            return ego @ self.cameras.sensor_to_vehicle[channel] @ np.linalg.inv(geo.SENSOR_TO_CAMERA)
-        for sensor in self.sensors:
-            if channel in sensor.channels:
-                return ego @ sensor_to_world(sensor.config.pose)
-        raise ValueError(f"no sensor of this rig fills channel {channel!r}; channels: {list(self.observation_space)}")
+        mount = self._mounts.get(channel)
+        if mount is None:  # the sensor's frame → vehicle: fixed for the rig, found once per channel
+            if channel in self.cameras.sensor_to_vehicle:
+                mount = self.cameras.sensor_to_vehicle[channel] @ np.linalg.inv(geo.SENSOR_TO_CAMERA)
+            else:
+                sensor = next((s for s in self.sensors if channel in s.channels), None)
+                if sensor is None:
+                    raise ValueError(f"no sensor of this rig fills channel {channel!r}; channels: "
+                                     f"{list(self.observation_space)}")  # fmt: skip
+                mount = sensor_to_world(sensor.config.pose)
+            self._mounts[channel] = mount
+        return geo.yaw_transform(*self.scene.ego_pose) @ mount
 
     @property
     def idle_action(self) -> Any:
