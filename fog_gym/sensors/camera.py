@@ -132,9 +132,7 @@ class _NearProps:
     table: Primitives
     n_boxes: int
     owner: np.ndarray | None
-    centers: np.ndarray  # the boxes' centres and half diagonals (what the distance test reads)
-    diagonals: np.ndarray
-    table_diagonals: np.ndarray  # every row's half diagonal (the view test's bounding circles)
+    diagonals: np.ndarray  # every row's half diagonal (the distance test reads the boxes', the view test all rows')
 
     @classmethod
     def select(cls, boxes: Primitives, detail: tuple | None, ego: np.ndarray, render_radius: float,
@@ -150,7 +148,7 @@ class _NearProps:
             owner = local[detail[1]][rows]
             table = Primitives.concat(near, detail[0].take(rows))
         diagonals = np.linalg.norm(table.halves, axis=1)
-        return cls(ego, table, len(near), owner, near.centers, diagonals[: len(near)], diagonals)
+        return cls(ego, table, len(near), owner, diagonals)
 
 
 class CameraRig:
@@ -214,7 +212,8 @@ class CameraRig:
                                                         self.render_radius, self.detail_radius)  # fmt: skip
         # a box is kept within render_radius of the ego (centre distance less its half diagonal), drawn as its
         # meshes and parts within detail_radius (when the static world has them)
-        d = np.hypot(near.centers[:, 0] - ego[0], near.centers[:, 1] - ego[1]) - near.diagonals
+        boxes = near.table.centers[: near.n_boxes]
+        d = np.hypot(boxes[:, 0] - ego[0], boxes[:, 1] - ego[1]) - near.diagonals[: near.n_boxes]
         within = d <= self.render_radius
         if near.owner is None:
             rows = np.flatnonzero(within)
@@ -224,7 +223,7 @@ class CameraRig:
         every = Primitives.concat(near.table.take(rows), scene.primitives)
         if not self._flat or len(rows) == 0:
             return every, every
-        seen = self._view_mask(near.table.centers[rows], near.table_diagonals[rows] + 0.5, scene.ego_pose)
+        seen = self._view_mask(near.table.centers[rows], near.diagonals[rows] + 0.5, scene.ego_pose)
         return every, Primitives.concat(near.table.take(rows[seen]), scene.primitives)
 
     def in_view(self, prims: Primitives, scene: Scene) -> Primitives:

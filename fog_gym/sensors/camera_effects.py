@@ -62,10 +62,6 @@ class CameraEffects:
             self._laws.popitem(last=False)
         return out
 
-    def law(self, noise: CameraNoise, gain: float, night: bool) -> NoiseLaw:
-        """The noise law of one camera (:meth:`laws`)."""
-        return self.laws([noise], [gain], night)[0]
-
     def prepare(self, seed: int, tick: int, exposure: Mapping[str, float], night: bool,
                 flows: Mapping[str, Any] | None = None) -> None:  # fmt: skip
         """Set up the frame ``tick`` of the episode whose noise seed is ``seed``: each camera's table from its

@@ -30,8 +30,8 @@ read noise ``σ_r = 2.5 e⁻`` is an assumption (the 2–3 e⁻ of the pixel fam
 
 **How it is drawn.** The output of a pixel depends only on its noise-free level ``v`` (0–255), the gain and its
 random draw, so per camera and frame :func:`noise_law` holds the exact distribution of the model for every ``v``
-(the Poisson ⊛ Gaussian law summed exactly, :func:`fog_gym.sensors.poisson_gauss._cdf_tables`), tabulated as :data:`TABLE_SIZE` quantiles
-(:func:`noise_table`). Two kernels draw from it (:func:`add_noise`, :func:`add_noise_many`), both from a
+(the Poisson ⊛ Gaussian law summed exactly, :func:`fog_gym.sensors.poisson_gauss._cdf_tables`), tabulated as
+:data:`TABLE_SIZE` quantiles (:func:`noise_table`). Two kernels draw from it (:func:`add_noise`, :func:`add_noise_many`), both from a
 counter-based hash of the frame's key and the value's index, so the same key gives the same noise on any machine
 and thread count, and every (episode, frame, camera, fog variant) has its own key (:func:`frame_key`):
 
@@ -179,9 +179,10 @@ def _exact_cdfs(noises: Sequence[CameraNoise], gains: Sequence[float], night: bo
     a noise-free level ``v`` (row) and ``d = 0..254`` (column); every law in one kernel launch."""
     lam = np.empty((len(noises), 256))
     thresholds = np.empty((len(noises), 255))
+    signal = level_signal(np.arange(256), night)
     for i, (noise, gain) in enumerate(zip(noises, gains)):
         a = noise.gain(gain, night)
-        lam[i] = level_signal(np.arange(256), night) * noise.full_well_e / a  # mean electrons per level
+        lam[i] = signal * noise.full_well_e / a  # mean electrons per level
         t = _thresholds(noise, a, night)
         t = np.where(t > noise.full_well_e, np.inf, t)  # a full well reads above every threshold it reaches
         thresholds[i] = np.where(np.isfinite(t), t, -1.0)
@@ -287,7 +288,8 @@ def noise_laws(noises: Sequence[CameraNoise], gains: Sequence[float], night: boo
         for rows in _CHECKED:  # the levels that fail first (dark, the shoulder) before the others
             exact = np.diff(np.c_[np.zeros(len(rows)), cdf[rows], np.ones(len(rows))], axis=1)  # P(output = d)
             drawn = gaussian_levels(c0, c1, z, rows).astype(np.int64) + 256 * np.arange(len(rows))[:, None]
-            drawn = np.bincount(drawn.ravel(), weights=np.tile(p, len(rows)), minlength=256 * len(rows)).reshape(-1, 256)
+            drawn = np.bincount(drawn.ravel(), weights=np.tile(p, len(rows)),
+                                minlength=256 * len(rows)).reshape(-1, 256)  # fmt: skip
             tv = max(tv, float(0.5 * np.abs(drawn - exact).sum(axis=1).max()))
             if tv > GAUSSIAN_TV:
                 break  # the table, whatever the other levels give (tv is then the largest among those checked)

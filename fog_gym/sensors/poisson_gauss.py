@@ -25,8 +25,8 @@ from fog_gym._numba import serial_twin
 
 @njit(cache=True, nogil=True, inline="always")
 def _phi_row(t, sigma, r, row):
-    """``row[j] = Φ((t − k)/σ)`` for the counts ``k = floor(t) − r + j``, ``j = 0..2r`` (the read noise's CDF around
-    threshold ``t``; zeros for a threshold beyond the well or no read noise)."""
+    """``row[j] = Φ((t − k)/σ)`` for the counts ``k = floor(t) − r + j``, ``j = 0..2r`` (the read noise's CDF
+    around threshold ``t``; zeros for a threshold beyond the well or no read noise)."""
     if t >= 0.0 and sigma > 0.0:
         base = math.floor(t) - r
         for j in range(2 * r + 1):
