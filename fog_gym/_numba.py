@@ -115,6 +115,23 @@ def worker_pool(threads: int):
     return ThreadPoolExecutor(max_workers=threads, thread_name_prefix="fog-gym-world", initializer=_mark_worker)
 
 
+_BACKGROUND: tuple[int, object] | None = None
+
+
+def background():
+    """The process's background thread (a :func:`worker_pool` of one, so its kernels run their serial twins): work
+    whose result the caller needs only later — a frame's camera noise while the env computes its points and labels —
+    overlaps the caller's own. A forked child gets a thread of its own (a parent's thread does not survive a fork).
+
+    >>> background().submit(lambda: in_worker()).result(), in_worker()
+    (True, False)
+    """
+    global _BACKGROUND
+    if _BACKGROUND is None or _BACKGROUND[0] != os.getpid():
+        _BACKGROUND = (os.getpid(), worker_pool(1))
+    return _BACKGROUND[1]
+
+
 def readonly(a):
     """A read-only view of ``a`` (no copy). Kernels take the arrays that may be read-only (cached ray patterns) as
     read-only views, so numba compiles one signature for them, not one for each writability.

@@ -167,6 +167,7 @@ class FogDriveEnv(gym.Env):
         self.cameras = CameraRig(c.rig, far=c.far_distance)
         #: Motion blur and sensor noise of the cameras that have them (falsy when none has: noise-free frames).
         self.camera_effects = CameraEffects(c.rig.cameras)
+        self._recording: Any = None  # the frame's camera noise under way (CameraEffects.begin), until _recorded
         self.action_space = self.world.action_space
         rig_layout(c.rig)  # channel or folder clashes between the rig's sensors fail here, before any work
         #: Every sensor of the rig, in rig order (the observation's channels are theirs).
@@ -213,8 +214,9 @@ class FogDriveEnv(gym.Env):
         self._sensor_rng = stream(world_seed, "sensors")
         self._noise_seed = int(stream(world_seed, "camera_noise").integers(0, 2**63 - 1))
         self._steps = 0
-        obs = self._observe()
-        return obs, self._info({})
+        obs = self._observe(overlap=True)
+        info = self._info({})
+        return self._recorded(obs), info
 
     def step(self, action: Any):
         if self.scene is None:
@@ -222,8 +224,9 @@ class FogDriveEnv(gym.Env):
         reward, terminated, hw_info = self.world.step(action)
         self._steps += 1
         truncated = self._steps >= self.config.episode_steps and not terminated
-        obs = self._observe()
-        return obs, reward, terminated, truncated, self._info(hw_info)
+        obs = self._observe(overlap=True)
+        info = self._info(hw_info)
+        return self._recorded(obs), reward, terminated, truncated, info
 
     def render(self) -> np.ndarray | None:
         if self.render_mode != "rgb_array" or self.scene is None:
@@ -270,23 +273,33 @@ class FogDriveEnv(gym.Env):
             previous=None if prev is None or not prev.time < self.world.time else (prev.time - self.world.time, prev.vehicles),
         )
 
-    def _observe(self) -> dict[str, np.ndarray]:
+    def _observe(self, overlap: bool = False) -> dict[str, np.ndarray]:
+        """The observation of the world's current state. With ``overlap``, cameras with noise record on the
+        background thread while the points (and the caller's labels) are computed: their entries hold the
+        noise-free images until :meth:`_recorded` puts in what they recorded."""
         self.scene = self.build_scene()
         prims, seen = self.cameras.scene_primitives(self.scene)  # every sensor's world, and what the cameras see
         self.frames = self.cameras.render(self.scene, seen)
         fx = self.camera_effects
-        if fx:
-            fx.prepare(self._noise_seed, self._steps, self.cameras.exposure, self.scene.lighting.night, self._flows())
-        recorded = fx.apply_all({name: f.rgb for name, f in self.frames.items()}, 0) if fx else {}
         obs: dict[str, np.ndarray] = {}
         for name, f in self.frames.items():
-            obs[name] = recorded.get(name, f.rgb)
+            obs[name] = f.rgb
             obs[f"{name}_DEPTH"] = f.depth
             obs[f"{name}_SEM"] = f.semantic
+        if fx:
+            fx.prepare(self._noise_seed, self._steps, self.cameras.exposure, self.scene.lighting.night, self._flows())
+            self._recording = fx.begin({name: f.rgb for name, f in self.frames.items()}, 0, overlap=overlap)
         tick = max(self.world.tick - 1, 0)  # the simulation tick this keyframe closes
         self.points = self.point_sensors.measure(self.scene, prims, self._sensor_rng, tick)
         for name, pts in self.points.items():
             obs[name] = pack_points(pts, self.observation_space[name].shape[0])
+        return obs if overlap else self._recorded(obs)
+
+    def _recorded(self, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
+        """``obs`` with the cameras' recorded images of this frame (waiting for the background thread's noise)."""
+        if self._recording is not None:
+            recording, self._recording = self._recording, None
+            obs.update(recording())
         return obs
 
     def _flows(self) -> dict[str, tuple]:

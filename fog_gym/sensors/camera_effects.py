@@ -5,7 +5,9 @@ the frame's noise laws (one per camera: the gain follows that camera's auto-expo
 blur) and noise keys. :meth:`CameraEffects.prepare` sets them up once per frame; :meth:`CameraEffects.apply` turns a
 noise-free RGB image of the frame — the clean one or any fogged variant (fog is light in the scene, so it comes
 before the sensor) — into what the camera records, each variant with its own draws from the episode's one seed;
-:meth:`CameraEffects.apply_all` does it for every camera of the frame in one kernel launch.
+:meth:`CameraEffects.apply_all` does it for every camera of the frame in one kernel launch, and
+:meth:`CameraEffects.begin` begins it on a background thread, so that a large frame's noise overlaps what the env
+does next (its points and labels).
 
 Example:
     >>> from fog_gym.sensors.camera import CameraConfig
@@ -22,17 +24,22 @@ Example:
 
 from __future__ import annotations
 
+import threading
 from collections import OrderedDict
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 import numpy as np
 
-from fog_gym.sensors.camera_noise import CameraNoise, NoiseLaw, add_noise_many, frame_key, noise_laws
+from fog_gym._numba import background, in_worker
+from fog_gym.sensors.camera_noise import CameraNoise, NoiseJob, NoiseLaw, add_noise_many, frame_key, noise_laws
 from fog_gym.sensors.motion_blur import blur_motion, image_flow
 
 #: Noise laws kept per (sensor, gain, night) (day frames all share gain 1).
 TABLE_CACHE = 32
+#: Pixels of a frame's images from which :meth:`CameraEffects.begin` draws the noise on the background thread (below,
+#: the hand-over costs about what it saves).
+OVERLAP_FROM = 1 << 16
 
 
 class CameraEffects:
@@ -42,7 +49,9 @@ class CameraEffects:
         self.noise: dict[str, CameraNoise] = {c.name: c.noise for c in cameras if getattr(c, "noise", None) is not None}
         self._index = {c.name: i for i, c in enumerate(cameras)}
         self._laws: OrderedDict[tuple, NoiseLaw] = OrderedDict()
-        self._frame: dict[str, tuple[NoiseLaw, int, np.ndarray | None]] = {}
+        self._frame: dict[str, tuple[float, int, np.ndarray | None]] = {}  # name → gain, noise key, image flow
+        self._law: dict[str, NoiseLaw] = {}
+        self._night = False
 
     def __bool__(self) -> bool:
         return bool(self.noise)
@@ -64,18 +73,25 @@ class CameraEffects:
 
     def prepare(self, seed: int, tick: int, exposure: Mapping[str, float], night: bool,
                 flows: Mapping[str, Any] | None = None) -> None:  # fmt: skip
-        """Set up the frame ``tick`` of the episode whose noise seed is ``seed``: each camera's table from its
-        auto-exposure gain ``exposure[name]``; ``flows[name]`` the arguments of
-        :func:`~fog_gym.sensors.motion_blur.image_flow` but the exposure, for cameras with motion blur."""
-        self._frame = {}
-        names = list(self.noise)
-        laws = self.laws([self.noise[n] for n in names], [exposure.get(n, 1.0) for n in names], night)
-        for name, law in zip(names, laws):
-            noise = self.noise[name]
+        """Set up the frame ``tick`` of the episode whose noise seed is ``seed``: each camera's law from its
+        auto-exposure gain ``exposure[name]`` (computed on first use, with the frame's other cameras' laws);
+        ``flows[name]`` the arguments of :func:`~fog_gym.sensors.motion_blur.image_flow` but the exposure, for
+        cameras with motion blur."""
+        self._frame, self._law = {}, {}
+        self._night = bool(night)
+        for name, noise in self.noise.items():
             flow = None
             if noise.motion_blur and flows is not None and name in flows:
                 flow = image_flow(*flows[name], noise.exposure_s[1] if night else noise.exposure_s[0])
-            self._frame[name] = (law, frame_key(seed, tick, self._index[name], 0), flow)
+            self._frame[name] = (float(exposure.get(name, 1.0)), frame_key(seed, tick, self._index[name], 0), flow)
+
+    def frame_laws(self) -> dict[str, NoiseLaw]:
+        """This frame's noise law of each camera with noise (:meth:`laws`, once per frame)."""
+        if not self._law and self._frame:
+            names = list(self._frame)
+            laws = self.laws([self.noise[n] for n in names], [self._frame[n][0] for n in names], self._night)
+            self._law = dict(zip(names, laws))
+        return self._law
 
     def apply(self, name: str, rgb: np.ndarray, variant: int) -> np.ndarray:
         """The recorded image of noise-free ``rgb`` of camera ``name`` in this frame; ``variant`` 0 the clean frame,
@@ -85,15 +101,47 @@ class CameraEffects:
     def apply_all(self, images: Mapping[str, np.ndarray], variant: int) -> dict[str, np.ndarray]:
         """:meth:`apply` to every camera's image of ``images`` (name → noise-free RGB), the noise of all of them
         drawn in one kernel launch."""
+        return self.begin(images, variant, overlap=False)()
+
+    def begin(self, images: Mapping[str, np.ndarray], variant: int, overlap: bool = True) -> Callable[[], dict[str, np.ndarray]]:
+        """:meth:`apply_all`, begun: a function that returns its dict. With ``overlap`` and a frame of at least
+        :data:`OVERLAP_FROM` pixels, the laws and the noise run on the process's background thread
+        (:func:`fog_gym._numba.background`, serial kernels) while the caller goes on — an env computes its points
+        and labels meanwhile — and the function takes the tasks it has not begun and waits for the rest; until it is called, this object and ``images``
+        must not be changed. Motion blur runs first, here (its kernels are parallel). The same images either way."""
         out = dict(images)
         names = [n for n in images if n in self._frame]
         if not names:
-            return out
-        rgbs, laws, keys = [], [], []
+            return lambda: out
+        rgbs, keys = [], []
         for name in names:
-            law, key, flow = self._frame[name]
+            _, key, flow = self._frame[name]
             rgbs.append(blur_motion(images[name], flow) if flow is not None else images[name])
-            laws.append(law)
             keys.append(frame_key(key, variant, 0, 0) if variant else key)
-        out.update(zip(names, add_noise_many(rgbs, laws, keys)))
-        return out
+
+        if not overlap or in_worker() or sum(x.shape[0] * x.shape[1] for x in rgbs) < OVERLAP_FROM:
+            laws = self.frame_laws()
+            out.update(zip(names, add_noise_many(rgbs, [laws[n] for n in names], keys)))
+            return lambda: out
+        jobs: list[NoiseJob] = []
+        ready = threading.Event()
+
+        def start() -> None:  # on the background thread: the laws, then the tasks
+            try:
+                laws = self.frame_laws()
+                jobs.append(NoiseJob(rgbs, [laws[n] for n in names], keys))
+            finally:
+                ready.set()
+            jobs[0].work()
+
+        started = background().submit(start)
+
+        def finish() -> dict[str, np.ndarray]:
+            ready.wait()
+            if jobs:
+                jobs[0].work()  # the tasks the background thread has not taken yet, beside it
+            started.result()  # its last task done (or its error raised here)
+            out.update(zip(names, jobs[0].outs))
+            return out
+
+        return finish

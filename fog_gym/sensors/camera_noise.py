@@ -70,6 +70,7 @@ Example:
 from __future__ import annotations
 
 import functools
+import itertools
 import math
 from dataclasses import dataclass
 from collections.abc import Sequence
@@ -441,55 +442,99 @@ def _gauss_span(flat, out, k1, k2, c0, c1, p0, p1):
         o[i] = _to_level(_fma(math.sqrt(_fma(c1, v, c0)), z, v + np.float32(0.5)))
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _noise_task(flats, outs, tables, gauss, c0, c1, keys, t):
+    """Task ``t`` of a frame's noise: span ``t % _CHUNKS`` of image ``t // _CHUNKS`` (flattened), by the Gaussian
+    draw where ``gauss[i]``, else by its exact table (flattened)."""
+    i, c = t // _CHUNKS, t % _CHUNKS
+    flat, out = flats[i], outs[i]
+    if gauss[i]:
+        n = flat.shape[0]
+        step = (n + _CHUNKS - 1) // _CHUNKS
+        k1, k2 = np.uint32(keys[i] & np.uint64(0xFFFFFFFF)), np.uint32(keys[i] >> np.uint64(32))
+        _gauss_span(flat, out, k1, k2, c0[i], c1[i], c * step, min(n, (c + 1) * step))
+    else:
+        n = flat.shape[0] // 3
+        step = (n + _CHUNKS - 1) // _CHUNKS
+        _noise_span(flat, tables[i], keys[i], out, c * step, min(n, (c + 1) * step))
+
+
 @njit(cache=True, nogil=True, parallel=True)
 def _noise_kernel(flats, outs, tables, gauss, c0, c1, keys):
-    """Every image of a frame in one launch (a launch per camera pays the pool's wake-up each time): image ``i``
-    (flattened) by the Gaussian draw where ``gauss[i]``, else by its exact table (flattened)."""
+    """Every image of a frame in one launch (a launch per camera pays the pool's wake-up each time): its tasks
+    (:func:`_noise_task`) over the pool's threads."""
     for t in prange(len(flats) * _CHUNKS):
-        i, c = t // _CHUNKS, t % _CHUNKS
-        flat, out = flats[i], outs[i]
-        if gauss[i]:
-            n = flat.shape[0]
-            step = (n + _CHUNKS - 1) // _CHUNKS
-            k1, k2 = np.uint32(keys[i] & np.uint64(0xFFFFFFFF)), np.uint32(keys[i] >> np.uint64(32))
-            _gauss_span(flat, out, k1, k2, c0[i], c1[i], c * step, min(n, (c + 1) * step))
-        else:
-            n = flat.shape[0] // 3
-            step = (n + _CHUNKS - 1) // _CHUNKS
-            _noise_span(flat, tables[i], keys[i], out, c * step, min(n, (c + 1) * step))
+        _noise_task(flats, outs, tables, gauss, c0, c1, keys, t)
     return outs
 
 
+@njit(cache=True, nogil=True)
+def _noise_tasks(flats, outs, tables, gauss, c0, c1, keys, t0, t1):
+    """Tasks ``t0 .. t1 − 1`` of a frame's noise on the calling thread (:class:`NoiseJob`: Python threads share
+    them)."""
+    for t in range(t0, t1):
+        _noise_task(flats, outs, tables, gauss, c0, c1, keys, t)
+
+
 _noise_kernel_serial = serial_twin(_noise_kernel)
+
+
+class NoiseJob:
+    """:func:`add_noise_many`'s work, as tasks that any Python thread may take (:meth:`work`): a background thread
+    starts on a frame's noise while the env computes its points and labels, and the thread that needs the images
+    takes what is left beside it. The same images as :func:`add_noise_many` (the same tasks' code).
+
+    >>> img, table = np.full((4, 4, 3), 128, np.uint8), noise_table(DEFAULT_NOISE, 1.0, False)
+    >>> job = NoiseJob([img], [table], [5])
+    >>> job.work()
+    >>> bool((job.outs[0] == add_noise(img, table, 5)).all())
+    True
+    """
+
+    def __init__(self, images: Sequence[np.ndarray], laws: Sequence[NoiseLaw | np.ndarray], keys: Sequence[int]) -> None:
+        if not (len(images) == len(laws) == len(keys)) or not images:
+            raise ValueError(f"images, laws and keys must be non-empty and as many, got {len(images)}, {len(laws)}, {len(keys)}")
+        imgs = [np.ascontiguousarray(x) for x in images]
+        for img in imgs:
+            if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
+                raise ValueError(f"rgb must be an (H, W, 3) uint8 image, got {img.dtype} {img.shape}")
+        laws = [law if isinstance(law, NoiseLaw) else NoiseLaw(law, False, 0.0, 0.0, 1.0) for law in laws]
+        for law in laws:
+            t = law.table
+            if not isinstance(t, np.ndarray) or t.shape != (256, TABLE_SIZE) or t.dtype != np.uint8:
+                raise ValueError(f"table must be a (256, {TABLE_SIZE}) uint8 noise table, got {getattr(t, 'dtype', type(t))} {getattr(t, 'shape', '')}")
+        # one allocation for all: numpy asks the kernel for huge pages from 4 MiB on, and a frame's fresh 4 KiB pages
+        # cost as much as its noise (four separate 1280 × 960 images: 6.9 ms of page faults on this project's
+        # machine; one block: 0.03 ms); each image is a view of it
+        block = np.empty(sum(x.size for x in imgs), np.uint8)
+        ends = np.cumsum([x.size for x in imgs])
+        #: The noisy images (filled once every task has run).
+        self.outs = [block[e - x.size:e].reshape(x.shape) for x, e in zip(imgs, ends)]
+        self.pixels = sum(x.shape[0] * x.shape[1] for x in imgs)
+        self.args = (tuple(x.reshape(-1) for x in imgs), tuple(o.reshape(-1) for o in self.outs),
+                     tuple(law.table.reshape(-1) for law in laws), np.array([law.gaussian for law in laws]),
+                     np.array([law.c0 for law in laws], np.float32), np.array([law.c1 for law in laws], np.float32),
+                     np.array([int(k) & _M64 for k in keys], np.uint64))  # fmt: skip
+        self.tasks = len(imgs) * _CHUNKS
+        self._next = itertools.count()  # its next() is atomic: each task is taken by one thread
+
+    def work(self) -> None:
+        """Take tasks until none is left, one at a time (on one thread; other threads may take tasks meanwhile)."""
+        while (t := next(self._next)) < self.tasks:
+            _noise_tasks(*self.args, t, t + 1)
+
+    def run(self) -> list[np.ndarray]:
+        """Every task in one launch (parallel from :data:`NOISE_SERIAL_BELOW` pixels; the job not yet begun)."""
+        pick(_noise_kernel, _noise_kernel_serial, self.pixels, NOISE_SERIAL_BELOW)(*self.args)
+        self._next = itertools.count(self.tasks)
+        return self.outs
 
 
 def add_noise_many(images: Sequence[np.ndarray], laws: Sequence[NoiseLaw | np.ndarray], keys: Sequence[int]) -> list[np.ndarray]:
     """Each (H, W, 3) uint8 image of ``images`` with the noise of its law (a :class:`NoiseLaw`, or a bare
     :func:`noise_table`: the exact table) drawn from its key (:func:`frame_key`), in one kernel launch; new arrays
     (views of one new block), the inputs are not changed."""
-    if not (len(images) == len(laws) == len(keys)) or not images:
-        raise ValueError(f"images, laws and keys must be non-empty and as many, got {len(images)}, {len(laws)}, {len(keys)}")
-    imgs = [np.ascontiguousarray(x) for x in images]
-    for img in imgs:
-        if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
-            raise ValueError(f"rgb must be an (H, W, 3) uint8 image, got {img.dtype} {img.shape}")
-    laws = [law if isinstance(law, NoiseLaw) else NoiseLaw(law, False, 0.0, 0.0, 1.0) for law in laws]
-    for law in laws:
-        t = law.table
-        if not isinstance(t, np.ndarray) or t.shape != (256, TABLE_SIZE) or t.dtype != np.uint8:
-            raise ValueError(f"table must be a (256, {TABLE_SIZE}) uint8 noise table, got {getattr(t, 'dtype', type(t))} {getattr(t, 'shape', '')}")
-    # one allocation for all: numpy asks the kernel for huge pages from 4 MiB on, and a frame's fresh 4 KiB pages cost
-    # as much as its noise (four separate 1280 × 960 images: 6.9 ms of page faults on this project's machine; one
-    # block: 0.03 ms); each image is a view of it
-    block = np.empty(sum(x.size for x in imgs), np.uint8)
-    ends = np.cumsum([x.size for x in imgs])
-    outs = [block[e - x.size:e].reshape(x.shape) for x, e in zip(imgs, ends)]
-    kernel = pick(_noise_kernel, _noise_kernel_serial, sum(x.shape[0] * x.shape[1] for x in imgs), NOISE_SERIAL_BELOW)
-    kernel(tuple(x.reshape(-1) for x in imgs), tuple(o.reshape(-1) for o in outs),
-           tuple(law.table.reshape(-1) for law in laws), np.array([law.gaussian for law in laws]),
-           np.array([law.c0 for law in laws], np.float32), np.array([law.c1 for law in laws], np.float32),
-           np.array([int(k) & _M64 for k in keys], np.uint64))  # fmt: skip
-    return outs
+    return NoiseJob(images, laws, keys).run()
 
 
 def add_noise(rgb: np.ndarray, law: NoiseLaw | np.ndarray, key: int) -> np.ndarray:
