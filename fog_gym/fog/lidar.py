@@ -93,7 +93,7 @@ def hahner_intensities(r0, intensity, table_i, alpha, beta_ratio):
     return i_hard, i_soft, key
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def hahner_keeps(r0, intensity, table_i, table_r, alpha, beta_ratio):
     """Whether a return at range ``r0`` with intensity ``intensity`` survives the fog (``i_soft <= i_hard``); the
     same decision :func:`fog_lidar` makes per point, for the perception kernels."""

@@ -109,7 +109,7 @@ def ray_box(ox, oy, oz, dx, dy, dz, cx, cy, yaw, hl, hw, h):
     return t0, axis, sign
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def nearest(ox, oy, oz, dx, dy, dz, n, bx, by, byaw, bl, bw, bh, amin, amax, emin, emax, rmin, order, az, el,
             max_t):  # fmt: skip
     """Nearest hit along a ray among boxes 1..n-1 (slot 0, the ego, is skipped) and the ground: (t, box or −1 ground
@@ -270,7 +270,7 @@ def _luma(r, g, b):
     return 0.2126 * r + 0.7152 * g + 0.0722 * b
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def _pixel_luminance(t, hit, axis, sign, dx, dy, dz, ox, oy, oz, byaw, colors, sun, ambient, sun_int, grid, gx0,
                      gy0, res, surf_luma, ground_shade, sky_luma, alpha, terms, u_o, du):  # fmt: skip
     """Fogged luminance (0–255) seen along one ray and whether it hit anything but the sky; the transmittance is
