@@ -138,27 +138,44 @@ def _soft_curves(terms, consts, u0, z0, dus, dzs, tops, weights, ramp, step, bes
     # constants (origin_depth).
     n_nodes = weights.shape[1]
     one = int(np.round(XI_R2 / step))
-    for i in prange(dus.shape[0]):
-        du, dz, top = dus[i], dzs[i], tops[i]
-        trans = np.empty(top + 1)
-        beta1 = point_extinction(terms, u0 + du * XI_R2, z0 + dz * XI_R2)
-        lift = 0.0 if one > top else beta1 * np.exp(-2.0 * origin_depth(terms, consts, u0, z0, du, dz, one * step)) * \
-            np.exp(beta1 * (XI_R2 - XI_R1))  # fmt: skip
-        start = max(one, _clear_node(terms, u0, z0, du, dz, step, top))
-        for j in range(max(start - n_nodes + 1, 0), min(start, top + 1)):  # the first window's transmittance
-            trans[j] = np.exp(-2.0 * origin_depth(terms, consts, u0, z0, du, dz, j * step))
-        top_f, top_k, k = 0.0, 0, 0
-        while k <= top:
-            if k >= start:
-                if top_f > 0.0 and top_f >= _soft_bound(k * step, beta_max, trans[max(k - n_nodes + 1, 0)]):
-                    break
-                trans[k] = np.exp(-2.0 * origin_depth(terms, consts, u0, z0, du, dz, k * step))
-                f = ramp[k] * lift + _window(weights, k, trans, min(n_nodes, k + 1))
-                if f > top_f:
-                    top_f, top_k = f, k
-            best[i, k], where[i, k] = top_f, top_k
-            k += 1
-        stops[i] = k - 1
+    n = dus.shape[0]
+    chunks = min(n, _CURVE_CHUNKS)
+    longest = 0
+    for i in range(n):
+        longest = max(longest, tops[i])
+    for c in prange(chunks):  # curves c, c + chunks, …: a chunk's curves from every part of the grid (their lengths
+        trans = np.empty(longest + 1)  # differ by rows: contiguous shares left one thread most of the work), and one
+        for i in range(c, n, chunks):  # scratch array a chunk (an allocation per curve kept the threads waiting)
+            _soft_curve(terms, consts, u0, z0, dus[i], dzs[i], tops[i], weights, ramp, step, best, where, stops,
+                        beta_max, n_nodes, one, trans, i)
+
+
+#: Chunks of :func:`_soft_curves`'s parallel loop (each takes every ``_CURVE_CHUNKS``-th curve).
+_CURVE_CHUNKS = 64
+
+
+@njit(cache=True, inline="always")
+def _soft_curve(terms, consts, u0, z0, du, dz, top, weights, ramp, step, best, where, stops, beta_max, n_nodes, one,
+                trans, i):
+    # _soft_curves' curve i, its transmittance in trans (scratch, at least top + 1 long)
+    beta1 = point_extinction(terms, u0 + du * XI_R2, z0 + dz * XI_R2)
+    lift = 0.0 if one > top else beta1 * np.exp(-2.0 * origin_depth(terms, consts, u0, z0, du, dz, one * step)) * \
+        np.exp(beta1 * (XI_R2 - XI_R1))  # fmt: skip
+    start = max(one, _clear_node(terms, u0, z0, du, dz, step, top))
+    for j in range(max(start - n_nodes + 1, 0), min(start, top + 1)):  # the first window's transmittance
+        trans[j] = np.exp(-2.0 * origin_depth(terms, consts, u0, z0, du, dz, j * step))
+    top_f, top_k, k = 0.0, 0, 0
+    while k <= top:
+        if k >= start:
+            if top_f > 0.0 and top_f >= _soft_bound(k * step, beta_max, trans[max(k - n_nodes + 1, 0)]):
+                break
+            trans[k] = np.exp(-2.0 * origin_depth(terms, consts, u0, z0, du, dz, k * step))
+            f = ramp[k] * lift + _window(weights, k, trans, min(n_nodes, k + 1))
+            if f > top_f:
+                top_f, top_k = f, k
+        best[i, k], where[i, k] = top_f, top_k
+        k += 1
+    stops[i] = k - 1
 
 
 _soft_curves_serial = serial_twin(_soft_curves)
