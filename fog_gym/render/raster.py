@@ -41,13 +41,15 @@ BAND_ROWS = 32
 
 
 @njit(cache=True, inline="always")
-def _surface_pixel(out_rgb, out_sem, c, i, j, fxw, fyw, surface, s_rows, s_cols, tiles_x, lut, surf_tag):
-    """One ground pixel at surface-grid coordinates (fxw, fyw), coloured from ``lut``."""
+def _surface_colour(fxw, fyw, surface, s_rows, s_cols, tiles_x, surf_lut, shadow_lut, shaded, surf_tag):
+    """The colour (r, g, b) and semantic tag of the ground at surface-grid coordinates (fxw, fyw): from
+    ``shadow_lut`` where ``shaded``, else from ``surf_lut``. It returns them and its callers write the pixel: a helper
+    that wrote into the frame made numba count a reference to the frame's arrays at every pixel (two atomic operations
+    each). The day's ground rows (:func:`_ground_row`, nearly every ground pixel) write their pixels in place."""
     cls, k = surface_cell(fxw, fyw, surface, s_rows, s_cols, tiles_x)
-    out_rgb[c, i, j, 0] = lut[k, 0]
-    out_rgb[c, i, j, 1] = lut[k, 1]
-    out_rgb[c, i, j, 2] = lut[k, 2]
-    out_sem[c, i, j] = surf_tag[cls]
+    if shaded:
+        return shadow_lut[k, 0], shadow_lut[k, 1], shadow_lut[k, 2], surf_tag[cls]
+    return surf_lut[k, 0], surf_lut[k, 1], surf_lut[k, 2], surf_tag[cls]
 
 
 @njit(cache=True, inline="always")
@@ -57,15 +59,11 @@ def _in_map(shx, shy, shadow):
 
 
 @njit(cache=True, inline="always")
-def _ground_pixel(out_rgb, out_sem, c, i, j, fxw, fyw, surface, s_rows, s_cols, tiles_x, surf_lut, surf_tag, shadow,
-                  shx, shy, shadow_lut):  # fmt: skip
-    """One ground pixel at surface-grid coordinates (fxw, fyw); in the sun's shadow (shadow-map cell (shx, shy) set)
-    it takes the ambient-only colours."""
-    lut = surf_lut
-    if _in_map(shx, shy, shadow):
-        if shadow[int(shy), int(shx)]:
-            lut = shadow_lut
-    _surface_pixel(out_rgb, out_sem, c, i, j, fxw, fyw, surface, s_rows, s_cols, tiles_x, lut, surf_tag)
+def _ground_colour(fxw, fyw, surface, s_rows, s_cols, tiles_x, surf_lut, surf_tag, shadow, shx, shy, shadow_lut):
+    """:func:`_surface_colour` of one ground pixel at surface-grid coordinates (fxw, fyw); in the sun's shadow
+    (shadow-map cell (shx, shy) set) the ambient-only colours."""
+    shaded = _in_map(shx, shy, shadow) and shadow[int(shy), int(shx)] != 0
+    return _surface_colour(fxw, fyw, surface, s_rows, s_cols, tiles_x, surf_lut, shadow_lut, shaded, surf_tag)
 
 
 @njit(cache=True, inline="always")
@@ -78,7 +76,7 @@ def _in_cell(shx, shy, shadow, ix, iy):
 def _ground_row(out_rgb, out_sem, out_depth, c, i, width, tf, fxw, fyw, kx, ky, surface, s_rows, s_cols, tiles_x,
                 surf_lut, surf_tag, shadow, sh_x0, sh_y0, sh_k, shadow_lut):  # fmt: skip
     """A ground row by day: pixel j at surface-grid coordinates (fxw + kx·j, fyw + ky·j), at depth ``tf``, each as
-    :func:`_ground_pixel` colours it, but the shadow map read once per run of pixels in one of its cells. The map
+    :func:`_ground_colour` colours it, but the shadow map read once per run of pixels in one of its cells. The map
     coordinates are monotone in j (every operation of ``sh_x0 + sh_k · (fxw + kx · j)`` rounds monotonically), so
     when a run's first and last pixels lie in the same cell, every pixel between does: a run's length is estimated
     from the distance to the cell's edges and its last pixel checked exactly (shortened until it holds)."""
@@ -88,35 +86,41 @@ def _ground_row(out_rgb, out_sem, out_depth, c, i, width, tf, fxw, fyw, kx, ky, 
     while j < width:
         shx = sh_x0 + sh_k * (fxw + kx * j)
         shy = sh_y0 + sh_k * (fyw + ky * j)
-        if not _in_map(shx, shy, shadow):
-            _surface_pixel(out_rgb, out_sem, c, i, j, fxw + kx * j, fyw + ky * j, surface, s_rows, s_cols, tiles_x,
-                           surf_lut, surf_tag)  # fmt: skip
-            out_depth[c, i, j] = tf
-            j += 1
-            continue
-        ix = int(shx)
-        iy = int(shy)
-        lut = shadow_lut if shadow[iy, ix] else surf_lut
-        m = float(width - 1 - j)  # (a float until bounded: a near-zero slope gives no integer)
-        if ax > 0.0:
-            m = min(m, (ix + 1 - shx) / ax)
-        elif ax < 0.0:
-            m = min(m, (shx - ix) / -ax)
-        if ay > 0.0:
-            m = min(m, (iy + 1 - shy) / ay)
-        elif ay < 0.0:
-            m = min(m, (shy - iy) / -ay)
-        n = int(m)
-        tries = 0
-        while n > 0:
-            e = j + n
-            if _in_cell(sh_x0 + sh_k * (fxw + kx * e), sh_y0 + sh_k * (fyw + ky * e), shadow, ix, iy):
-                break
-            n = n - 1 if tries < 2 else n // 2
-            tries += 1
-        for jj in range(j, j + n + 1):
-            _surface_pixel(out_rgb, out_sem, c, i, jj, fxw + kx * jj, fyw + ky * jj, surface, s_rows, s_cols, tiles_x,
-                           lut, surf_tag)  # fmt: skip
+        n = 0  # pixels j … j + n form the run
+        shaded = False
+        if _in_map(shx, shy, shadow):
+            ix = int(shx)
+            iy = int(shy)
+            shaded = shadow[iy, ix] != 0
+            m = float(width - 1 - j)  # (a float until bounded: a near-zero slope gives no integer)
+            if ax > 0.0:
+                m = min(m, (ix + 1 - shx) / ax)
+            elif ax < 0.0:
+                m = min(m, (shx - ix) / -ax)
+            if ay > 0.0:
+                m = min(m, (iy + 1 - shy) / ay)
+            elif ay < 0.0:
+                m = min(m, (shy - iy) / -ay)
+            n = int(m)
+            tries = 0
+            while n > 0:
+                e = j + n
+                if _in_cell(sh_x0 + sh_k * (fxw + kx * e), sh_y0 + sh_k * (fyw + ky * e), shadow, ix, iy):
+                    break
+                n = n - 1 if tries < 2 else n // 2
+                tries += 1
+        for jj in range(j, j + n + 1):  # the pixels written here, not through a helper that takes the tables: numba
+            # counted a reference to each table at every pixel then (half of a 64 × 64 frame's raster)
+            cls, k = surface_cell(fxw + kx * jj, fyw + ky * jj, surface, s_rows, s_cols, tiles_x)
+            if shaded:
+                out_rgb[c, i, jj, 0] = shadow_lut[k, 0]
+                out_rgb[c, i, jj, 1] = shadow_lut[k, 1]
+                out_rgb[c, i, jj, 2] = shadow_lut[k, 2]
+            else:
+                out_rgb[c, i, jj, 0] = surf_lut[k, 0]
+                out_rgb[c, i, jj, 1] = surf_lut[k, 1]
+                out_rgb[c, i, jj, 2] = surf_lut[k, 2]
+            out_sem[c, i, jj] = surf_tag[cls]
             out_depth[c, i, jj] = tf
         j += n + 1
 
@@ -209,8 +213,9 @@ def _raster_bands(
                 if t > 0.0 and t < far:
                     gx = (ccx + t * (bx + sx * u) - surf_x0) * inv_res
                     gy = (ccy + t * (by + sy * u) - surf_y0) * inv_res
-                    _ground_pixel(out_rgb, out_sem, c, i, j, gx, gy, surface, s_rows, s_cols, tiles_x, surf_lut,
-                                  surf_tag, shadow, sh_x0 + sh_k * gx, sh_y0 + sh_k * gy, shadow_lut)  # fmt: skip
+                    r, g, b, tag = _ground_colour(gx, gy, surface, s_rows, s_cols, tiles_x, surf_lut, surf_tag, shadow,
+                                                  sh_x0 + sh_k * gx, sh_y0 + sh_k * gy, shadow_lut)  # fmt: skip
+                    out_rgb[c, i, j, 0], out_rgb[c, i, j, 1], out_rgb[c, i, j, 2], out_sem[c, i, j] = r, g, b, tag
                     out_depth[c, i, j] = t
                     if night:
                         light_ground(out_rgb, c, i, j, ccx + t * (bx + sx * u), ccy + t * (by + sy * u), gains[c],

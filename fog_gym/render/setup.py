@@ -53,20 +53,21 @@ def _emit(c, n_out, poly, k, ncx, ncy, ncz, d0, nwx, nwy, nwz, r, g, b, emis, ta
     # clip against z >= NEAR (Sutherland-Hodgman, one plane)
     m = 0
     zmin = 1e30
-    for q in range(k):
-        a0 = poly[q]
-        a1 = poly[(q + 1) % k]
-        in0 = a0[2] >= NEAR
-        in1 = a1[2] >= NEAR
+    for q in range(k):  # (the vertices read as numbers: a row taken as a view is a reference numba counts)
+        q1 = (q + 1) % k
+        a0x, a0y, a0z = poly[q, 0], poly[q, 1], poly[q, 2]
+        a1x, a1y, a1z = poly[q1, 0], poly[q1, 1], poly[q1, 2]
+        in0 = a0z >= NEAR
+        in1 = a1z >= NEAR
         if in0:
-            clipped[m, 0] = a0[0]
-            clipped[m, 1] = a0[1]
-            clipped[m, 2] = a0[2]
+            clipped[m, 0] = a0x
+            clipped[m, 1] = a0y
+            clipped[m, 2] = a0z
             m += 1
         if in0 != in1:
-            s = (NEAR - a0[2]) / (a1[2] - a0[2])
-            clipped[m, 0] = a0[0] + s * (a1[0] - a0[0])
-            clipped[m, 1] = a0[1] + s * (a1[1] - a0[1])
+            s = (NEAR - a0z) / (a1z - a0z)
+            clipped[m, 0] = a0x + s * (a1x - a0x)
+            clipped[m, 1] = a0y + s * (a1y - a0y)
             clipped[m, 2] = NEAR
             m += 1
     if m < 3:
@@ -309,29 +310,29 @@ def setup_faces(
                 corners_c[k, 1] = R[1, 0] * wx + R[1, 1] * wy + R[1, 2] * wz + T[1]
                 corners_c[k, 2] = R[2, 0] * wx + R[2, 1] * wy + R[2, 2] * wz + T[2]
             for f in range(6):
-                ln = _FACE_NORMALS[f]
-                nwx = ln[0] * cyaw - ln[1] * syaw
-                nwy = ln[0] * syaw + ln[1] * cyaw
-                nwz = ln[2]
+                ln0, ln1, ln2 = _FACE_NORMALS[f, 0], _FACE_NORMALS[f, 1], _FACE_NORMALS[f, 2]
+                nwx = ln0 * cyaw - ln1 * syaw
+                nwy = ln0 * syaw + ln1 * cyaw
+                nwz = ln2
                 # face centre in world
-                fcx = centers[p, 0] + (ln[0] * hx) * cyaw - (ln[1] * hy) * syaw
-                fcy = centers[p, 1] + (ln[0] * hx) * syaw + (ln[1] * hy) * cyaw
-                fcz = centers[p, 2] + ln[2] * hz
+                fcx = centers[p, 0] + (ln0 * hx) * cyaw - (ln1 * hy) * syaw
+                fcy = centers[p, 1] + (ln0 * hx) * syaw + (ln1 * hy) * cyaw
+                fcz = centers[p, 2] + ln2 * hz
                 if nwx * (ccx - fcx) + nwy * (ccy - fcy) + nwz * (ccz - fcz) <= 1e-9:
                     continue  # back face
                 # camera-frame normal and plane offset
                 ncx = R[0, 0] * nwx + R[0, 1] * nwy + R[0, 2] * nwz
                 ncy = R[1, 0] * nwx + R[1, 1] * nwy + R[1, 2] * nwz
                 ncz = R[2, 0] * nwx + R[2, 1] * nwy + R[2, 2] * nwz
-                c0 = corners_c[_FACE_CORNERS[f, 0]]
-                d0 = ncx * c0[0] + ncy * c0[1] + ncz * c0[2]
+                i0 = _FACE_CORNERS[f, 0]
+                d0 = ncx * corners_c[i0, 0] + ncy * corners_c[i0, 1] + ncz * corners_c[i0, 2]
                 if d0 > -1e-9:
                     continue
                 for k in range(4):
-                    ck = corners_c[_FACE_CORNERS[f, k]]
-                    poly[k, 0] = ck[0]
-                    poly[k, 1] = ck[1]
-                    poly[k, 2] = ck[2]
+                    ik = _FACE_CORNERS[f, k]
+                    poly[k, 0] = corners_c[ik, 0]
+                    poly[k, 1] = corners_c[ik, 1]
+                    poly[k, 2] = corners_c[ik, 2]
                 if not _covers_pixel(poly, 4, fx, fy, cx, cy, width, height):
                     continue
                 if emissive[p]:

@@ -255,15 +255,15 @@ def _row_kernels():
     """A ground row drawn with a shadow lookup per pixel and per run (compiled once for the test below)."""
     from numba import njit
 
-    from fog_gym.render.raster import _ground_pixel, _ground_row
+    from fog_gym.render.raster import _ground_colour, _ground_row
 
     @njit
     def per_pixel(rgb, sem, depth, width, fxw, fyw, kx, ky, flat, rows, cols, tx, lut, tags, shadow, x0, y0, k, dark):
         for j in range(width):
             gx = fxw + kx * j
             gy = fyw + ky * j
-            _ground_pixel(rgb, sem, 0, 0, j, gx, gy, flat, rows, cols, tx, lut, tags, shadow, x0 + k * gx, y0 + k * gy,
-                          dark)
+            r, g, b, tag = _ground_colour(gx, gy, flat, rows, cols, tx, lut, tags, shadow, x0 + k * gx, y0 + k * gy, dark)
+            rgb[0, 0, j, 0], rgb[0, 0, j, 1], rgb[0, 0, j, 2], sem[0, 0, j] = r, g, b, tag
             depth[0, 0, j] = np.float32(7.0)
 
     @njit
