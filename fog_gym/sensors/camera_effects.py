@@ -103,12 +103,13 @@ class CameraEffects:
         drawn in one kernel launch."""
         return self.begin(images, variant, overlap=False)()
 
-    def begin(self, images: Mapping[str, np.ndarray], variant: int, overlap: bool = True) -> Callable[[], dict[str, np.ndarray]]:
+    def begin(self, images: Mapping[str, np.ndarray], variant: int,
+              overlap: bool = True) -> Callable[[], dict[str, np.ndarray]]:  # fmt: skip
         """:meth:`apply_all`, begun: a function that returns its dict. With ``overlap`` and a frame of at least
         :data:`OVERLAP_FROM` pixels, the laws and the noise run on the process's background thread
         (:func:`fog_gym._numba.background`, serial kernels) while the caller goes on — an env computes its points
-        and labels meanwhile — and the function takes the tasks it has not begun and waits for the rest; until it is called, this object and ``images``
-        must not be changed. Motion blur runs first, here (its kernels are parallel). The same images either way."""
+        and labels meanwhile — and the function takes the tasks not yet begun and waits for the rest; until it is
+        called, this object and ``images`` must not be changed. Motion blur runs first, here (its kernels are parallel). The same images either way."""
         out = dict(images)
         names = [n for n in images if n in self._frame]
         if not names:

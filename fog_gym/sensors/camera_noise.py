@@ -491,9 +491,11 @@ class NoiseJob:
     True
     """
 
-    def __init__(self, images: Sequence[np.ndarray], laws: Sequence[NoiseLaw | np.ndarray], keys: Sequence[int]) -> None:
+    def __init__(self, images: Sequence[np.ndarray], laws: Sequence[NoiseLaw | np.ndarray],
+                 keys: Sequence[int]) -> None:  # fmt: skip
         if not (len(images) == len(laws) == len(keys)) or not images:
-            raise ValueError(f"images, laws and keys must be non-empty and as many, got {len(images)}, {len(laws)}, {len(keys)}")
+            raise ValueError(f"images, laws and keys must be non-empty and as many, got {len(images)}, {len(laws)}, "
+                             f"{len(keys)}")  # fmt: skip
         imgs = [np.ascontiguousarray(x) for x in images]
         for img in imgs:
             if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
@@ -502,7 +504,8 @@ class NoiseJob:
         for law in laws:
             t = law.table
             if not isinstance(t, np.ndarray) or t.shape != (256, TABLE_SIZE) or t.dtype != np.uint8:
-                raise ValueError(f"table must be a (256, {TABLE_SIZE}) uint8 noise table, got {getattr(t, 'dtype', type(t))} {getattr(t, 'shape', '')}")
+                raise ValueError(f"table must be a (256, {TABLE_SIZE}) uint8 noise table, got "
+                                 f"{getattr(t, 'dtype', type(t))} {getattr(t, 'shape', '')}")  # fmt: skip
         # one allocation for all: numpy asks the kernel for huge pages from 4 MiB on, and a frame's fresh 4 KiB pages
         # cost as much as its noise (four separate 1280 × 960 images: 6.9 ms of page faults on this project's
         # machine; one block: 0.03 ms); each image is a view of it

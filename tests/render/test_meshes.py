@@ -262,7 +262,8 @@ def _row_kernels():
         for j in range(width):
             gx = fxw + kx * j
             gy = fyw + ky * j
-            r, g, b, tag = _ground_colour(gx, gy, flat, rows, cols, tx, lut, tags, shadow, x0 + k * gx, y0 + k * gy, dark)
+            r, g, b, tag = _ground_colour(gx, gy, flat, rows, cols, tx, lut, tags, shadow, x0 + k * gx, y0 + k * gy,
+                                          dark)  # fmt: skip
             rgb[0, 0, j, 0], rgb[0, 0, j, 1], rgb[0, 0, j, 2], sem[0, 0, j] = r, g, b, tag
             depth[0, 0, j] = np.float32(7.0)
 
