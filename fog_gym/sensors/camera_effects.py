@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from fog_gym._numba import background, in_worker
-from fog_gym.sensors.camera_noise import CameraNoise, NoiseJob, NoiseLaw, add_noise_many, frame_key, noise_laws
+from fog_gym.sensors.camera_noise import CameraNoise, NoiseJob, NoiseLaw, frame_key, noise_laws
 from fog_gym.sensors.motion_blur import blur_motion, image_flow
 
 #: Noise laws kept per (sensor, gain, night) (day frames all share gain 1).
@@ -109,7 +109,8 @@ class CameraEffects:
         :data:`OVERLAP_FROM` pixels, the laws and the noise run on the process's background thread
         (:func:`fog_gym._numba.background`, serial kernels) while the caller goes on — an env computes its points
         and labels meanwhile — and the function takes the tasks not yet begun and waits for the rest; until it is
-        called, this object and ``images`` must not be changed. Motion blur runs first, here (its kernels are parallel). The same images either way."""
+        called, this object and ``images`` must not be changed. Motion blur runs first, here (its kernels are
+        parallel). The same images either way."""
         out = dict(images)
         names = [n for n in images if n in self._frame]
         if not names:
@@ -120,17 +121,19 @@ class CameraEffects:
             rgbs.append(blur_motion(images[name], flow) if flow is not None else images[name])
             keys.append(frame_key(key, variant, 0, 0) if variant else key)
 
-        if not overlap or in_worker() or sum(x.shape[0] * x.shape[1] for x in rgbs) < OVERLAP_FROM:
+        def job() -> NoiseJob:  # the frame's laws (computed on first use), then the draws' tasks
             laws = self.frame_laws()
-            out.update(zip(names, add_noise_many(rgbs, [laws[n] for n in names], keys)))
+            return NoiseJob(rgbs, [laws[n] for n in names], keys)
+
+        if not overlap or in_worker() or sum(x.shape[0] * x.shape[1] for x in rgbs) < OVERLAP_FROM:
+            out.update(zip(names, job().run()))
             return lambda: out
         jobs: list[NoiseJob] = []
         ready = threading.Event()
 
-        def start() -> None:  # on the background thread: the laws, then the tasks
+        def start() -> None:  # on the background thread
             try:
-                laws = self.frame_laws()
-                jobs.append(NoiseJob(rgbs, [laws[n] for n in names], keys))
+                jobs.append(job())
             finally:
                 ready.set()
             jobs[0].work()
