@@ -180,7 +180,13 @@ def _hahner_bank(pts, pose, side, dist, nodes, lut, inv_width, inv_gap, faces, d
         r_tmp = where[row[near], kn] * step
         if side != 0 and near < n_nodes and r_tmp >= faces[near]:  # the maximum's range moves with the face (unless
             r_tmp += face - faces[near]  # it lies before it)
-        _field_rule(pts, n, out, r0, i_orig, i_hard, f, r_tmp, log_noise, u, attenuation)
+        scale, value = _field_rule(np.float64(pts[n, 3]), r0, i_orig, i_hard, f, r_tmp, log_noise, u[n],
+                                   attenuation)  # fmt: skip
+        for c in range(3):
+            out[n, c] = np.float32(np.float64(pts[n, c]) * scale)
+        out[n, 3] = value
+        for c in range(4, pts.shape[1]):
+            out[n, c] = pts[n, c]
 
 
 _hahner_bank_serial = serial_twin(_hahner_bank)

@@ -33,7 +33,7 @@ import numpy as np
 from numba import njit, prange
 
 import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
-from fog_gym._numba import launch, pick, serial_twin
+from fog_gym._numba import pick, serial_twin
 from fog_gym.fog.depth import origin_constants, origin_depth
 from fog_gym.fog.lidar import GAMMA, REFERENCE_REFLECTIVITY
 from fog_gym.fog.lidar_pulse import (FIELD_COARSE, FIELD_STEP, _curves, _field_rule, beam_soft_maximum,
@@ -94,19 +94,24 @@ def _cell(du, dz, du0, du_inv, n_du, dz0, dz_inv, n_dz):
     return ia, (a - ia if n_du > 1 else 0.0), ib, (b - ib if n_dz > 1 else 0.0)
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, parallel=True)
 def _node_tops(dus, dzs, ks, du0, du_inv, n_du, dz0, dz_inv, n_dz, tops):
-    # Per grid node, the farthest range node of the points whose cell it is a corner of (0 where none): the curves
-    # need go no farther (a curve's values up to a range do not depend on how far it goes), and a node no point
-    # reads costs nothing.
-    for n in range(dus.shape[0]):
-        ia, _, ib, _ = _cell(dus[n], dzs[n], du0, du_inv, n_du, dz0, dz_inv, n_dz)
-        for q in range(4):
-            da, db = q & 1, q >> 1
-            if (da and n_du == 1) or (db and n_dz == 1):
-                continue
-            i = (ib + db) * n_du + ia + da
-            tops[i] = max(tops[i], ks[n])
+    # Per chunk of the points (a row of tops) and grid node, the farthest range node of the points whose cell it is a
+    # corner of (0 where none); the caller takes the greatest over the chunks. The curves need go no farther (a
+    # curve's values up to a range do not depend on how far it goes), and a node no point reads costs nothing.
+    n, chunks = dus.shape[0], tops.shape[0]
+    for c in prange(chunks):
+        for m in range(c * n // chunks, (c + 1) * n // chunks):
+            ia, _, ib, _ = _cell(dus[m], dzs[m], du0, du_inv, n_du, dz0, dz_inv, n_dz)
+            for q in range(4):
+                da, db = q & 1, q >> 1
+                if (da and n_du == 1) or (db and n_dz == 1):
+                    continue
+                i = (ib + db) * n_du + ia + da
+                tops[c, i] = max(tops[c, i], ks[m])
+
+
+_node_tops_serial = serial_twin(_node_tops)
 
 
 @njit(cache=True, inline="always")
@@ -159,7 +164,13 @@ def _hahner_grid(pts, pose, terms, consts, r0s, dus, dzs, ks, du0, du_inv, n_du,
                                          coarse, step, beta_max)  # fmt: skip
             r_tmp = kk * step
             exact[n] = 1
-        _field_rule(pts, n, out, r0, i_orig, i_hard, soft, r_tmp, log_noise, u, attenuation)
+        scale, value = _field_rule(np.float64(pts[n, 3]), r0, i_orig, i_hard, soft, r_tmp, log_noise, u[n],
+                                   attenuation)  # fmt: skip
+        for c in range(3):
+            out[n, c] = np.float32(np.float64(pts[n, c]) * scale)
+        out[n, 3] = value
+        for c in range(4, pts.shape[1]):
+            out[n, c] = pts[n, c]
 
 
 _hahner_grid_serial = serial_twin(_hahner_grid)
@@ -189,8 +200,9 @@ def fog_lidar_grid(pts: np.ndarray, terms: np.ndarray, pose: np.ndarray, log_noi
     node_dz = np.repeat(grid_dz, n_du)
     cell = (du_lo, (n_du - 1) / (du_hi - du_lo) if n_du > 1 else 0.0, n_du, dz_lo,
             (n_dz - 1) / (dz_hi - dz_lo) if n_dz > 1 else 0.0, n_dz)  # fmt: skip
-    tops = np.zeros(len(node_du), np.int64)
-    launch(_node_tops)(dus, dzs, ks, *cell, tops)
+    tops = np.zeros((len(spans), len(node_du)), np.int64)
+    pick(_node_tops, _node_tops_serial, n)(dus, dzs, ks, *cell, tops)
+    tops = tops.max(axis=0)
     consts = origin_constants(terms, float(pose[0]), float(pose[1]))
     best, where, stops = _curves(terms, pose, node_du, node_dz, tops, consts, n)
     weights, ramp = field_pulse_weights()

@@ -117,8 +117,14 @@ def _hahner_height(pts, tau, dzs, ks, keys, node_dz, first, lo_key, inv_spacing,
         x, y, z = np.float64(pts[n, 0]), np.float64(pts[n, 1]), np.float64(pts[n, 2])
         i_orig = np.round(np.float64(pts[n, 3]) * 255.0)
         i_hard = np.round(i_orig * np.exp(-2.0 * tau0))
-        _field_rule(pts, n, out, np.sqrt(x * x + y * y + z * z), i_orig, i_hard, soft,
-                    where[near, min(k, stops[near])] * step, log_noise, u, attenuation)  # fmt: skip
+        r0, r_tmp = np.sqrt(x * x + y * y + z * z), where[near, min(k, stops[near])] * step
+        scale, value = _field_rule(np.float64(pts[n, 3]), r0, i_orig, i_hard, soft, r_tmp, log_noise, u[n],
+                                   attenuation)  # fmt: skip
+        for c in range(3):
+            out[n, c] = np.float32(np.float64(pts[n, c]) * scale)
+        out[n, 3] = value
+        for c in range(4, pts.shape[1]):
+            out[n, c] = pts[n, c]
 
 
 _hahner_height_serial = serial_twin(_hahner_height)

@@ -1,6 +1,6 @@
 """The LiDAR fog field paths' shared parts (:mod:`fog_gym.fog.lidar_field`): the soft return's kernel on a range grid
 (:func:`field_pulse_weights`), its running maximum along beam directions (``_curves``: the curves every point of a
-direction reads), and Hahner et al.'s rule given a point's hard and soft returns (``_field_rule``).
+direction reads), and Hahner et al.'s rule given a point's hard and soft returns (``_field_rule``; its callers write the row).
 
 Example:
     >>> W, V = field_pulse_weights(); W.shape[1], round(float(KAPPA), 5)
@@ -108,25 +108,20 @@ def _soft_bound(r, beta_max, window_far):
 
 
 @njit(cache=True, inline="always")
-def _field_rule(pts, n, out, r0, i_orig, i_hard, best, r_tmp, log_noise, u, attenuation):
-    # Hahner et al.'s rule for point n given its soft return's maximum `best` (s/m², with the backscatter) at range
-    # r_tmp: the fog's return replaces the point when stronger, on the same ray with the range noise; as _hahner.
+def _field_rule(intensity, r0, i_orig, i_hard, best, r_tmp, log_noise, u_n, attenuation):
+    # Hahner et al.'s rule for a point of CARLA intensity `intensity` given its soft return's maximum `best` (s/m², with
+    # the backscatter) at range r_tmp: the fog's return replaces the point when stronger, on the same ray with the
+    # range noise (u_n: the point's uniform draw); as _hahner. Returns the factor on the point's x, y, z (1 when kept:
+    # float32 → float64 → × 1 → float32 is the same number) and its new intensity. Scalars in and out: the caller
+    # writes the row in its own loop (numba counted references to arrays passed to a helper at every point).
     ratio = math.pi / GAMMA
     if attenuation >= 0.0:  # reflectance intensities: the point's own reflectivity stands in for Γ
-        rho = min(max(np.float64(pts[n, 3]) / np.exp(-attenuation * r0), 1e-3), 1.0)
+        rho = min(max(intensity / np.exp(-attenuation * r0), 1e-3), 1.0)
         ratio = ratio * REFERENCE_REFLECTIVITY / rho
     i_soft = min(255.0, best * i_orig * r0 * r0 * ratio)
     if i_soft > i_hard:  # the fog's own return is stronger: a fog point on the same ray
-        scale = r_tmp / max(r0, 1e-12) * np.exp(log_noise * u[n])
-        for c in range(3):
-            out[n, c] = np.float32(np.float64(pts[n, c]) * scale)
-        out[n, 3] = np.float32(i_soft / 255.0)
-    else:
-        for c in range(3):
-            out[n, c] = pts[n, c]
-        out[n, 3] = np.float32(i_hard / 255.0)
-    for c in range(4, pts.shape[1]):
-        out[n, c] = pts[n, c]
+        return r_tmp / max(r0, 1e-12) * np.exp(log_noise * u_n), np.float32(i_soft / 255.0)
+    return 1.0, np.float32(i_hard / 255.0)
 
 
 @njit(cache=True, nogil=True, parallel=True)

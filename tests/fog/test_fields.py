@@ -404,6 +404,7 @@ def test_sums_of_fields_read_a_grid_of_curves_and_decide_as_each_beam_alone(fiel
     full = fog_lidar_field(pts, field, np.random.default_rng(1), pose, time=1.5, noise=0.0)  # the entry takes this path
     assert np.array_equal(full, grid)
     # each curve runs only as far as its farthest reader: bit for bit what curves run to the farthest point give
-    monkeypatch.setattr(lidar_grid, "_node_tops", lambda dus, dzs, ks, *cell_and_tops: cell_and_tops[-1].fill(ks.max()))
+    for kernel in ("_node_tops", "_node_tops_serial"):
+        monkeypatch.setattr(lidar_grid, kernel, lambda dus, dzs, ks, *cell_and_tops: cell_and_tops[-1].fill(ks.max()))
     far = np.empty_like(pts)
     assert fog_lidar_grid(pts, terms, pose, 0.0, np.zeros(len(pts)), far, -1.0) == exact and np.array_equal(far, grid)
