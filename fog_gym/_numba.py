@@ -1,9 +1,12 @@
 """Numba set-up shared by every module with kernels: the threading layer, serial twins, and compiling ahead.
 
 GNU OpenMP, numba's usual pick, aborts a process that forks after a parallel kernel ran; Gymnasium's
-AsyncVectorEnv and SB3's SubprocVecEnv fork. The workqueue layer is fork-safe (but not for concurrent kernel
-launches from several Python threads). ``NUMBA_THREADING_LAYER`` still overrides. Import this module before
-defining a kernel.
+AsyncVectorEnv and SB3's SubprocVecEnv fork. The threading layer is Intel TBB (the ``tbb`` package, a dependency on
+Linux x86-64), which is fork- and thread-safe and wakes its threads in about a microsecond; where TBB cannot be loaded,
+the workqueue layer, which is fork-safe but not for concurrent kernel launches from several Python threads, and on a
+virtual machine can take hundreds of µs to wake an idle core's thread at every parallel launch
+(:func:`threading_layer` says which; ``docs/performance.md``, "The threading layer"). ``NUMBA_THREADING_LAYER``
+still overrides. Import this module before defining a kernel.
 
 Kernels compile once (first run, or after an upgrade) and are cached next to their modules. An env compiles the
 kernels of its path ahead, in parallel worker processes, with a progress bar that names them
@@ -38,8 +41,44 @@ import numpy as np
 from numba import njit
 from numba.core import event as _event
 
+
+def _load_tbb() -> bool:
+    """Whether numba's TBB layer can be loaded here. pip's ``tbb`` wheel puts ``libtbb.so.12`` in the environment's
+    ``lib`` folder, outside the loader's search path, so it is loaded by its path first (into the global namespace,
+    where numba's ``tbbpool`` extension then finds it)."""
+    import ctypes
+
+    if not sys.platform.startswith("linux"):
+        return False
+    for folder in dict.fromkeys((sys.prefix, sys.base_prefix, sys.exec_prefix)):
+        lib = Path(folder) / "lib" / "libtbb.so.12"
+        if lib.is_file():
+            try:
+                ctypes.CDLL(str(lib), mode=ctypes.RTLD_GLOBAL)
+            except OSError:
+                continue
+            break
+    try:
+        from numba.np.ufunc import parallel, tbbpool  # noqa: F401
+
+        parallel._check_tbb_version_compatible()
+    except (ImportError, OSError, AttributeError):
+        return False
+    return True
+
+
 if "NUMBA_THREADING_LAYER" not in os.environ:
-    numba.config.THREADING_LAYER = "workqueue"
+    numba.config.THREADING_LAYER = "tbb" if _load_tbb() else "workqueue"
+
+
+def threading_layer() -> str:
+    """The threading layer numba's parallel kernels run on in this process: ``"tbb"``, ``"workqueue"`` (TBB could
+    not be loaded) or what ``NUMBA_THREADING_LAYER`` asked for.
+
+    >>> threading_layer() in ("tbb", "workqueue", "omp", "safe", "forksafe", "threadsafe", "default")
+    True
+    """
+    return str(numba.config.THREADING_LAYER)
 
 
 #: The fast-math flags of the pixel kernels: all of LLVM's but reassociation, so a vectorised loop and its scalar

@@ -118,3 +118,41 @@ def test_a_worker_thread_takes_the_serial_twin_and_the_main_thread_the_parallel_
         assert pool.submit(fog_gym._numba.launch, raycast._cast).result() is not raycast._cast
     finally:
         pool.shutdown()
+
+
+def test_the_parallel_kernels_run_on_tbb_where_the_package_is_installed_and_survive_a_fork():
+    """TBB (fork- and thread-safe, µs launches) is the layer wherever pip's ``tbb`` wheel is installed (Linux x86-64:
+    a dependency), unless ``NUMBA_THREADING_LAYER`` says otherwise; a child forked after a parallel kernel ran runs
+    one again and gets the same numbers."""
+    import importlib.metadata
+    import multiprocessing
+    import os
+    import sys
+
+    import numba
+
+    try:
+        importlib.metadata.version("tbb")
+        installed = sys.platform.startswith("linux")
+    except importlib.metadata.PackageNotFoundError:
+        installed = False
+    if "NUMBA_THREADING_LAYER" not in os.environ:
+        assert fog_gym._numba.threading_layer() == ("tbb" if installed else "workqueue")
+    rays = np.random.default_rng(0).normal(size=(20_000, 3))
+    rays /= np.linalg.norm(rays, axis=1, keepdims=True)
+    kernel = fog_gym._numba.pick(raycast._cast, raycast._cast_serial, 10**9)
+    assert kernel is raycast._cast
+    here = _cast_ranges(rays)
+    assert numba.threading_layer() == fog_gym._numba.threading_layer() or "NUMBA_THREADING_LAYER" in os.environ
+    with multiprocessing.get_context("fork").Pool(1) as pool:
+        there = pool.apply(_cast_ranges, (rays,))
+    assert np.array_equal(here, there)
+
+
+def _cast_ranges(rays: np.ndarray) -> np.ndarray:
+    """Ranges of ``rays`` from 1.8 m above a flat ground, cast by the parallel kernel."""
+    from fog_gym.sensors.raycast import cast_rays
+
+    box = {"centers": np.array([[10.0, 0.0, 1.0], [-6.0, 3.0, 1.5]]), "halves": np.array([[1.0, 2.0, 1.0]] * 2),
+           "yaws": np.array([0.0, 0.7])}
+    return cast_rays(np.array([0.0, 0.0, 1.8]), rays, 100.0, box).distance
