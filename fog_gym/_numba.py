@@ -67,8 +67,9 @@ def _load_tbb() -> bool:
     return True
 
 
+_TBB = _load_tbb()  # (also where NUMBA_THREADING_LAYER asks for "tbb" or "safe": numba then finds the library)
 if "NUMBA_THREADING_LAYER" not in os.environ:
-    numba.config.THREADING_LAYER = "tbb" if _load_tbb() else "workqueue"
+    numba.config.THREADING_LAYER = "tbb" if _TBB else "workqueue"
 
 
 def threading_layer() -> str:
