@@ -37,8 +37,8 @@ from fog_gym.sensors.motion_blur import blur_motion, image_flow
 
 #: Noise laws kept per (sensor, gain, night) (day frames all share gain 1).
 TABLE_CACHE = 32
-#: Pixels of a frame's images from which :meth:`CameraEffects.begin` draws the noise on the background thread (below,
-#: the hand-over costs about what it saves).
+#: Pixels of a night frame's images from which :meth:`CameraEffects.begin` draws the noise on the background thread
+#: (below, the hand-over costs about what it saves).
 OVERLAP_FROM = 1 << 16
 
 
@@ -105,12 +105,14 @@ class CameraEffects:
 
     def begin(self, images: Mapping[str, np.ndarray], variant: int,
               overlap: bool = True) -> Callable[[], dict[str, np.ndarray]]:  # fmt: skip
-        """:meth:`apply_all`, begun: a function that returns its dict. With ``overlap`` and a frame of at least
+        """:meth:`apply_all`, begun: a function that returns its dict. With ``overlap``, a night frame and at least
         :data:`OVERLAP_FROM` pixels, the laws and the noise run on the process's background thread
         (:func:`fog_gym._numba.background`, serial kernels) while the caller goes on — an env computes its points
         and labels meanwhile — and the function takes the tasks not yet begun and waits for the rest; until it is
-        called, this object and ``images`` must not be changed. Motion blur runs first, here (its kernels are
-        parallel). The same images either way."""
+        called, this object and ``images`` must not be changed. A day frame's noise is drawn here, in one parallel
+        launch: its laws are cheap and the draw, which the background thread would share with the caller's own
+        parallel kernels, ran faster in line (``docs/sensors.md``, "On TBB"). Motion blur runs first, here (its
+        kernels are parallel). The same images either way."""
         out = dict(images)
         names = [n for n in images if n in self._frame]
         if not names:
@@ -125,7 +127,8 @@ class CameraEffects:
             laws = self.frame_laws()
             return NoiseJob(rgbs, [laws[n] for n in names], keys)
 
-        if not overlap or in_worker() or sum(x.shape[0] * x.shape[1] for x in rgbs) < OVERLAP_FROM:
+        pixels = sum(x.shape[0] * x.shape[1] for x in rgbs)
+        if not (overlap and self._night) or in_worker() or pixels < OVERLAP_FROM:
             out.update(zip(names, job().run()))
             return lambda: out
         jobs: list[NoiseJob] = []
