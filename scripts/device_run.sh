@@ -33,6 +33,7 @@ fg() { python3 -c 'import sys; from fog_gym.cli import main; sys.exit(main())' "
 {
   date -u; nproc; lscpu | grep -E "Model name"; nvidia-smi -L 2>&1
   python3 -c "import torch, numpy, numba; print('torch', torch.__version__, 'numpy', numpy.__version__, 'numba', numba.__version__, 'cuda', torch.cuda.is_available())"
+  python3 -c "import fog_gym._numba as n; print('numba threading layer', n.threading_layer())"  # TBB where its wheel loads
 } > "$OUT/machine.txt" 2>&1
 
 # 1. the study's data: the documented command, with 16 workers
