@@ -24,7 +24,6 @@ Example:
 from __future__ import annotations
 
 import functools
-import itertools
 import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -39,7 +38,7 @@ from fog_gym.channels.spec import FOG_LEVELS, LIDAR_MOTIONS, lidar_channel, lida
 from fog_gym.geometry import Pose, sensor_to_world, transform_matrix, yaw_transform
 from fog_gym.sensors.base import PointSensor, point_space, register
 from fog_gym.channels.packing import LIDAR
-from fog_gym.sensors.raycast import GROUND, MISS, RayHits, cast_rays
+from fog_gym.sensors.raycast import GROUND, MISS, RayHits, cast_ray_slices, cast_rays
 from fog_gym.world.primitives import Primitives
 from fog_gym.world.scenery import ROAD, SurfaceMap
 
@@ -360,24 +359,17 @@ def simulate_lidar(
         times_of = slice_times(simulation_frequency, n_slices)
         at = [motion(float(t)) for t in times_of]  # each slice's sensor → world and world
         frames = [split_transform(s2w) for s2w, _ in at]
-        hits = RayHits(np.empty(n, np.float32), np.empty(n, np.int32), np.empty(n, np.float32), np.empty(n, np.uint8))
+        worlds = [world for _, world in at]
+        # every slice in one call, each with bins over its own sector only
+        hits = cast_ray_slices(np.array([o for _, o in frames]), np.array([r for r, _ in frames]), sorted_dirs, bounds,
+                               cfg.range, worlds, n_azimuth_bins=SLICE_AZIMUTH_BINS, order=order)  # (laser order)
         reflect = _NONE32 if cfg.intensity == "carla" else np.empty(n, np.float32)
-
-        def trace(k: int) -> None:
+        for k in range(n_slices if reflect.size else 0):
             lo, hi = bounds[k], bounds[k + 1]
-            if lo == hi:
-                return
-            (rot_k, origin_k), world = frames[k], at[k][1]
-            d, rows = sorted_dirs[lo:hi], order[lo:hi]
-            h = cast_rays(origin_k, d, cfg.range, world, rotation=rot_k, n_azimuth_bins=SLICE_AZIMUTH_BINS,
-                          sector=True)  # bins over the slice's sector only
-            for whole, part in zip(hits, h):  # into the sweep's laser order (the slices' rows are disjoint)
-                whole[rows] = part
-            if reflect.size:
-                reflect[rows] = reflectance(h, d, rot_k, origin_k, surface, world.colors)
-
-        for _ in _slice_map(trace, len(bounds) - 1):  # the slices' casts on the cores (each a serial kernel)
-            pass
+            if lo < hi:
+                (rot_k, origin_k), rows = frames[k], order[lo:hi]
+                reflect[rows] = reflectance(RayHits(*(a[rows] for a in hits)), sorted_dirs[lo:hi], rot_k, origin_k,
+                                            surface, worlds[k].colors)  # fmt: skip
         times = np.empty(n, np.float32)
         times[order] = np.repeat(times_of.astype(np.float32), np.diff(bounds))
     noise = rng.normal(0.0, cfg.noise_stddev, n) if cfg.noise_stddev > _EPS else _NONE
@@ -392,34 +384,6 @@ def simulate_lidar(
 
 
 _NONE32 = np.zeros(0, np.float32)
-_POOL: list = []
-
-
-def _slice_map(fn: Callable[[int], Any], n: int):
-    """``fn`` over ``range(n)`` (its results in no set order): on a pool of numba's thread count, one task per thread
-    that takes the next item when free (kernels release the GIL; a small cast runs its serial kernel), or in this
-    thread when it is already a worker's (a vector env's) or numba has one thread."""
-    import numba
-
-    from fog_gym._numba import in_worker, worker_pool
-
-    threads = numba.get_num_threads()
-    if threads < 2 or in_worker():
-        return map(fn, range(n))
-    if not _POOL or _POOL[0][0] != threads:
-        _POOL[:] = [(threads, worker_pool(threads))]
-    pending = itertools.count()  # one task per thread, each taking the next item when it is free (next() is atomic)
-
-    def work() -> list:
-        out = []
-        for i in pending:
-            if i >= n:
-                return out
-            out.append(fn(i))
-        return out
-
-    return [r for f in [_POOL[0][1].submit(work) for _ in range(min(threads, n))] for r in f.result()]
-
 
 
 #: Azimuth bins of the ray caster over one slice of a sweep that takes time (``cast_rays(sector=True)``: the bins

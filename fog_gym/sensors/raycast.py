@@ -457,6 +457,28 @@ def _cast(origin, rotation, directions, max_range, centers, halves, yaws, meshes
 _cast_serial = serial_twin(_cast)
 
 
+@njit(cache=True, nogil=True, parallel=True)
+def _cast_slices(origins, rotations, directions, bounds, max_range, centers, halves, yaws, meshes, n_az, n_el,
+                 tri_geom, lib_t, lib_m, node_start, node_lo, node_hi, node_skip, node_first, node_count, radius,
+                 order, dist, index, cosine, material):  # fmt: skip
+    # Slice s: rays bounds[s]:bounds[s + 1] of directions, from origins[s] with rotations[s], against the boxes at
+    # centers[s] and yaws[s] (halves and meshes shared), as cast_rays(..., sector=True) casts it, ray j's hit into
+    # row order[j]; the slices in parallel, each one thread's serial cast.
+    for s in prange(bounds.shape[0] - 1):
+        lo, hi = bounds[s], bounds[s + 1]
+        if lo == hi:
+            continue
+        d, i, c, m = _cast_serial(origins[s], rotations[s], directions[lo:hi], max_range, centers[s], halves, yaws[s],
+                                  meshes, n_az, n_el, True, tri_geom, lib_t, lib_m, node_start, node_lo, node_hi,
+                                  node_skip, node_first, node_count, radius)  # fmt: skip
+        for j in range(hi - lo):
+            r = order[lo + j]
+            dist[r], index[r], cosine[r], material[r] = d[j], i[j], c[j], m[j]
+
+
+_cast_slices_serial = serial_twin(_cast_slices)
+
+
 
 class RayHits(NamedTuple):
     """Per-ray result of :func:`cast_rays`."""
@@ -521,5 +543,56 @@ def cast_rays(
         lib.tri_geom, lib.triangles, lib.materials, lib.node_start, lib.node_lo, lib.node_hi, lib.node_skip,
         lib.node_first, lib.node_count, lib.radius,
     )
+    return RayHits(dist, index, cosine, material)
+
+
+def cast_ray_slices(origins: np.ndarray, rotations: np.ndarray, directions: np.ndarray, bounds: np.ndarray,
+                    max_range: float, worlds: list[Primitives], n_azimuth_bins: int = 512,
+                    n_elevation_bins: int = 16, order: np.ndarray | None = None) -> RayHits:  # fmt: skip
+    """Slices of rays, each cast from its own place against its own world, in one kernel call (a sweep that takes
+    time: :func:`fog_gym.sensors.lidar.simulate_lidar`): slice ``s`` is rays ``bounds[s]:bounds[s + 1]`` of
+    ``directions`` (their own frame), from ``origins[s]`` with ``rotations[s]``, against ``worlds[s]`` — the same
+    boxes and meshes in every world, only their ``centers`` and ``yaws`` differ. The hits of each slice are
+    :func:`cast_rays`'s with ``sector=True`` bit for bit (tested); the slices run in parallel. ``order`` (a
+    permutation of the rays): the row of the result each ray's hit goes to (default: its own).
+
+    >>> box = Primitives.coerce({"centers": np.array([[10.0, 0, 1]]), "halves": np.ones((1, 3)), "yaws": np.zeros(1)})
+    >>> moved = Primitives.coerce({"centers": np.array([[20.0, 0, 1]]), "halves": np.ones((1, 3)), "yaws": np.zeros(1)})
+    >>> hits = cast_ray_slices(np.array([[0.0, 0, 1], [0.0, 0, 1]]), np.stack([np.eye(3)] * 2),
+    ...                        np.array([[1.0, 0, 0], [1.0, 0, 0]]), np.array([0, 1, 2]), 50.0, [box, moved])
+    >>> hits.distance.tolist()
+    [9.0, 19.0]
+    """
+    directions = readonly(np.ascontiguousarray(directions, np.float64).reshape(-1, 3))
+    bounds = np.ascontiguousarray(bounds, np.int64)
+    n_slices = len(bounds) - 1
+    if not (np.isfinite(max_range) and max_range > 0):
+        raise ValueError(f"max_range must be a positive finite number, got {max_range!r}")
+    if n_slices < 0 or len(worlds) != n_slices or bounds[0] != 0 or bounds[-1] != len(directions) or \
+            np.any(np.diff(bounds) < 0):  # fmt: skip
+        raise ValueError(f"bounds must rise from 0 to the {len(directions)} rays with one slice per world "
+                         f"({len(worlds)}), got {bounds.tolist()}")  # fmt: skip
+    order = np.arange(len(directions)) if order is None else np.ascontiguousarray(order, np.int64)
+    if order.shape != (len(directions),) or (len(order) and not 0 <= order.min() <= order.max() < len(order)):
+        raise ValueError(f"order must be a permutation of the {len(directions)} rays' rows")
+    worlds = [Primitives.coerce(w) for w in worlds]
+    first = worlds[0] if worlds else Primitives.empty()
+    if any(len(w) != len(first) for w in worlds):
+        raise ValueError("every slice's world must hold the same primitives (only their centers and yaws move)")
+    n = len(directions)
+    dist, index = np.empty(n, np.float32), np.empty(n, np.int32)
+    cosine, material = np.empty(n, np.float32), np.empty(n, np.uint8)
+    if n == 0:
+        return RayHits(dist, index, cosine, material)
+    centers = np.ascontiguousarray(np.stack([w.centers for w in worlds]), np.float64)
+    yaws = np.ascontiguousarray(np.stack([w.yaws for w in worlds]), np.float64)
+    lib = LIBRARY.arrays()
+    pick(_cast_slices, _cast_slices_serial, n)(
+        np.ascontiguousarray(origins, np.float64).reshape(n_slices, 3),
+        np.ascontiguousarray(rotations, np.float64).reshape(n_slices, 3, 3), directions, bounds, float(max_range),
+        centers, first.halves, yaws, first.meshes, int(n_azimuth_bins), int(n_elevation_bins),
+        lib.tri_geom, lib.triangles, lib.materials, lib.node_start, lib.node_lo, lib.node_hi, lib.node_skip,
+        lib.node_first, lib.node_count, lib.radius, order, dist, index, cosine, material,
+    )  # fmt: skip
     return RayHits(dist, index, cosine, material)
 

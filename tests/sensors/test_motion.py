@@ -192,3 +192,57 @@ def test_generated_sweeps_in_time_validate_and_carry_their_time_column(tmp_path)
         plan_scenes(2, camera_noise="loud")
     with pytest.raises(ValueError, match="motion must be one of"):
         plan_scenes(2, lidar_motion="smooth")
+
+
+@settings(max_examples=12, deadline=None)
+@given(st.integers(0, 2**31 - 1), st.integers(1, 6), st.booleans())
+def test_slices_cast_in_one_call_equal_each_slice_cast_alone(seed, n_slices, meshes):
+    """cast_ray_slices (a sweep that takes time: every slice in one kernel call, its hits in the caller's order)
+    gives each slice cast_rays(sector=True)'s hits bit for bit, from its own place against its own moved world."""
+    from fog_gym.sensors.lidar import SLICE_AZIMUTH_BINS
+    from fog_gym.sensors.raycast import cast_ray_slices, cast_rays
+    from fog_gym.world.meshlib import LIBRARY
+
+    rng = np.random.default_rng(seed)
+    n_prims = 40
+    base = {"centers": np.c_[rng.uniform(-40, 40, (n_prims, 2)), rng.uniform(0.5, 2.0, n_prims)],
+            "halves": rng.uniform(0.3, 2.5, (n_prims, 3)), "yaws": rng.uniform(-np.pi, np.pi, n_prims)}  # fmt: skip
+    if meshes:
+        base["meshes"] = rng.integers(0, len(LIBRARY.arrays().radius), n_prims).astype(np.int32)
+    worlds = [Primitives.coerce({**base, "centers": base["centers"] + [rng.normal(0, 1.0), rng.normal(0, 1.0), 0.0],
+                                 "yaws": base["yaws"] + rng.normal(0, 0.2)}) for _ in range(n_slices)]  # fmt: skip
+    cuts = np.sort(rng.integers(0, 3000, n_slices - 1))
+    bounds = np.r_[0, cuts, 3000]
+    az = np.concatenate([np.sort(rng.uniform(2 * np.pi * k / n_slices, 2 * np.pi * (k + 1) / n_slices, hi - lo))
+                         for k, (lo, hi) in enumerate(zip(bounds[:-1], bounds[1:]))])  # fmt: skip
+    el = rng.uniform(-0.3, 0.05, len(az))
+    dirs = np.c_[np.cos(el) * np.cos(az), np.cos(el) * np.sin(az), np.sin(el)]
+    origins = np.c_[rng.normal(0, 0.5, (n_slices, 2)), np.full(n_slices, 1.8)]
+    yaw = rng.normal(0, 0.1, n_slices)
+    rotations = np.stack([[[np.cos(a), -np.sin(a), 0], [np.sin(a), np.cos(a), 0], [0, 0, 1]] for a in yaw])
+    order = rng.permutation(len(dirs))
+    got = cast_ray_slices(origins, rotations, dirs, bounds, 80.0, worlds, n_azimuth_bins=SLICE_AZIMUTH_BINS,
+                          order=order)  # fmt: skip
+    for k, (lo, hi) in enumerate(zip(bounds[:-1], bounds[1:])):
+        alone = cast_rays(origins[k], dirs[lo:hi], 80.0, worlds[k], rotation=rotations[k],
+                          n_azimuth_bins=SLICE_AZIMUTH_BINS, sector=True)  # fmt: skip
+        for a, b in zip(got, alone):
+            assert np.array_equal(a[order[lo:hi]], b)
+    assert (got.index >= 0).any() and (got.index == -1).any()  # boxes and the ground both hit
+
+
+def test_slices_cast_reject_bad_bounds_worlds_and_order():
+    from fog_gym.sensors.raycast import cast_ray_slices
+
+    world = Primitives.coerce({"centers": np.zeros((1, 3)), "halves": np.ones((1, 3)), "yaws": np.zeros(1)})
+    dirs, o, r = np.ones((4, 3)), np.zeros((2, 3)), np.stack([np.eye(3)] * 2)
+    with pytest.raises(ValueError, match="bounds must rise"):
+        cast_ray_slices(o, r, dirs, [0, 3, 2], 50.0, [world, world])
+    with pytest.raises(ValueError, match="bounds must rise"):
+        cast_ray_slices(o, r, dirs, [0, 2, 4], 50.0, [world])
+    with pytest.raises(ValueError, match="same primitives"):
+        cast_ray_slices(o, r, dirs, [0, 2, 4], 50.0, [world, Primitives.empty()])
+    with pytest.raises(ValueError, match="order must be a permutation"):
+        cast_ray_slices(o, r, dirs, [0, 2, 4], 50.0, [world, world], order=[0, 1, 2, 4])
+    with pytest.raises(ValueError, match="max_range"):
+        cast_ray_slices(o, r, dirs, [0, 2, 4], -1.0, [world, world])
