@@ -182,11 +182,8 @@ def _hahner_bank(pts, pose, side, dist, nodes, lut, inv_width, inv_gap, faces, d
             r_tmp += face - faces[near]  # it lies before it)
         scale, value = _field_rule(np.float64(pts[n, 3]), r0, i_orig, i_hard, f, r_tmp, log_noise, u[n],
                                    attenuation)  # fmt: skip
-        for c in range(3):
-            out[n, c] = np.float32(np.float64(pts[n, c]) * scale)
-        out[n, 3] = value
-        for c in range(4, pts.shape[1]):
-            out[n, c] = pts[n, c]
+        for c in range(pts.shape[1]):  # (written here: numba counted references to arrays a helper writes to)
+            out[n, c] = np.float32(np.float64(pts[n, c]) * scale) if c < 3 else (value if c == 3 else pts[n, c])
 
 
 _hahner_bank_serial = serial_twin(_hahner_bank)

@@ -87,11 +87,8 @@ def _hahner_field(pts, pose, terms, weights, ramp, weights5, ramp5, coarse, step
                                          beta_max)  # fmt: skip
         scale, value = _field_rule(np.float64(pts[n, 3]), r0, i_orig, i_hard, best, best_k * step, log_noise, u[n],
                                    attenuation)  # fmt: skip
-        for c in range(3):
-            out[n, c] = np.float32(np.float64(pts[n, c]) * scale)
-        out[n, 3] = value
-        for c in range(4, pts.shape[1]):
-            out[n, c] = pts[n, c]
+        for c in range(pts.shape[1]):  # (written here: numba counted references to arrays a helper writes to)
+            out[n, c] = np.float32(np.float64(pts[n, c]) * scale) if c < 3 else (value if c == 3 else pts[n, c])
 
 
 def fog_lidar_field(points: np.ndarray, field, rng: np.random.Generator, pose: np.ndarray, time: float = 0.0,

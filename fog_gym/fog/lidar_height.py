@@ -120,11 +120,8 @@ def _hahner_height(pts, tau, dzs, ks, keys, node_dz, first, lo_key, inv_spacing,
         r0, r_tmp = np.sqrt(x * x + y * y + z * z), where[near, min(k, stops[near])] * step
         scale, value = _field_rule(np.float64(pts[n, 3]), r0, i_orig, i_hard, soft, r_tmp, log_noise, u[n],
                                    attenuation)  # fmt: skip
-        for c in range(3):
-            out[n, c] = np.float32(np.float64(pts[n, c]) * scale)
-        out[n, 3] = value
-        for c in range(4, pts.shape[1]):
-            out[n, c] = pts[n, c]
+        for c in range(pts.shape[1]):  # (written here: numba counted references to arrays a helper writes to)
+            out[n, c] = np.float32(np.float64(pts[n, c]) * scale) if c < 3 else (value if c == 3 else pts[n, c])
 
 
 _hahner_height_serial = serial_twin(_hahner_height)
