@@ -111,8 +111,8 @@ class CameraEffects:
         and labels meanwhile — and the function takes the tasks not yet begun and waits for the rest; until it is
         called, this object and ``images`` must not be changed. A day frame's noise is drawn here, in one parallel
         launch: its laws are cheap and the draw, which the background thread would share with the caller's own
-        parallel kernels, ran faster in line (``docs/sensors.md``, "A day frame's noise in line"). Motion blur runs first, here (its
-        kernels are parallel). The same images either way."""
+        parallel kernels, ran faster in line (``docs/sensors.md``, "A day frame's noise in line"). Motion blur runs
+        first, here (its kernels are parallel). The same images either way."""
         out = dict(images)
         names = [n for n in images if n in self._frame]
         if not names:
