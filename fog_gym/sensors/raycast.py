@@ -553,8 +553,9 @@ def cast_ray_slices(origins: np.ndarray, rotations: np.ndarray, directions: np.n
     time: :func:`fog_gym.sensors.lidar.simulate_lidar`): slice ``s`` is rays ``bounds[s]:bounds[s + 1]`` of
     ``directions`` (their own frame), from ``origins[s]`` with ``rotations[s]``, against ``worlds[s]`` — the same
     boxes and meshes in every world, only their ``centers`` and ``yaws`` differ. The hits of each slice are
-    :func:`cast_rays`'s with ``sector=True`` bit for bit (tested); the slices run in parallel. ``order`` (a
-    permutation of the rays): the row of the result each ray's hit goes to (default: its own).
+    :func:`cast_rays`'s with ``sector=True`` bit for bit (tested); the slices run in parallel. ``order``: the row of
+    the result each ray's hit goes to (default: its own), a permutation of the rows (only checked to lie within them:
+    a row that no ray names is left unset).
 
     >>> box = Primitives.coerce({"centers": np.array([[10.0, 0, 1]]), "halves": np.ones((1, 3)), "yaws": np.zeros(1)})
     >>> moved = Primitives.coerce({"centers": np.array([[20.0, 0, 1]]), "halves": np.ones((1, 3)), "yaws": np.zeros(1)})
