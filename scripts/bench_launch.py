@@ -63,32 +63,31 @@ def measure(layer: str, calls: int) -> dict | None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--calls", type=int, default=50, help="timed calls per kernel and size (default 50)")
-    ap.add_argument("--json", help="also write the figures as JSON to this path")
-    args = ap.parse_args(argv)
-    if args.calls < 1:
-        ap.error(f"--calls must be >= 1, got {args.calls}")
+    from pathlib import Path
+
     from tqdm import tqdm
 
-    results = {}
-    for layer in tqdm(("tbb", "workqueue", "omp"), desc="layers", unit="layer"):
-        results[layer] = measure(layer, args.calls)
-    print(f"**Parallel launches** (median of {args.calls} calls, least in brackets; µs)")
-    print("| layer | 10 elements (the launch) | 100 000 | 1 000 000 | serial: 10 / 100 000 / 1 000 000 |")
-    print("|---|---|---|---|---|")
+    from fog_gym.experiments.bench.common import markdown_table, positive_int, write_json
+
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--calls", type=positive_int, default=50, help="timed calls per kernel and size (default 50)")
+    ap.add_argument("--json", type=Path, help="also write the figures as JSON to this path")
+    args = ap.parse_args(argv)
+    results = {layer: measure(layer, args.calls) for layer in tqdm(("tbb", "workqueue", "omp"), desc="layers",
+                                                                     unit="layer")}  # fmt: skip
+    rows = []
     for layer, r in results.items():
         if r is None:
-            print(f"| {layer} | does not load here | | | |")
+            rows.append([layer, "does not load here", "", "", ""])
             continue
         cells = [f"{v['parallel_us']:.0f} ({v['parallel_min_us']:.0f})" for v in r["rows"].values()]
         serial = " / ".join(f"{v['serial_us']:.0f}" for v in r["rows"].values())
-        print(f"| {layer} ({r['threads']} threads) | " + " | ".join(cells) + f" | {serial} |")
-    if args.json:
-        with open(args.json, "w") as f:
-            json.dump(results, f, indent=1)
+        rows.append([f"{layer} ({r['threads']} threads)", *cells, serial])
+    print(f"**Parallel launches** (median of {args.calls} calls, least in brackets; µs)")
+    header = ["layer", "10 elements (the launch)", "100 000", "1 000 000", "serial: 10 / 100 000 / 1 000 000"]
+    print(markdown_table(header, rows))
+    write_json(args.json, results)
     return 0
-
 
 if __name__ == "__main__":
     raise SystemExit(main())

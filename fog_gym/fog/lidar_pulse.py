@@ -1,6 +1,7 @@
 """The LiDAR fog field paths' shared parts (:mod:`fog_gym.fog.lidar_field`): the soft return's kernel on a range grid
 (:func:`field_pulse_weights`), its running maximum along beam directions (``_curves``: the curves every point of a
-direction reads), and Hahner et al.'s rule given a point's hard and soft returns (``_field_rule``; its callers write the row).
+direction reads), and Hahner et al.'s rule given a point's hard and soft returns (``_field_rule``; its callers
+write the row).
 
 Example:
     >>> W, V = field_pulse_weights(); W.shape[1], round(float(KAPPA), 5)
