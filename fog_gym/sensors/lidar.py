@@ -35,10 +35,11 @@ from numba import njit
 from fog_gym._numba import readonly
 from fog_gym.checks import finite, interval, positive
 from fog_gym.channels.spec import FOG_LEVELS, LIDAR_MOTIONS, lidar_channel, lidar_columns
-from fog_gym.geometry import Pose, sensor_to_world, transform_matrix, yaw_transform
+from fog_gym.geometry import Pose, sensor_to_world, transform_matrix
 from fog_gym.sensors.base import PointSensor, point_space, register
 from fog_gym.channels.packing import LIDAR
 from fog_gym.sensors.raycast import GROUND, MISS, RayHits, cast_ray_slices, cast_rays
+from fog_gym.world.motion import SliceWorlds
 from fog_gym.world.primitives import Primitives
 from fog_gym.world.scenery import ROAD, SurfaceMap
 
@@ -229,9 +230,10 @@ INTENSITY_MODELS: tuple[str, ...] = ("carla", "reflectance")
 
 
 @njit(cache=True, nogil=True)
-def _lidar_points(dirs, dist, index, noise, uniform, attenuation, limit, alpha, beta, reflect):
+def _lidar_points(dirs, dist, index, noise, uniform, attenuation, limit, alpha, beta, reflect, extra):
     """Kept returns as (N, 4) float32 x, y, z, intensity and the ray of each; ``noise`` / ``uniform`` empty when switched off;
-    ``reflect`` (N,) float32 the reflectivity × incidence factor of each ray's hit, or empty (CARLA's model).
+    ``reflect`` (N,) float32 the reflectivity × incidence factor of each ray's hit, or empty (CARLA's model);
+    ``extra`` (N,) float32 a fifth column (each ray's time), or empty.
 
     Intensity and the drop-off test are float32, as CARLA computes them."""
     n = dirs.shape[0]
@@ -252,7 +254,7 @@ def _lidar_points(dirs, dist, index, noise, uniform, attenuation, limit, alpha, 
         if value > limit32 or uniform.shape[0] == 0 or uniform[i] < alpha32 * value + beta32:
             keep[i] = True
             count += 1
-    out = np.empty((count, 4), dtype=np.float32)
+    out = np.empty((count, 4 if extra.shape[0] == 0 else 5), dtype=np.float32)
     src = np.empty(count, dtype=np.int64)
     k = 0
     for i in range(n):
@@ -265,16 +267,19 @@ def _lidar_points(dirs, dist, index, noise, uniform, attenuation, limit, alpha, 
             out[k, 1] = dirs[i, 1] * r
             out[k, 2] = dirs[i, 2] * r
             out[k, 3] = intensity[i]
+            if extra.shape[0] > 0:
+                out[k, 4] = extra[i]
             k += 1
     return out, src
 
 
 @njit(cache=True, nogil=True)
-def _slice_sort(rays, dirs, col_slice, order, sorted_dirs, bounds):
+def _slice_sort(rays, dirs, col_slice, slice_time, order, sorted_dirs, bounds, ray_time):
     """The traced rays of a sweep that takes time sorted by slice, stably (laser order within a slice), by counting:
     ``rays`` the traced rays' laser indices, ascending (channel-major: ``len(col_slice)`` columns a channel),
-    ``dirs`` every ray's direction, ``col_slice`` each column's slice. Writes ``order`` (each sorted ray's position
-    in ``rays``), ``sorted_dirs`` (its direction) and ``bounds`` (slice ``k`` is ``bounds[k]:bounds[k + 1]``): what
+    ``dirs`` every ray's direction, ``col_slice`` each column's slice, ``slice_time`` each slice's time. Writes
+    ``order`` (each sorted ray's position in ``rays``), ``sorted_dirs`` (its direction), ``bounds`` (slice ``k`` is
+    ``bounds[k]:bounds[k + 1]``) and ``ray_time`` (each traced ray's time): what
     :func:`fog_gym.sensors.motion.sweep_order` and a take give, in two passes without a division."""
     n, m, n_slices = rays.shape[0], col_slice.shape[0], bounds.shape[0] - 1
     slice_of = np.empty(n, np.int32)
@@ -285,6 +290,7 @@ def _slice_sort(rays, dirs, col_slice, order, sorted_dirs, bounds):
             row += m
         k = col_slice[rays[i] - row]
         slice_of[i] = k
+        ray_time[i] = slice_time[k]
         start[k + 1] += 1
     for k in range(n_slices):
         start[k + 1] += start[k]
@@ -311,7 +317,7 @@ def simulate_lidar(
     rng: np.random.Generator,
     simulation_frequency: float = 20.0,
     start_angle: float = 0.0,
-    motion: Callable[[float], tuple[np.ndarray, Primitives]] | None = None,
+    motion: Callable[[float], tuple[np.ndarray, Primitives]] | tuple[np.ndarray, SliceWorlds] | None = None,
 ) -> np.ndarray:
     """One tick of a ray-cast LiDAR: ``(N, 4)`` float32 x, y, z, intensity in the sensor frame.
 
@@ -325,9 +331,11 @@ def simulate_lidar(
     The random draws (a uniform per ray for the general drop-off, then per traced ray a normal for the noise and a
     uniform for the intensity drop-off, each only when switched on) all come from ``rng``: a seed fixes the result.
     ``motion`` (a sweep that takes time, :mod:`fog_gym.sensors.motion`): ``motion(t)`` gives the sensor→world
-    transform and the primitives at ``t`` seconds from the tick's end; each slice of azimuth columns is cast from
-    there, and a fifth column holds each point's time (the same draws: in a still world the first four columns
-    equal the instantaneous sweep's).
+    transform and the primitives at ``t`` seconds from the tick's end (or, at the slices' times
+    :func:`~fog_gym.sensors.motion.slice_times`, the pair of the transforms ``(S, 4, 4)`` and a
+    :class:`~fog_gym.world.motion.SliceWorlds`); each slice of azimuth columns is cast from there, and a fifth
+    column holds each point's time (the same draws: in a still world the first four columns equal the
+    instantaneous sweep's).
 
     >>> cfg = LidarConfig.fogdrive(dropoff_general_rate=0.0, dropoff_zero_intensity=0.0)
     >>> pts = simulate_lidar(cfg, sensor_to_world(cfg.pose), Primitives.empty(), None, np.random.default_rng(0))
@@ -352,35 +360,37 @@ def simulate_lidar(
 
         m = cfg.points_per_channel(simulation_frequency)
         n_slices = slice_count(m)
-        order, bounds, sorted_dirs = np.empty(n, np.int64), np.empty(n_slices + 1, np.int64), np.empty((n, 3))
-        col_slice = column_slices(np.arange(m), m, n_slices).astype(np.int32)
-        _slice_sort(np.arange(n) if rays is None else rays, all_dirs, col_slice, order, sorted_dirs,
-                    bounds)  # fmt: skip  (the slices' rays contiguous: each slice casts a view)
         times_of = slice_times(simulation_frequency, n_slices)
-        at = [motion(float(t)) for t in times_of]  # each slice's sensor → world and world
-        frames = [split_transform(s2w) for s2w, _ in at]
-        worlds = [world for _, world in at]
+        if callable(motion):  # each slice's sensor → world and world
+            at = [motion(float(t)) for t in times_of]
+            s2w, worlds = np.array([np.asarray(a, np.float64) for a, _ in at]), [w for _, w in at]
+        else:
+            s2w, worlds = np.asarray(motion[0], np.float64), motion[1]
+        if s2w.shape != (n_slices, 4, 4) or not np.all(np.isfinite(s2w)):
+            raise ValueError(f"motion: each of the {n_slices} slices needs a finite 4x4 sensor_to_world, got {s2w.shape}")
+        order, bounds, sorted_dirs = np.empty(n, np.int64), np.empty(n_slices + 1, np.int64), np.empty((n, 3))
+        times = np.empty(n, np.float32)
+        col_slice = column_slices(np.arange(m), m, n_slices).astype(np.int32)
+        _slice_sort(np.arange(n) if rays is None else rays, all_dirs, col_slice, times_of.astype(np.float32), order,
+                    sorted_dirs, bounds, times)  # fmt: skip  (the slices' rays contiguous: each slice casts a view)
         # every slice in one call, each with bins over its own sector only
-        hits = cast_ray_slices(np.array([o for _, o in frames]), np.array([r for r, _ in frames]), sorted_dirs, bounds,
-                               cfg.range, worlds, n_azimuth_bins=SLICE_AZIMUTH_BINS, order=order)  # (laser order)
+        hits = cast_ray_slices(s2w[:, :3, 3], s2w[:, :3, :3], sorted_dirs, bounds, cfg.range, worlds,
+                               n_azimuth_bins=SLICE_AZIMUTH_BINS, order=order)  # fmt: skip  (in laser order)
         reflect = _NONE32 if cfg.intensity == "carla" else np.empty(n, np.float32)
+        colors = (worlds.prims if isinstance(worlds, SliceWorlds) else Primitives.coerce(worlds[0])).colors
         for k in range(n_slices if reflect.size else 0):
             lo, hi = bounds[k], bounds[k + 1]
             if lo < hi:
-                (rot_k, origin_k), rows = frames[k], order[lo:hi]
-                reflect[rows] = reflectance(RayHits(*(a[rows] for a in hits)), sorted_dirs[lo:hi], rot_k, origin_k,
-                                            surface, worlds[k].colors)  # fmt: skip
-        times = np.empty(n, np.float32)
-        times[order] = np.repeat(times_of.astype(np.float32), np.diff(bounds))
+                rows = order[lo:hi]
+                reflect[rows] = reflectance(RayHits(*(a[rows] for a in hits)), sorted_dirs[lo:hi], s2w[k, :3, :3],
+                                            s2w[k, :3, 3], surface, colors)  # fmt: skip
     noise = rng.normal(0.0, cfg.noise_stddev, n) if cfg.noise_stddev > _EPS else _NONE
     uniform = rng.random(n) if cfg.dropoff_zero_intensity > 0.0 else _NONE
     limit = cfg.dropoff_intensity_limit
     alpha = cfg.dropoff_zero_intensity / limit if limit > 0.0 else 0.0
-    out, src = _lidar_points(readonly(dirs), hits.distance, hits.index, noise, uniform, cfg.atmosphere_attenuation_rate,
-                             limit, alpha, 1.0 - cfg.dropoff_zero_intensity, reflect)  # fmt: skip
-    if times is None:
-        return out
-    return np.concatenate([out, times[src, None]], axis=1)
+    out, _ = _lidar_points(readonly(dirs), hits.distance, hits.index, noise, uniform, cfg.atmosphere_attenuation_rate,
+                           limit, alpha, 1.0 - cfg.dropoff_zero_intensity, reflect, _NONE32 if times is None else times)  # fmt: skip
+    return out
 
 
 _NONE32 = np.zeros(0, np.float32)
@@ -482,20 +492,18 @@ class LidarSensor(PointSensor):
         cfg = self.config
         motion = None
         if cfg.motion == "continuous":
-            from fog_gym.sensors.motion import slice_count, slice_times
+            from fog_gym.sensors.motion import pose_matrices, slice_count, slice_times
             from fog_gym.world.motion import SceneMotion
 
             sm = SceneMotion(scene.vehicles, getattr(scene, "previous", None))
             n_slices = slice_count(cfg.points_per_channel(self.simulation_frequency))
-            times = slice_times(self.simulation_frequency, n_slices)
-            poses = [sm.ego_pose_at(t, scene.ego_id) for t in times]
+            times = np.append(slice_times(self.simulation_frequency, n_slices), 0.0)  # each slice's, the keyframe's
+            poses = sm.ego_poses_during(times, scene.ego_id)
             mp = Pose.coerce(cfg.pose)
             mount = transform_matrix(mp.location, mp.rotation)  # sensor_to_world's, once per sweep
-            at = {float(t): (yaw_transform(*pose) @ mount, moved)
-                  for t, pose, moved in zip(times, poses, sm.primitives_during(prims, times))}  # fmt: skip
-            motion = at.__getitem__  # each slice's sensor → world and world, from one pass over the slices
-            poses.append(sm.ego_pose_at(0.0, scene.ego_id))
-            self.ego_poses = np.array([(t, *pose) for t, pose in zip((*times, 0.0), poses)])
+            # each slice's sensor → world and world, from one pass over the slices
+            motion = (pose_matrices(poses[:-1]) @ mount, sm.slice_worlds(prims, times[:-1]))
+            self.ego_poses = np.c_[times, poses]
         pts = simulate_lidar(cfg, sensor_to_world(cfg.pose, scene.ego_pose), prims, scene.static.surface, rng,
                              self.simulation_frequency, self.start_angle(tick), motion)  # fmt: skip
         if cfg.returns == "dual":  # in clear air a beam's strongest echo is its last: one row, return 0

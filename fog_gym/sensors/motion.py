@@ -74,7 +74,13 @@ def sweep_slices(columns: np.ndarray, n_columns: int, simulation_frequency: floa
     return [order[bounds[i]: bounds[i + 1]] for i in range(n_slices)], slice_times(simulation_frequency, n_slices)
 
 
-def _pose_matrices(xy_yaw: np.ndarray) -> np.ndarray:
+def pose_matrices(xy_yaw: np.ndarray) -> np.ndarray:
+    """``(N, 4, 4)`` frames at ``(x, y, 0)`` turned by ``yaw`` about +z, from ``(N, 3)`` rows of ``(x, y, yaw)``
+    (:func:`fog_gym.geometry.yaw_transform` of each row).
+
+    >>> pose_matrices(np.array([[2.0, 1.0, np.pi / 2]]))[0] @ [1.0, 0.0, 0.0, 1.0]
+    array([2., 2., 0., 1.])
+    """
     c, s = np.cos(xy_yaw[:, 2]), np.sin(xy_yaw[:, 2])
     m = np.zeros((len(xy_yaw), 4, 4))
     m[:, 0, 0], m[:, 0, 1], m[:, 1, 0], m[:, 1, 1] = c, -s, s, c
@@ -108,8 +114,8 @@ def deskew(points: np.ndarray, ego_poses: np.ndarray, lidar_to_ego: np.ndarray |
     if mount.shape != (4, 4) or not np.all(np.isfinite(mount)):
         raise ValueError(f"lidar_to_ego must be a finite 4x4 matrix, got shape {mount.shape}")
     t = pts[:, time_column].astype(np.float64)
-    at = _pose_matrices(ego_poses_at(ego_poses, t)) @ mount  # LiDAR → world at each point's time
-    ref = _pose_matrices(ego_poses_at(ego_poses, np.array([float(reference_time)])))[0] @ mount
+    at = pose_matrices(ego_poses_at(ego_poses, t)) @ mount  # LiDAR → world at each point's time
+    ref = pose_matrices(ego_poses_at(ego_poses, np.array([float(reference_time)])))[0] @ mount
     m = np.linalg.inv(ref) @ at  # (N, 4, 4): LiDAR at t → LiDAR at the reference time
     xyz = pts[:, :3].astype(np.float64)
     moved = np.einsum("nij,nj->ni", m[:, :3, :3], xyz) + m[:, :3, 3]

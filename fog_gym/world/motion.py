@@ -23,6 +23,7 @@ Example:
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import NamedTuple
 
 import numpy as np
 
@@ -36,23 +37,20 @@ class SceneMotion:
 
     def __init__(self, current: VehicleState, previous: tuple[float, VehicleState] | None = None) -> None:
         self.current = current
-        n = len(current)
-        self._row = {int(i): k for k, i in enumerate(current.ids)}
+        ids = np.asarray(current.ids, np.int64)
+        self._row = {int(i): k for k, i in enumerate(ids)}
         self._dxy = np.asarray(current.velocities, np.float64)[:, :2].copy()  # metres per second from time 0
-        self._dyaw = np.zeros(n)  # radians per second
+        self._dyaw = np.zeros(len(current))  # radians per second
         self._prims: tuple | None = None  # (primitives, moving boxes, their vehicles' rows, pivots, offsets)
         if previous is not None:
             t_prev, prev = previous
             if not t_prev < 0:
                 raise ValueError(f"the previous keyframe must lie before the scene (time < 0), got {t_prev!r}")
-            rows = {int(i): k for k, i in enumerate(prev.ids)}
-            for k, vid in enumerate(current.ids):
-                j = rows.get(int(vid))
-                if j is None:
-                    continue
-                self._dxy[k] = (current.centers[k, :2] - prev.centers[j, :2]) / -t_prev
-                dyaw = (current.yaws[k] - prev.yaws[j] + np.pi) % (2 * np.pi) - np.pi
-                self._dyaw[k] = dyaw / -t_prev
+            before = np.asarray(prev.ids, np.int64)
+            k, j = _matching_rows(ids, before)  # the vehicles in both keyframes: rows k now, j then
+            self._dxy[k] = (current.centers[k, :2] - prev.centers[j, :2]) / -t_prev
+            dyaw = (current.yaws[k] - prev.yaws[j] + np.pi) % (2 * np.pi) - np.pi
+            self._dyaw[k] = dyaw / -t_prev
 
     def offsets(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """Each vehicle's displacement (N, 2) and heading change (N,) from the scene's instant to time ``t``."""
@@ -60,10 +58,17 @@ class SceneMotion:
 
     def ego_pose_at(self, t: float, ego_id: int) -> tuple[float, float, float]:
         """``(x, y, yaw)`` of vehicle ``ego_id`` (the ground point under its centre) at time ``t``."""
+        return tuple(float(v) for v in self.ego_poses_during([t], ego_id)[0])
+
+    def ego_poses_during(self, times, ego_id: int) -> np.ndarray:
+        """:meth:`ego_pose_at` at each of ``times``: ``(S, 3)`` rows of ``(x, y, yaw)``."""
         k = self._row[int(ego_id)]
-        d, dyaw = self._dxy[k] * t, self._dyaw[k] * t
-        c = self.current.centers[k]
-        return (float(c[0] + d[0]), float(c[1] + d[1]), float(self.current.yaws[k] + dyaw))
+        t = np.asarray(times, np.float64).reshape(-1)
+        out = np.empty((len(t), 3))
+        out[:, 0] = self.current.centers[k, 0] + self._dxy[k, 0] * t
+        out[:, 1] = self.current.centers[k, 1] + self._dxy[k, 1] * t
+        out[:, 2] = self.current.yaws[k] + self._dyaw[k] * t
+        return out
 
     def _moving(self, prims: Primitives) -> tuple:
         """Which boxes of ``prims`` move, with whom: (moving boxes, their vehicles' rows, pivots, offsets), once per
@@ -71,8 +76,8 @@ class SceneMotion:
         cached = self._prims
         if cached is None or cached[0] is not prims:
             moving = np.flatnonzero(prims.insts > 0)
-            rows = np.array([self._row.get(int(i), -1) for i in prims.insts[moving]], np.int64)
-            moving, rows = moving[rows >= 0], rows[rows >= 0]
+            k, rows = _matching_rows(prims.insts[moving].astype(np.int64), np.asarray(self.current.ids, np.int64))
+            moving = moving[k]
             still = (self._dxy[rows] == 0).all(axis=1) & (self._dyaw[rows] == 0)
             moving, rows = moving[~still], rows[~still]
             pivot = self.current.centers[rows, :2]
@@ -86,23 +91,45 @@ class SceneMotion:
 
     def primitives_during(self, prims: Primitives, times) -> list[Primitives]:
         """:meth:`primitives_at` at each of ``times``, in one pass over the moving boxes."""
-        t = np.asarray(times, np.float64)
+        worlds = self.slice_worlds(prims, times)
+        return [prims if t == 0.0 else replace(prims, centers=worlds.centers[k], yaws=worlds.yaws[k])
+                for k, t in enumerate(np.asarray(times, np.float64).reshape(-1))]  # fmt: skip
+
+    def slice_worlds(self, prims: Primitives, times) -> SliceWorlds:
+        """:meth:`primitives_at` at each of ``times`` as arrays: every box's centre and heading at each time."""
+        t = np.asarray(times, np.float64).reshape(-1)
         moving, rows, pivot, rel = self._moving(prims)
-        if moving.size == 0:
-            return [prims] * len(t)
-        d, dyaw = self._dxy[rows][None] * t[:, None, None], self._dyaw[rows][None] * t[:, None]
-        c, s = np.cos(dyaw), np.sin(dyaw)
-        cx = pivot[:, 0] + c * rel[:, 0] - s * rel[:, 1] + d[..., 0]  # (S, M)
-        cy = pivot[:, 1] + s * rel[:, 0] + c * rel[:, 1] + d[..., 1]
-        yaw = prims.yaws[moving] + dyaw
-        out = []
-        for k in range(len(t)):
-            if t[k] == 0.0:
-                out.append(prims)
-                continue
-            centers = prims.centers.copy()
-            centers[moving, 0], centers[moving, 1] = cx[k], cy[k]
-            yaws = prims.yaws.copy()
-            yaws[moving] = yaw[k]
-            out.append(replace(prims, centers=centers, yaws=yaws))
-        return out
+        centers = np.repeat(prims.centers[None], len(t), axis=0)
+        yaws = np.repeat(prims.yaws[None], len(t), axis=0)
+        if moving.size:
+            d, dyaw = self._dxy[rows][None] * t[:, None, None], self._dyaw[rows][None] * t[:, None]
+            c, s = np.cos(dyaw), np.sin(dyaw)
+            centers[:, moving, 0] = pivot[:, 0] + c * rel[:, 0] - s * rel[:, 1] + d[..., 0]  # (S, M)
+            centers[:, moving, 1] = pivot[:, 1] + s * rel[:, 0] + c * rel[:, 1] + d[..., 1]
+            yaws[:, moving] = prims.yaws[moving] + dyaw
+            still = t == 0.0  # the scene's instant: its own boxes, bit for bit
+            centers[still], yaws[still] = prims.centers, prims.yaws
+        return SliceWorlds(prims, centers, yaws)
+
+
+class SliceWorlds(NamedTuple):
+    """The world at several times (a sweep's slices), as arrays: ``prims`` (the boxes, meshes, tags …, at the scene's
+    instant) and each box's ``centers`` ``(S, P, 3)`` and ``yaws`` ``(S, P)`` at each time; only vehicles move."""
+
+    prims: Primitives
+    centers: np.ndarray
+    yaws: np.ndarray
+
+
+def _matching_rows(ids: np.ndarray, other: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Rows ``k`` of ``ids`` and ``j`` of ``other`` with ``ids[k] == other[j]`` (``other``'s unique), ``k`` ascending.
+
+    >>> [a.tolist() for a in _matching_rows(np.array([4, 9, 2]), np.array([2, 5, 4]))]
+    [[0, 2], [2, 0]]
+    """
+    if len(other) == 0:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64)
+    by_id = np.argsort(other, kind="stable")
+    pos = np.minimum(np.searchsorted(other[by_id], ids), len(other) - 1)
+    found = other[by_id[pos]] == ids
+    return np.flatnonzero(found), by_id[pos[found]]

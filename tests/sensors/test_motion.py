@@ -151,10 +151,12 @@ def test_counting_sort_of_a_sweep_equals_sweep_order_and_a_take(channels, m, n_s
     dirs = rng.normal(size=(channels * m, 3))
     s = max(1, min(n_slices, m))
     order, bounds, got = np.empty(len(rays), np.int64), np.empty(s + 1, np.int64), np.empty((len(rays), 3))
-    _slice_sort(rays, dirs, (np.arange(m) * s // m).astype(np.int32), order, got, bounds)
+    slice_time, ray_time = -np.arange(1, s + 1, dtype=np.float32), np.empty(len(rays), np.float32)
+    _slice_sort(rays, dirs, (np.arange(m) * s // m).astype(np.int32), slice_time, order, got, bounds, ray_time)
     want_order, want_bounds = sweep_order(rays % m, m, s)
     assert np.array_equal(order, want_order) and np.array_equal(bounds, want_bounds)
     assert np.array_equal(got, dirs[rays][want_order])
+    assert np.array_equal(ray_time, slice_time[(rays % m) * s // m])  # each ray its slice's time
 
 
 def test_bad_motion_values_are_one_line_errors():
