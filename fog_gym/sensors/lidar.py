@@ -275,38 +275,56 @@ def _lidar_points(dirs, dist, index, noise, uniform, attenuation, limit, alpha, 
 
 @njit(cache=True, nogil=True)
 def _slice_sort(rays, dirs, col_slice, slice_time, order, sorted_dirs, bounds, ray_time):
-    """The traced rays of a sweep that takes time sorted by slice, stably (laser order within a slice), by counting:
+    """The traced rays of a sweep that takes time sorted by slice, stably (laser order within a slice):
     ``rays`` the traced rays' laser indices, ascending (channel-major: ``len(col_slice)`` columns a channel),
-    ``dirs`` every ray's direction, ``col_slice`` each column's slice, ``slice_time`` each slice's time. Writes
-    ``order`` (each sorted ray's position in ``rays``), ``sorted_dirs`` (its direction), ``bounds`` (slice ``k`` is
-    ``bounds[k]:bounds[k + 1]``) and ``ray_time`` (each traced ray's time): what
-    :func:`fog_gym.sensors.motion.sweep_order` and a take give, in two passes without a division."""
+    ``dirs`` their directions, ``col_slice`` each column's slice (non-decreasing), ``slice_time`` each slice's time.
+    Writes ``order`` (each sorted ray's position in ``rays``), ``sorted_dirs`` (its direction), ``bounds`` (slice
+    ``k`` is ``bounds[k]:bounds[k + 1]``) and ``ray_time`` (each traced ray's time): what
+    :func:`fog_gym.sensors.motion.sweep_order` and a take give. A slice's rays in one channel are a run of ``rays``
+    (found by bisection), so the sort copies runs."""
     n, m, n_slices = rays.shape[0], col_slice.shape[0], bounds.shape[0] - 1
-    slice_of = np.empty(n, np.int32)
-    start = np.zeros(n_slices + 1, np.int64)
-    row = 0  # the laser index of the current channel's first column
-    for i in range(n):
-        while rays[i] >= row + m:
-            row += m
-        k = col_slice[rays[i] - row]
-        slice_of[i] = k
-        ray_time[i] = slice_time[k]
-        start[k + 1] += 1
+    first = np.full(n_slices + 1, m, np.int64)  # each slice's first column (m: none, or past the last)
+    for c in range(m - 1, -1, -1):
+        first[col_slice[c]] = c
+    for k in range(n_slices - 1, -1, -1):
+        first[k] = min(first[k], first[k + 1])
+    n_channels = rays[n - 1] // m + 1 if n > 0 else 0
+    start = np.empty((n_channels, n_slices + 1), np.int64)  # run (c, k) is rays[start[c, k]:start[c, k + 1]]
+    for c in range(n_channels):
+        for k in range(n_slices + 1):
+            start[c, k] = np.searchsorted(rays, c * m + first[k])
+    bounds[0] = 0
     for k in range(n_slices):
-        start[k + 1] += start[k]
-    bounds[:] = start
-    for i in range(n):
-        k = slice_of[i]
-        p = start[k]
-        start[k] = p + 1
-        order[p] = i
-        r = rays[i]
-        sorted_dirs[p, 0] = dirs[r, 0]
-        sorted_dirs[p, 1] = dirs[r, 1]
-        sorted_dirs[p, 2] = dirs[r, 2]
+        size = 0
+        for c in range(n_channels):
+            size += start[c, k + 1] - start[c, k]
+        bounds[k + 1] = bounds[k] + size
+    for k in range(n_slices):
+        p = bounds[k]
+        t = slice_time[k]
+        for c in range(n_channels):
+            for i in range(start[c, k], start[c, k + 1]):
+                order[p] = i
+                sorted_dirs[p, 0] = dirs[i, 0]
+                sorted_dirs[p, 1] = dirs[i, 1]
+                sorted_dirs[p, 2] = dirs[i, 2]
+                ray_time[i] = t
+                p += 1
 
 
 _NONE = np.zeros(0)
+
+
+@functools.lru_cache(maxsize=16)
+def _slice_plan(n_columns: int, simulation_frequency: float) -> tuple[np.ndarray, np.ndarray]:
+    """A sweep that takes time's slices: each azimuth column's slice (int32) and each slice's time (read-only)."""
+    from fog_gym.sensors.motion import column_slices, slice_count, slice_times
+
+    n_slices = slice_count(n_columns)
+    col_slice = column_slices(np.arange(n_columns), n_columns, n_slices).astype(np.int32)
+    times = slice_times(simulation_frequency, n_slices)
+    col_slice.flags.writeable = times.flags.writeable = False
+    return col_slice, times
 
 
 def simulate_lidar(
@@ -345,7 +363,7 @@ def simulate_lidar(
     True
     """
     rot, origin = split_transform(sensor_to_world)
-    dirs = all_dirs = lidar_directions(cfg, simulation_frequency, start_angle)
+    dirs = lidar_directions(cfg, simulation_frequency, start_angle)
     rays = None
     if cfg.dropoff_general_rate > _EPS:  # rays skipped before tracing
         rays = np.flatnonzero(rng.random(dirs.shape[0]) >= cfg.dropoff_general_rate)
@@ -356,11 +374,9 @@ def simulate_lidar(
         hits = cast_rays(origin, dirs, cfg.range, prims, rotation=rot)
         reflect = _NONE32 if cfg.intensity == "carla" else reflectance(hits, dirs, rot, origin, surface, prims.colors)
     else:  # a sweep that takes time: each slice of columns from where the sensor and the world are at its time
-        from fog_gym.sensors.motion import column_slices, slice_count, slice_times
-
         m = cfg.points_per_channel(simulation_frequency)
-        n_slices = slice_count(m)
-        times_of = slice_times(simulation_frequency, n_slices)
+        col_slice, times_of = _slice_plan(m, float(simulation_frequency))
+        n_slices = len(times_of)
         if callable(motion):  # each slice's sensor → world and world
             at = [motion(float(t)) for t in times_of]
             s2w, worlds = np.array([np.asarray(a, np.float64) for a, _ in at]), [w for _, w in at]
@@ -370,8 +386,7 @@ def simulate_lidar(
             raise ValueError(f"motion: each of the {n_slices} slices needs a finite 4x4 sensor_to_world, got {s2w.shape}")
         order, bounds, sorted_dirs = np.empty(n, np.int64), np.empty(n_slices + 1, np.int64), np.empty((n, 3))
         times = np.empty(n, np.float32)
-        col_slice = column_slices(np.arange(m), m, n_slices).astype(np.int32)
-        _slice_sort(np.arange(n) if rays is None else rays, all_dirs, col_slice, times_of.astype(np.float32), order,
+        _slice_sort(np.arange(n) if rays is None else rays, dirs, col_slice, times_of.astype(np.float32), order,
                     sorted_dirs, bounds, times)  # fmt: skip  (the slices' rays contiguous: each slice casts a view)
         # every slice in one call, each with bins over its own sector only
         hits = cast_ray_slices(s2w[:, :3, 3], s2w[:, :3, :3], sorted_dirs, bounds, cfg.range, worlds,
@@ -462,6 +477,7 @@ class LidarSensor(PointSensor):
         #: ``(S + 1, 4)`` rows of ``(t, x, y, yaw)``: the ego's pose at each slice of the latest continuous sweep
         #: and at the keyframe (None for an instantaneous sweep)
         self.ego_poses: np.ndarray | None = None
+        self._mount: np.ndarray | None = None
 
     @classmethod
     def build(cls, name: str, config: Any, simulation_frequency: float = 20.0, far: float = 1000.0) -> PointSensor:
@@ -492,17 +508,18 @@ class LidarSensor(PointSensor):
         cfg = self.config
         motion = None
         if cfg.motion == "continuous":
-            from fog_gym.sensors.motion import pose_matrices, slice_count, slice_times
+            from fog_gym.sensors.motion import pose_matrices
             from fog_gym.world.motion import SceneMotion
 
+            if self._mount is None:  # sensor_to_world's mount, once
+                mp = Pose.coerce(cfg.pose)
+                self._mount = transform_matrix(mp.location, mp.rotation)
             sm = SceneMotion(scene.vehicles, getattr(scene, "previous", None))
-            n_slices = slice_count(cfg.points_per_channel(self.simulation_frequency))
-            times = np.append(slice_times(self.simulation_frequency, n_slices), 0.0)  # each slice's, the keyframe's
+            times = np.append(_slice_plan(cfg.points_per_channel(self.simulation_frequency),
+                                          float(self.simulation_frequency))[1], 0.0)  # each slice's, the keyframe's
             poses = sm.ego_poses_during(times, scene.ego_id)
-            mp = Pose.coerce(cfg.pose)
-            mount = transform_matrix(mp.location, mp.rotation)  # sensor_to_world's, once per sweep
             # each slice's sensor → world and world, from one pass over the slices
-            motion = (pose_matrices(poses[:-1]) @ mount, sm.slice_worlds(prims, times[:-1]))
+            motion = (pose_matrices(poses[:-1]) @ self._mount, sm.slice_worlds(prims, times[:-1]))
             self.ego_poses = np.c_[times, poses]
         pts = simulate_lidar(cfg, sensor_to_world(cfg.pose, scene.ego_pose), prims, scene.static.surface, rng,
                              self.simulation_frequency, self.start_angle(tick), motion)  # fmt: skip

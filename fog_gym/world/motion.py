@@ -1,4 +1,5 @@
-"""The world between keyframes: every vehicle's pose at a time near the scene's instant (pure numpy).
+"""The world between keyframes: every vehicle's pose at a time near the scene's instant (numpy and two small
+numba kernels).
 
 A sensor that takes time to measure (a spinning LiDAR's sweep, :mod:`fog_gym.sensors.motion`) sees each vehicle
 where it is when the beam fires. :class:`SceneMotion` gives the poses at ``t`` seconds from the scene's instant
@@ -26,7 +27,9 @@ from dataclasses import replace
 from typing import NamedTuple
 
 import numpy as np
+from numba import njit
 
+import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
 from fog_gym.world.fleet import VehicleState
 from fog_gym.world.primitives import Primitives
 
@@ -37,20 +40,15 @@ class SceneMotion:
 
     def __init__(self, current: VehicleState, previous: tuple[float, VehicleState] | None = None) -> None:
         self.current = current
-        ids = np.asarray(current.ids, np.int64)
-        self._row = {int(i): k for k, i in enumerate(ids)}
+        self._ids = np.ascontiguousarray(current.ids, np.int64)
         self._dxy = np.asarray(current.velocities, np.float64)[:, :2].copy()  # metres per second from time 0
         self._dyaw = np.zeros(len(current))  # radians per second
-        self._prims: tuple | None = None  # (primitives, moving boxes, their vehicles' rows, pivots, offsets)
         if previous is not None:
             t_prev, prev = previous
             if not t_prev < 0:
                 raise ValueError(f"the previous keyframe must lie before the scene (time < 0), got {t_prev!r}")
-            before = np.asarray(prev.ids, np.int64)
-            k, j = _matching_rows(ids, before)  # the vehicles in both keyframes: rows k now, j then
-            self._dxy[k] = (current.centers[k, :2] - prev.centers[j, :2]) / -t_prev
-            dyaw = (current.yaws[k] - prev.yaws[j] + np.pi) % (2 * np.pi) - np.pi
-            self._dyaw[k] = dyaw / -t_prev
+            _rates(self._ids, _f64(current.centers), _f64(current.yaws), np.ascontiguousarray(prev.ids, np.int64),
+                   _f64(prev.centers), _f64(prev.yaws), float(t_prev), self._dxy, self._dyaw)  # fmt: skip
 
     def offsets(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """Each vehicle's displacement (N, 2) and heading change (N,) from the scene's instant to time ``t``."""
@@ -62,27 +60,16 @@ class SceneMotion:
 
     def ego_poses_during(self, times, ego_id: int) -> np.ndarray:
         """:meth:`ego_pose_at` at each of ``times``: ``(S, 3)`` rows of ``(x, y, yaw)``."""
-        k = self._row[int(ego_id)]
+        rows = np.flatnonzero(self._ids == int(ego_id))
+        if len(rows) == 0:
+            raise KeyError(f"no vehicle {ego_id!r} in the scene")
+        k = rows[0]
         t = np.asarray(times, np.float64).reshape(-1)
         out = np.empty((len(t), 3))
         out[:, 0] = self.current.centers[k, 0] + self._dxy[k, 0] * t
         out[:, 1] = self.current.centers[k, 1] + self._dxy[k, 1] * t
         out[:, 2] = self.current.yaws[k] + self._dyaw[k] * t
         return out
-
-    def _moving(self, prims: Primitives) -> tuple:
-        """Which boxes of ``prims`` move, with whom: (moving boxes, their vehicles' rows, pivots, offsets), once per
-        set of primitives."""
-        cached = self._prims
-        if cached is None or cached[0] is not prims:
-            moving = np.flatnonzero(prims.insts > 0)
-            k, rows = _matching_rows(prims.insts[moving].astype(np.int64), np.asarray(self.current.ids, np.int64))
-            moving = moving[k]
-            still = (self._dxy[rows] == 0).all(axis=1) & (self._dyaw[rows] == 0)
-            moving, rows = moving[~still], rows[~still]
-            pivot = self.current.centers[rows, :2]
-            cached = self._prims = (prims, moving, rows, pivot, prims.centers[moving, :2] - pivot)
-        return cached[1:]
 
     def primitives_at(self, prims: Primitives, t: float) -> Primitives:
         """``prims`` with every vehicle's boxes (``insts`` > 0, its id) moved rigidly to time ``t``: rotated about the
@@ -97,18 +84,10 @@ class SceneMotion:
 
     def slice_worlds(self, prims: Primitives, times) -> SliceWorlds:
         """:meth:`primitives_at` at each of ``times`` as arrays: every box's centre and heading at each time."""
-        t = np.asarray(times, np.float64).reshape(-1)
-        moving, rows, pivot, rel = self._moving(prims)
-        centers = np.repeat(prims.centers[None], len(t), axis=0)
-        yaws = np.repeat(prims.yaws[None], len(t), axis=0)
-        if moving.size:
-            d, dyaw = self._dxy[rows][None] * t[:, None, None], self._dyaw[rows][None] * t[:, None]
-            c, s = np.cos(dyaw), np.sin(dyaw)
-            centers[:, moving, 0] = pivot[:, 0] + c * rel[:, 0] - s * rel[:, 1] + d[..., 0]  # (S, M)
-            centers[:, moving, 1] = pivot[:, 1] + s * rel[:, 0] + c * rel[:, 1] + d[..., 1]
-            yaws[:, moving] = prims.yaws[moving] + dyaw
-            still = t == 0.0  # the scene's instant: its own boxes, bit for bit
-            centers[still], yaws[still] = prims.centers, prims.yaws
+        t = np.ascontiguousarray(times, np.float64).reshape(-1)
+        centers, yaws = np.empty((len(t), len(prims), 3)), np.empty((len(t), len(prims)))
+        _move(prims.centers, prims.yaws, prims.insts, self._ids, _f64(self.current.centers), self._dxy, self._dyaw, t,
+              centers, yaws)  # fmt: skip
         return SliceWorlds(prims, centers, yaws)
 
 
@@ -121,15 +100,49 @@ class SliceWorlds(NamedTuple):
     yaws: np.ndarray
 
 
-def _matching_rows(ids: np.ndarray, other: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Rows ``k`` of ``ids`` and ``j`` of ``other`` with ``ids[k] == other[j]`` (``other``'s unique), ``k`` ascending.
+def _f64(a) -> np.ndarray:
+    return np.ascontiguousarray(a, np.float64)
 
-    >>> [a.tolist() for a in _matching_rows(np.array([4, 9, 2]), np.array([2, 5, 4]))]
-    [[0, 2], [2, 0]]
-    """
-    if len(other) == 0:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64)
-    by_id = np.argsort(other, kind="stable")
-    pos = np.minimum(np.searchsorted(other[by_id], ids), len(other) - 1)
-    found = other[by_id[pos]] == ids
-    return np.flatnonzero(found), by_id[pos[found]]
+
+@njit(cache=True, nogil=True)
+def _rates(ids, centers, yaws, prev_ids, prev_centers, prev_yaws, t_prev, dxy, dyaw):
+    """Each vehicle in both keyframes (``ids`` now, ``prev_ids`` at ``t_prev`` < 0): its displacement and heading
+    change (along the shorter arc) per second into ``dxy`` and ``dyaw``; the others keep theirs."""
+    for k in range(ids.shape[0]):
+        for j in range(prev_ids.shape[0]):
+            if prev_ids[j] == ids[k]:
+                dxy[k, 0] = (centers[k, 0] - prev_centers[j, 0]) / -t_prev
+                dxy[k, 1] = (centers[k, 1] - prev_centers[j, 1]) / -t_prev
+                dyaw[k] = ((yaws[k] - prev_yaws[j] + np.pi) % (2 * np.pi) - np.pi) / -t_prev
+                break
+
+
+@njit(cache=True, nogil=True)
+def _move(centers, yaws, insts, ids, vehicle_centers, dxy, dyaw, times, out_centers, out_yaws):
+    """Every box at each of ``times``: a vehicle's (``insts`` its id, one of ``ids``) turned by its heading change
+    about its centre and shifted by its displacement, every other box (and every box at time 0) as it is."""
+    n_ids = 0
+    for k in range(ids.shape[0]):
+        n_ids = max(n_ids, ids[k] + 1)
+    row = np.full(n_ids, -1, np.int64)
+    for k in range(ids.shape[0]):
+        if ids[k] >= 0 and (dxy[k, 0] != 0.0 or dxy[k, 1] != 0.0 or dyaw[k] != 0.0):
+            row[ids[k]] = k  # the moving vehicles
+    for s in range(times.shape[0]):
+        t = times[s]
+        for p in range(centers.shape[0]):
+            out_centers[s, p, 0] = centers[p, 0]
+            out_centers[s, p, 1] = centers[p, 1]
+            out_centers[s, p, 2] = centers[p, 2]
+            out_yaws[s, p] = yaws[p]
+            i = np.int64(insts[p])
+            if t == 0.0 or i <= 0 or i >= n_ids or row[i] < 0:
+                continue
+            r = row[i]
+            a = dyaw[r] * t
+            c, sn = np.cos(a), np.sin(a)
+            px, py = vehicle_centers[r, 0], vehicle_centers[r, 1]
+            rx, ry = centers[p, 0] - px, centers[p, 1] - py
+            out_centers[s, p, 0] = px + c * rx - sn * ry + dxy[r, 0] * t
+            out_centers[s, p, 1] = py + sn * rx + c * ry + dxy[r, 1] * t
+            out_yaws[s, p] = yaws[p] + a

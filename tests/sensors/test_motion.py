@@ -152,7 +152,7 @@ def test_counting_sort_of_a_sweep_equals_sweep_order_and_a_take(channels, m, n_s
     s = max(1, min(n_slices, m))
     order, bounds, got = np.empty(len(rays), np.int64), np.empty(s + 1, np.int64), np.empty((len(rays), 3))
     slice_time, ray_time = -np.arange(1, s + 1, dtype=np.float32), np.empty(len(rays), np.float32)
-    _slice_sort(rays, dirs, (np.arange(m) * s // m).astype(np.int32), slice_time, order, got, bounds, ray_time)
+    _slice_sort(rays, dirs[rays], (np.arange(m) * s // m).astype(np.int32), slice_time, order, got, bounds, ray_time)
     want_order, want_bounds = sweep_order(rays % m, m, s)
     assert np.array_equal(order, want_order) and np.array_equal(bounds, want_bounds)
     assert np.array_equal(got, dirs[rays][want_order])
