@@ -122,6 +122,29 @@ def test_rays_in_a_sector_hit_what_the_full_turn_and_brute_force_hit(seed, width
     np.testing.assert_allclose(full.distance, ref_d, rtol=1e-6)
 
 
+def test_a_ray_the_sectors_sample_missed_is_cast_as_the_full_turn_casts_it():
+    """sector=True takes the sector from a sample of the rays (widened a little) and checks every ray against it: a
+    ray outside (here one between the samples, 60° off a 2° sector) makes the cast start again from the exact sector,
+    so the box only that ray meets is still hit."""
+    from fog_gym.sensors import raycast
+
+    n = 4000
+    stride = n // raycast._SECTOR_SAMPLES
+    az = np.linspace(-0.017, 0.017, n)
+    odd = stride // 2  # not a sampled ray (every stride-th and the last are)
+    az[odd] = np.radians(60.0)
+    dirs = np.c_[np.cos(az), np.sin(az), np.zeros(n)]
+    wall = [(np.array([20.0, 0.0, 1.0]), np.array([0.5, 2.0, 2.0]), 0.0, 1, 0)]
+    side = [(np.array([10.0, 10.0 * math.sqrt(3.0), 1.0]), np.array([0.5, 0.5, 2.0]), 0.0, 1, 0)]  # at 60°
+    prims = boxes(*wall, *side)
+    origin = np.array([0.0, 0.0, 1.0])
+    sector = cast_rays(origin, dirs, 45.0, prims, n_azimuth_bins=64, sector=True)
+    full = cast_rays(origin, dirs, 45.0, prims)
+    assert sector.index[odd] == 1 and (np.delete(sector.index, odd) == 0).all()
+    np.testing.assert_array_equal(sector.index, full.index)
+    np.testing.assert_array_equal(sector.distance, full.distance)
+
+
 # --------------------------------------------------------------------------------------------- LiDAR
 
 
