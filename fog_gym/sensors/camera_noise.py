@@ -287,11 +287,7 @@ def noise_laws(noises: Sequence[CameraNoise], gains: Sequence[float], night: boo
         c0, c1 = (k * noise.read_noise_e) ** 2, k  # K²(σ_r² + μ_e), μ_e = v/K electrons
         tv = 0.0
         for rows in _CHECKED:  # the levels that fail first (dark, the shoulder) before the others
-            exact = np.diff(np.c_[np.zeros(len(rows)), cdf[rows], np.ones(len(rows))], axis=1)  # P(output = d)
-            drawn = gaussian_levels(c0, c1, z, rows).astype(np.int64) + 256 * np.arange(len(rows))[:, None]
-            drawn = np.bincount(drawn.ravel(), weights=np.tile(p, len(rows)),
-                                minlength=256 * len(rows)).reshape(-1, 256)  # fmt: skip
-            tv = max(tv, float(0.5 * np.abs(drawn - exact).sum(axis=1).max()))
+            tv = max(tv, _gaussian_tv(cdf, rows, np.float32(c0), np.float32(c1), z, p))
             if tv > GAUSSIAN_TV:
                 break  # the table, whatever the other levels give (tv is then the largest among those checked)
         out.append(NoiseLaw(table, tv <= GAUSSIAN_TV, float(c0), float(c1), tv))
@@ -415,6 +411,29 @@ def _to_level(typingctx, y):
         return builder.trunc(i, ir.IntType(8))
 
     return types.uint8(types.float32), codegen
+
+
+@njit(cache=True, nogil=True)
+def _gaussian_tv(cdf, rows, c0, c1, z, p):
+    """The largest total variation, over the levels ``rows``, between the Gaussian draw's law (``z`` the draw's
+    values, ``p`` their probabilities; the output of each as :func:`_gauss_span` computes it, :func:`gaussian_levels`
+    in numpy) and the exact law of ``cdf`` (``P(output <= d)``, ``d = 0..254``)."""
+    hist = np.empty(256)
+    worst = 0.0
+    for v in rows:
+        hist[:] = 0.0
+        x = np.float32(v)
+        sd = math.sqrt(_fma(c1, x, c0))
+        for i in range(z.shape[0]):
+            hist[_to_level(_fma(sd, z[i], x + np.float32(0.5)))] += p[i]
+        tv = 0.0
+        below = 0.0
+        for d in range(256):
+            at = cdf[v, d] if d < 255 else 1.0
+            tv += abs(hist[d] - (at - below))
+            below = at
+        worst = max(worst, 0.5 * tv)
+    return worst
 
 
 @njit(cache=True, nogil=True, inline="always")

@@ -34,9 +34,10 @@ def _phi_row(t, sigma, r, row):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _level_cdf(L, thresholds, sigma, r, phi, out, scratch):
+def _level_cdf(L, thresholds, sigma, r, phi, inv, out, scratch):
     """``out[d] = P(N + R < t_d)``, ``N ~ Poisson(L)``, ``R ~ N(0, σ²)``, for one level (:func:`_cdf_tables`);
-    ``scratch`` holds at least ``2·(16√L + 23)`` values (the Poisson window's masses and their running sum)."""
+    ``inv[k] = 1/k`` (the recurrences multiply: a chain of multiplications, not of divisions); ``scratch`` holds at
+    least ``2·(16√L + 23)`` values (the Poisson window's masses and their running sum)."""
     n_t = thresholds.shape[0]
     half = 8.0 * math.sqrt(L) + 10.0
     k0 = max(0, int(L - half))
@@ -46,25 +47,26 @@ def _level_cdf(L, thresholds, sigma, r, phi, out, scratch):
     cum = scratch[n:2 * n]
     mode = int(L)
     if L > 0.0:
+        inv_l = 1.0 / L
         p[mode - k0] = math.exp(mode * math.log(L) - L - math.lgamma(mode + 1.0))
-        up, down = k1 - mode, mode - k0  # both recurrences in one loop: two chains of divisions in flight at once
+        up, down = k1 - mode, mode - k0  # both recurrences in one loop: two chains of multiplications in flight
         for i in range(1, max(up, down) + 1):
             if i <= up:
                 k = mode + i
-                p[k - k0] = p[k - 1 - k0] * L / k
+                p[k - k0] = p[k - 1 - k0] * (L * inv[k])
             if i <= down:
                 k = mode - i
-                p[k - k0] = p[k + 1 - k0] * (k + 1) / L
+                p[k - k0] = p[k + 1 - k0] * ((k + 1) * inv_l)
     else:
         p[:] = 0.0
         p[0] = 1.0
     total = p.sum()
+    scale = 1.0 / total
     acc = 0.0
     for i in range(n):  # cum[i] = P(N <= k0 + i)
-        p[i] /= total
+        p[i] *= scale
         acc += p[i]
         cum[i] = acc
-    waiting, b1 = -1, 0
     for d in range(n_t):
         t = thresholds[d]
         if t < 0.0:
@@ -81,33 +83,29 @@ def _level_cdf(L, thresholds, sigma, r, phi, out, scratch):
         if base + 2 * r < k0:
             out[d] = 0.0
             continue
-        if waiting < 0:  # summed with the next such threshold: two chains of additions in flight at once
-            waiting, b1 = d, base
-            continue
-        _two_sums(p, cum, phi, k0, k1, r, waiting, b1, d, base, out)
-        waiting = -1
-    if waiting >= 0:
-        _two_sums(p, cum, phi, k0, k1, r, waiting, b1, waiting, b1, out)
+        out[d] = _window_sum(p, cum, phi, k0, k1, r, d, base)
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _two_sums(p, cum, phi, k0, k1, r, d1, b1, d2, b2, out):
-    """``out[d] = P(N < base) + Σ_j P(N = base + j)·phi[d, j]`` for thresholds ``d1`` and ``d2`` (bases ``b1``,
-    ``b2``), each sum in its own order (j ascending), the two interleaved."""
-    f1 = cum[b1 - 1 - k0] if b1 - 1 - k0 >= 0 else 0.0
-    f2 = cum[b2 - 1 - k0] if b2 - 1 - k0 >= 0 else 0.0
-    lo1, lo2 = max(k0 - b1, 0), max(k0 - b2, 0)
-    n1 = min(k1 - b1, 2 * r) + 1 - lo1
-    n2 = min(k1 - b2, 2 * r) + 1 - lo2
-    for s in range(min(n1, n2)):
-        f1 += p[b1 + lo1 + s - k0] * phi[d1, lo1 + s]
-        f2 += p[b2 + lo2 + s - k0] * phi[d2, lo2 + s]
-    for s in range(min(n1, n2), n1):
-        f1 += p[b1 + lo1 + s - k0] * phi[d1, lo1 + s]
-    for s in range(min(n1, n2), n2):
-        f2 += p[b2 + lo2 + s - k0] * phi[d2, lo2 + s]
-    out[d1] = min(f1, 1.0)
-    out[d2] = min(f2, 1.0)
+def _window_sum(p, cum, phi, k0, k1, r, d, base):
+    """``P(N < base) + Σ_j P(N = base + j)·phi[d, j]`` (at most 1) over the counts in the Poisson window, in four
+    partial sums (four chains of additions in flight)."""
+    lo = max(k0 - base, 0)
+    hi = min(k1 - base, 2 * r) + 1
+    f0, f1, f2, f3 = 0.0, 0.0, 0.0, 0.0
+    j = lo
+    while j + 3 < hi:
+        q = base + j - k0
+        f0 += p[q] * phi[d, j]
+        f1 += p[q + 1] * phi[d, j + 1]
+        f2 += p[q + 2] * phi[d, j + 2]
+        f3 += p[q + 3] * phi[d, j + 3]
+        j += 4
+    while j < hi:
+        f0 += p[base + j - k0] * phi[d, j]
+        j += 1
+    below = cum[base - 1 - k0] if base - 1 - k0 >= 0 else 0.0
+    return min(below + ((f0 + f1) + (f2 + f3)), 1.0)
 
 
 _CDF_CHUNKS = 8  # each law's levels split over this many tasks
@@ -134,11 +132,16 @@ def _cdf_tables(lam, thresholds, sigma):
     # a level's Poisson window is longer the brighter it is: each chunk takes every _CDF_CHUNKS-th level (dark and
     # bright alike) and allocates its scratch once (allocating in the loop serialises the threads on the allocator)
     longest = 2 * (int(16.0 * math.sqrt(max(lam.max(), 0.0))) + 24) if n_law else 0
+    top = int(max(lam.max(), 0.0) + 8.0 * math.sqrt(max(lam.max(), 0.0)) + 10.0) + 2 if n_law else 1
+    inv = np.empty(top + 1)  # 1/k for every count of every window
+    inv[0] = 0.0
+    for k in range(1, top + 1):
+        inv[k] = 1.0 / k
     for task in prange(n_law * _CDF_CHUNKS):
         i, c = task // _CDF_CHUNKS, task % _CDF_CHUNKS
         scratch = np.empty(longest)
         for v in range(c, n_lv, _CDF_CHUNKS):
-            _level_cdf(lam[i, v], thresholds[i], sigma[i], rs[i], phi[i], out[i, v], scratch)
+            _level_cdf(lam[i, v], thresholds[i], sigma[i], rs[i], phi[i], inv, out[i, v], scratch)
     return out
 
 

@@ -205,6 +205,25 @@ def test_a_night_law_is_decided_by_its_first_levels():
     assert day.gaussian and 0.005 < day.tv <= GAUSSIAN_TV
 
 
+@settings(max_examples=10, deadline=None)
+@given(full=st.floats(300, 50_000), read=st.floats(0, 20), gain=st.floats(1, 16), night=st.booleans())
+def test_the_gaussian_test_is_the_total_variation_of_the_numpy_draws_law(full, read, gain, night):
+    """The kernel that decides between the Gaussian draw and the table (noise_law's test) gives the total variation
+    computed in numpy from gaussian_levels (the draw's own arithmetic) and the exact CDF."""
+    from fog_gym.sensors.camera_noise import _draw_law, _exact_cdf, _gaussian_tv
+
+    noise = CameraNoise(full_well_e=full, read_noise_e=read)
+    cdf = _exact_cdf(noise, gain, night)
+    k = 255.0 * noise.gain(gain, night) / noise.full_well_e
+    c0, c1 = (k * noise.read_noise_e) ** 2, k
+    z, p = _draw_law()
+    rows = np.array([0, 3, 40, 128, 200, 254, 255])
+    exact = np.diff(np.c_[np.zeros(len(rows)), cdf[rows], np.ones(len(rows))], axis=1)
+    drawn = np.stack([np.bincount(g, weights=p, minlength=256) for g in gaussian_levels(c0, c1, z, rows)])
+    want = float(0.5 * np.abs(drawn - exact).sum(axis=1).max())
+    assert _gaussian_tv(cdf, rows, np.float32(c0), np.float32(c1), z, p) == pytest.approx(want, abs=1e-12)
+
+
 def test_noise_laws_wants_a_gain_per_sensor():
     assert noise_laws([], [], False) == []
     with pytest.raises(ValueError, match="noises and gains must be as many"):
