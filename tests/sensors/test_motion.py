@@ -267,3 +267,18 @@ def test_slices_cast_reject_bad_bounds_worlds_and_order():
         cast_ray_slices(o, r, dirs, [0, 2, 4], 50.0, [world, world], order=[0, 1, 2, 4])
     with pytest.raises(ValueError, match="max_range"):
         cast_ray_slices(o, r, dirs, [0, 2, 4], -1.0, [world, world])
+    from fog_gym.world.motion import SliceWorlds
+
+    with pytest.raises(ValueError, match="centers and yaws must be"):  # the arrays' form: one box, two slices
+        cast_ray_slices(o, r, dirs, [0, 2, 4], 50.0, SliceWorlds(world, np.zeros((2, 2, 3)), np.zeros((2, 1))))
+    with pytest.raises(ValueError, match="bounds must rise"):
+        cast_ray_slices(o, r, dirs, [0, 2, 4], 50.0, SliceWorlds(world, np.zeros((3, 1, 3)), np.zeros((3, 1))))
+    cfg = LidarConfig.fogdrive(**CLEAN)
+    s2w = sensor_to_world(cfg.pose)
+    worlds = SliceWorlds(world, np.zeros((MOTION_SLICES, 1, 3)), np.zeros((MOTION_SLICES, 1)))
+    for bad in (np.stack([s2w] * (MOTION_SLICES - 1)), np.stack([s2w * np.nan] * MOTION_SLICES)):
+        with pytest.raises(ValueError, match="motion: each of the 16 slices needs a finite 4x4 sensor_to_world"):
+            simulate_lidar(cfg, s2w, world, None, np.random.default_rng(0), motion=(bad, worlds))
+    got = simulate_lidar(cfg, s2w, world, None, np.random.default_rng(0), motion=(np.stack([s2w] * MOTION_SLICES), worlds))
+    want = simulate_lidar(cfg, s2w, world, None, np.random.default_rng(0), motion=lambda t: (s2w, world))
+    assert np.array_equal(got, want)  # the arrays' form is the callable's
