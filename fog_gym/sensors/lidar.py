@@ -383,7 +383,8 @@ def simulate_lidar(
         else:
             s2w, worlds = np.asarray(motion[0], np.float64), motion[1]
         if s2w.shape != (n_slices, 4, 4) or not np.all(np.isfinite(s2w)):
-            raise ValueError(f"motion: each of the {n_slices} slices needs a finite 4x4 sensor_to_world, got {s2w.shape}")
+            raise ValueError(f"motion: each of the {n_slices} slices needs a finite 4x4 sensor_to_world, got "
+                             f"{s2w.shape}")  # fmt: skip
         order, bounds, sorted_dirs = np.empty(n, np.int64), np.empty(n_slices + 1, np.int64), np.empty((n, 3))
         times = np.empty(n, np.float32)
         _slice_sort(np.arange(n) if rays is None else rays, dirs, col_slice, times_of.astype(np.float32), order,
@@ -404,7 +405,8 @@ def simulate_lidar(
     limit = cfg.dropoff_intensity_limit
     alpha = cfg.dropoff_zero_intensity / limit if limit > 0.0 else 0.0
     out, _ = _lidar_points(readonly(dirs), hits.distance, hits.index, noise, uniform, cfg.atmosphere_attenuation_rate,
-                           limit, alpha, 1.0 - cfg.dropoff_zero_intensity, reflect, _NONE32 if times is None else times)  # fmt: skip
+                           limit, alpha, 1.0 - cfg.dropoff_zero_intensity, reflect,
+                           _NONE32 if times is None else times)  # fmt: skip
     return out
 
 

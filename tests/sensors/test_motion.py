@@ -117,14 +117,15 @@ def test_a_vehicle_that_appeared_keeps_its_velocity_and_one_that_left_moves_noth
     def state(ids, xs, vx):
         n = len(ids)
         return VehicleState(np.array(ids), np.zeros(n, np.int8), np.c_[xs, np.zeros(n), np.full(n, 0.75)],
-                            np.full((n, 3), 2.0), np.zeros(n), np.c_[vx, np.zeros((n, 2))], np.full((n, 3), 0.5))  # fmt: skip
+                            np.full((n, 3), 2.0), np.zeros(n), np.c_[vx, np.zeros((n, 2))],
+                            np.full((n, 3), 0.5))  # fmt: skip
     prev = state([3, 9], [0.0, 50.0], [10.0, 10.0])  # 9 leaves
     cur = state([5, 3], [20.0, 1.5], [7.0, 10.0])  # 5 appears; 3 drove 1.5 m in 0.1 s (15 m/s, not its 10)
     m = SceneMotion(cur, previous=(-0.1, prev))
     assert m.ego_pose_at(-0.1, 3) == pytest.approx((0.0, 0.0, 0.0))  # interpolated to where it was
     assert m.ego_pose_at(-0.1, 5) == pytest.approx((19.3, 0.0, 0.0))  # extrapolated at its own velocity
-    prims = Primitives.coerce({"centers": np.array([[20.0, 0, 1], [1.5, 0, 1], [50.0, 0, 1]]), "halves": np.ones((3, 3)),
-                               "yaws": np.zeros(3), "insts": np.array([5, 3, 9])})  # fmt: skip
+    prims = Primitives.coerce({"centers": np.array([[20.0, 0, 1], [1.5, 0, 1], [50.0, 0, 1]]),
+                               "halves": np.ones((3, 3)), "yaws": np.zeros(3), "insts": np.array([5, 3, 9])})  # fmt: skip
     worlds = m.slice_worlds(prims, np.array([-0.05, 0.0]))
     assert np.allclose(worlds.centers[0, :, 0], [19.65, 0.75, 50.0])  # the box of the vehicle that left stays
     assert np.array_equal(worlds.centers[1], prims.centers) and np.array_equal(worlds.yaws[1], prims.yaws)
@@ -279,6 +280,7 @@ def test_slices_cast_reject_bad_bounds_worlds_and_order():
     for bad in (np.stack([s2w] * (MOTION_SLICES - 1)), np.stack([s2w * np.nan] * MOTION_SLICES)):
         with pytest.raises(ValueError, match="motion: each of the 16 slices needs a finite 4x4 sensor_to_world"):
             simulate_lidar(cfg, s2w, world, None, np.random.default_rng(0), motion=(bad, worlds))
-    got = simulate_lidar(cfg, s2w, world, None, np.random.default_rng(0), motion=(np.stack([s2w] * MOTION_SLICES), worlds))
+    stacked = np.stack([s2w] * MOTION_SLICES)
+    got = simulate_lidar(cfg, s2w, world, None, np.random.default_rng(0), motion=(stacked, worlds))
     want = simulate_lidar(cfg, s2w, world, None, np.random.default_rng(0), motion=lambda t: (s2w, world))
     assert np.array_equal(got, want)  # the arrays' form is the callable's
