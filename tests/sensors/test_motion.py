@@ -125,7 +125,8 @@ def test_a_vehicle_that_appeared_keeps_its_velocity_and_one_that_left_moves_noth
     assert m.ego_pose_at(-0.1, 3) == pytest.approx((0.0, 0.0, 0.0))  # interpolated to where it was
     assert m.ego_pose_at(-0.1, 5) == pytest.approx((19.3, 0.0, 0.0))  # extrapolated at its own velocity
     prims = Primitives.coerce({"centers": np.array([[20.0, 0, 1], [1.5, 0, 1], [50.0, 0, 1]]),
-                               "halves": np.ones((3, 3)), "yaws": np.zeros(3), "insts": np.array([5, 3, 9])})  # fmt: skip
+                               "halves": np.ones((3, 3)), "yaws": np.zeros(3),
+                               "insts": np.array([5, 3, 9])})  # fmt: skip
     worlds = m.slice_worlds(prims, np.array([-0.05, 0.0]))
     assert np.allclose(worlds.centers[0, :, 0], [19.65, 0.75, 50.0])  # the box of the vehicle that left stays
     assert np.array_equal(worlds.centers[1], prims.centers) and np.array_equal(worlds.yaws[1], prims.yaws)
