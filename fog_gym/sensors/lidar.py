@@ -231,7 +231,7 @@ INTENSITY_MODELS: tuple[str, ...] = ("carla", "reflectance")
 
 @njit(cache=True, nogil=True)
 def _lidar_points(dirs, dist, index, noise, uniform, attenuation, limit, alpha, beta, reflect, extra):
-    """Kept returns as (N, 4) float32 x, y, z, intensity and the ray of each; ``noise`` / ``uniform`` empty when switched off;
+    """Kept returns as (N, 4) float32 x, y, z, intensity; ``noise`` / ``uniform`` empty when switched off;
     ``reflect`` (N,) float32 the reflectivity × incidence factor of each ray's hit, or empty (CARLA's model);
     ``extra`` (N,) float32 a fifth column (each ray's time), or empty.
 
@@ -255,11 +255,9 @@ def _lidar_points(dirs, dist, index, noise, uniform, attenuation, limit, alpha, 
             keep[i] = True
             count += 1
     out = np.empty((count, 4 if extra.shape[0] == 0 else 5), dtype=np.float32)
-    src = np.empty(count, dtype=np.int64)
     k = 0
     for i in range(n):
         if keep[i]:
-            src[k] = i
             r = np.float64(dist[i])
             if noise.shape[0] > 0:
                 r += noise[i]
@@ -270,7 +268,7 @@ def _lidar_points(dirs, dist, index, noise, uniform, attenuation, limit, alpha, 
             if extra.shape[0] > 0:
                 out[k, 4] = extra[i]
             k += 1
-    return out, src
+    return out
 
 
 @njit(cache=True, nogil=True)
@@ -404,10 +402,9 @@ def simulate_lidar(
     uniform = rng.random(n) if cfg.dropoff_zero_intensity > 0.0 else _NONE
     limit = cfg.dropoff_intensity_limit
     alpha = cfg.dropoff_zero_intensity / limit if limit > 0.0 else 0.0
-    out, _ = _lidar_points(readonly(dirs), hits.distance, hits.index, noise, uniform, cfg.atmosphere_attenuation_rate,
-                           limit, alpha, 1.0 - cfg.dropoff_zero_intensity, reflect,
-                           _NONE32 if times is None else times)  # fmt: skip
-    return out
+    return _lidar_points(readonly(dirs), hits.distance, hits.index, noise, uniform, cfg.atmosphere_attenuation_rate,
+                         limit, alpha, 1.0 - cfg.dropoff_zero_intensity, reflect,
+                         _NONE32 if times is None else times)  # fmt: skip
 
 
 _NONE32 = np.zeros(0, np.float32)
