@@ -35,8 +35,11 @@ from fog_gym._numba import background, in_worker
 from fog_gym.sensors.camera_noise import CameraNoise, NoiseJob, NoiseLaw, frame_key, noise_laws
 from fog_gym.sensors.motion_blur import blur_motion, image_flow
 
-#: Noise laws kept per (sensor, gain, night) (day frames all share gain 1).
-TABLE_CACHE = 32
+#: Noise laws kept per (sensor, total gain, night), shared by every rig of the process (day frames all share gain 1;
+#: a night drive's gains span a few stops, 16 steps each on the default sensor's grid).
+TABLE_CACHE = 64
+_LAWS: OrderedDict[tuple, NoiseLaw] = OrderedDict()
+_LAWS_LOCK = threading.Lock()
 #: Pixels of a night frame's images from which :meth:`CameraEffects.begin` draws the noise on the background thread
 #: (below, the hand-over costs about what it saves).
 OVERLAP_FROM = 1 << 16
@@ -48,7 +51,6 @@ class CameraEffects:
     def __init__(self, cameras: Sequence[Any]) -> None:
         self.noise: dict[str, CameraNoise] = {c.name: c.noise for c in cameras if getattr(c, "noise", None) is not None}
         self._index = {c.name: i for i, c in enumerate(cameras)}
-        self._laws: OrderedDict[tuple, NoiseLaw] = OrderedDict()
         self._frame: dict[str, tuple[float, int, np.ndarray | None]] = {}  # name → gain, noise key, image flow
         self._law: dict[str, NoiseLaw] = {}
         self._night = False
@@ -57,18 +59,25 @@ class CameraEffects:
         return bool(self.noise)
 
     def laws(self, noises: Sequence[CameraNoise], gains: Sequence[float], night: bool) -> list[NoiseLaw]:
-        """The noise law of each (sensor, gain) pair: cached ones as they are, the others computed together
-        (:func:`~fog_gym.sensors.camera_noise.noise_laws`: one kernel launch for all of a frame's cameras)."""
-        keys = [(noise, float(gain), bool(night)) for noise, gain in zip(noises, gains)]
-        missing = list(dict.fromkeys(k for k in keys if k not in self._laws))
-        for key, law in zip(missing, noise_laws([k[0] for k in missing], [k[1] for k in missing], night)):
-            self._laws[key] = law
-        out = []
-        for key in keys:
-            self._laws.move_to_end(key)
-            out.append(self._laws[key])
-        while len(self._laws) > max(TABLE_CACHE, len(keys)):
-            self._laws.popitem(last=False)
+        """The noise law of each (sensor, gain) pair: cached ones as they are (per total gain on the sensor's grid,
+        :meth:`~fog_gym.sensors.camera_noise.CameraNoise.gain`: frames whose auto-exposure gains round to the same
+        step share it), the others computed together (:func:`~fog_gym.sensors.camera_noise.noise_laws`: one kernel
+        launch for all of a frame's cameras)."""
+        keys = [(noise, noise.gain(gain, night), bool(night)) for noise, gain in zip(noises, gains)]
+        with _LAWS_LOCK:
+            missing: dict[tuple, float] = {}
+            for key, gain in zip(keys, gains):
+                if key not in _LAWS:
+                    missing.setdefault(key, float(gain))
+        laws = dict(zip(missing, noise_laws([k[0] for k in missing], list(missing.values()), night))) if missing else {}
+        with _LAWS_LOCK:
+            _LAWS.update(laws)
+            out = []
+            for key in keys:
+                _LAWS.move_to_end(key)
+                out.append(_LAWS[key])
+            while len(_LAWS) > max(TABLE_CACHE, len(keys)):
+                _LAWS.popitem(last=False)
         return out
 
     def prepare(self, seed: int, tick: int, exposure: Mapping[str, float], night: bool,

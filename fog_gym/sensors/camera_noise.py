@@ -19,7 +19,11 @@ renderer's day gain is 1). At night the renderer's linear units stand for a scen
 magnitude darker than daylight (a lit road: tens of lux; sunlight: tens of thousands); the exposure time stretches
 to the frame period and the sensor's analog and digital gain make up the rest. The model takes ``A = night_gain ·
 g`` with ``g`` the frame's auto-exposure gain (:attr:`fog_gym.sensors.CameraRig.exposure`, 1–16): night frames
-are noisier, and the darker the scene the noisier.
+are noisier, and the darker the scene the noisier. A sensor sets its gain in steps (registers of analog and digital
+gain), and so does the model: ``A`` is rounded to the nearest of ``gain_step_ev`` stops (default 1/16 EV: the
+gain within 2.2 %, the noise's standard deviation within 1.1 %, of the continuous gain's), so that consecutive
+frames of a drive share their noise laws (computed once per step and sensor; a lit night street moves a camera's
+gain by one to four steps a frame).
 
 **The default sensor** (:data:`DEFAULT_NOISE`, ``camera_noise="default"``) is an automotive-class 3.0 µm pixel of
 onsemi's DR-Pix family, as in the AR0230CS datasheet (same pixel family as the AR0231AT automotive sensor): its
@@ -97,7 +101,8 @@ _BITS = TABLE_SIZE.bit_length() - 1  # a level's row of the flattened table star
 class CameraNoise:
     """A camera's sensor noise (module docstring): full well ``full_well_e`` [e⁻], read noise ``read_noise_e``
     [e⁻ rms], the night gain at auto-exposure gain 1 ``night_gain``, optional motion blur over the exposure time
-    (``exposure_s``: by day, at night [s]), and the sensor it describes (``sensor``, for the record).
+    (``exposure_s``: by day, at night [s]), the sensor it describes (``sensor``, for the record) and the step of
+    its gain ``gain_step_ev`` [EV]: the total gain is set on a grid of that many stops (0: continuous).
 
     >>> CameraNoise(full_well_e=6000, read_noise_e=3.0).full_well_e
     6000.0
@@ -113,6 +118,7 @@ class CameraNoise:
     motion_blur: bool = False
     exposure_s: tuple[float, float] = (0.002, 0.030)
     sensor: str = "onsemi DR-Pix 3.0 um (AR0230CS datasheet: SNRmax 41 dB); read noise and night gain assumed"
+    gain_step_ev: float = 1.0 / 16.0
 
     def __post_init__(self) -> None:
         full = finite("CameraNoise.full_well_e", self.full_well_e)
@@ -132,14 +138,26 @@ class CameraNoise:
             raise ValueError(f"CameraNoise.exposure_s must be (day, night) exposure times in (0, 0.1] s, got {self.exposure_s!r}")
         if not isinstance(self.sensor, str):
             raise ValueError(f"CameraNoise.sensor must be a string, got {self.sensor!r}")
+        step = finite("CameraNoise.gain_step_ev", self.gain_step_ev)
+        if not 0.0 <= step <= 1.0:
+            raise ValueError(f"CameraNoise.gain_step_ev must be in [0, 1] stops (0: continuous), got {self.gain_step_ev!r}")
+        object.__setattr__(self, "gain_step_ev", step)
         object.__setattr__(self, "full_well_e", full)
         object.__setattr__(self, "read_noise_e", read)
         object.__setattr__(self, "night_gain", night)
         object.__setattr__(self, "exposure_s", (float(exp[0]), float(exp[1])))
 
     def gain(self, exposure_gain: float, night: bool) -> float:
-        """The total gain ``A`` of a frame with auto-exposure gain ``exposure_gain`` (module docstring)."""
-        return float(exposure_gain) * (self.night_gain if night else 1.0)
+        """The total gain ``A`` of a frame with auto-exposure gain ``exposure_gain`` (module docstring), on the
+        sensor's grid of :attr:`gain_step_ev` stops (the nearest step; powers of two lie on every grid).
+
+        >>> DEFAULT_NOISE.gain(1.0, False), DEFAULT_NOISE.gain(4.0, True), round(DEFAULT_NOISE.gain(3.0, True), 3)
+        (1.0, 32.0, 23.629)
+        """
+        a = float(exposure_gain) * (self.night_gain if night else 1.0)
+        if self.gain_step_ev == 0.0 or not a > 0.0:
+            return a
+        return 2.0 ** (round(math.log2(a) / self.gain_step_ev) * self.gain_step_ev)
 
 
 #: The default sensor: ``camera_noise="default"``.

@@ -264,10 +264,41 @@ def test_gaussian_draws_follow_their_law_the_emva_moments_and_are_independent():
         assert abs(np.corrcoef(u.ravel(), v.ravel())[0, 1]) < 0.01  # channels, neighbours, variants independent
 
 
+@given(g=st.floats(0.05, 64.0), night=st.booleans(), step=st.sampled_from([1 / 16, 1 / 8, 1 / 3, 1.0]))
+def test_the_gain_lies_on_the_sensors_grid_nearest_the_continuous_gain(g, night, step):
+    noise = CameraNoise(gain_step_ev=step)
+    exact = CameraNoise(gain_step_ev=0.0).gain(g, night)
+    a = noise.gain(g, night)
+    assert exact == g * (8.0 if night else 1.0)
+    assert abs(np.log2(a) - np.log2(exact)) <= step / 2 + 1e-12  # the nearest step: within half a step
+    assert np.log2(a) / step == pytest.approx(round(np.log2(a) / step), abs=1e-9)  # a step of the grid
+    assert noise.gain(2.0 ** (round(np.log2(exact) / step) * step) / (8.0 if night else 1.0), night) == pytest.approx(a)
+    assert noise.gain(1.0, False) == 1.0 and noise.gain(4.0, True) == 32.0  # powers of two lie on every grid
+
+
+def test_frames_whose_gains_round_to_one_step_share_one_law_computed_once(monkeypatch):
+    import fog_gym.sensors.camera_effects as effects
+
+    calls = []
+    real = effects.noise_laws
+    monkeypatch.setattr(effects, "noise_laws", lambda n, g, night: (calls.append(list(g)), real(n, g, night))[1])
+    monkeypatch.setattr(effects, "_LAWS", type(effects._LAWS)())
+    fx = effects.CameraEffects([CameraConfig("CAM_FRONT", Pose(1.8, 0, 1.2), 8, 6, noise="default")])
+    other = effects.CameraEffects([CameraConfig("CAM_FRONT", Pose(1.8, 0, 1.2), 8, 6, noise="default")])
+    a = fx.laws([DEFAULT_NOISE, DEFAULT_NOISE], [3.0, 3.01], True)  # 23.6 and 23.7: one step of 1/16 EV
+    b = other.laws([DEFAULT_NOISE], [2.99], True)  # another rig of the process: the same law
+    c = fx.laws([DEFAULT_NOISE], [3.3], True)  # 26.4: another step
+    assert a[0] is a[1] is b[0] and c[0] is not a[0] and calls == [[3.0], [3.3]]
+    assert (a[0].table == noise_law(DEFAULT_NOISE, 3.0, True).table).all()
+    assert (a[0].table == noise_law(DEFAULT_NOISE, 3.01, True).table).all()  # the law of the step, from either gain
+
+
 def test_bad_noise_configs_are_one_line_errors_naming_the_field():
     for kwargs, field in (({"full_well_e": 0}, "full_well_e"), ({"read_noise_e": -1}, "read_noise_e"),
                           ({"night_gain": 0.5}, "night_gain"), ({"motion_blur": 1}, "motion_blur"),
-                          ({"exposure_s": (0.0, 0.03)}, "exposure_s"), ({"full_well_e": float("nan")}, "full_well_e")):  # fmt: skip
+                          ({"exposure_s": (0.0, 0.03)}, "exposure_s"), ({"full_well_e": float("nan")}, "full_well_e"),
+                          ({"gain_step_ev": -0.1}, "gain_step_ev"), ({"gain_step_ev": 2.0}, "gain_step_ev"),
+                          ({"gain_step_ev": float("inf")}, "gain_step_ev")):  # fmt: skip
         with pytest.raises(ValueError, match=field) as err:
             CameraNoise(**kwargs)
         assert "\n" not in str(err.value)
