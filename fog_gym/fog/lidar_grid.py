@@ -43,8 +43,8 @@ from fog_gym.fog.lidar_pulse import (FIELD_COARSE, FIELD_STEP, _curves, _field_r
 POINTS_PER_NODE = 40
 #: The grids (nodes along ``du``, along ``dz``) :func:`grid_shape` chooses from, coarsest first, for fields with and
 #: without height terms. With height terms the soft return's maximum follows the rise ``dz`` (ground fog near the
-#: sensor, a bank's face above it) and 16 nodes along ``du`` decide as 64 do (the same own-beam points, the same
-#: decisions and intensities on 100 000 points of five fields; the curves a quarter); without them a bank's face is
+#: sensor, a bank's face above it) and 16 nodes along ``du`` give what 64 do (the same output bit for bit on 100 000
+#: points of the three fields with height terms of the grid test; the curves a quarter); without them a bank's face is
 #: where the maximum moves, and two banks' faces hold nearly equal maxima along a line of directions whose points may
 #: take the other face's range (up to 3.4 m with 64 nodes, 6.3 m with 32, 16 m with 16, on 100 000 points).
 _LADDER = {True: ((16, 4), (16, 8)), False: ((16, 1), (32, 1), (64, 1))}
