@@ -140,7 +140,8 @@ class CameraNoise:
             raise ValueError(f"CameraNoise.sensor must be a string, got {self.sensor!r}")
         step = finite("CameraNoise.gain_step_ev", self.gain_step_ev)
         if not 0.0 <= step <= 1.0:
-            raise ValueError(f"CameraNoise.gain_step_ev must be in [0, 1] stops (0: continuous), got {self.gain_step_ev!r}")
+            raise ValueError(f"CameraNoise.gain_step_ev must be in [0, 1] stops (0: continuous), "
+                             f"got {self.gain_step_ev!r}")
         object.__setattr__(self, "gain_step_ev", step)
         object.__setattr__(self, "full_well_e", full)
         object.__setattr__(self, "read_noise_e", read)
@@ -149,7 +150,7 @@ class CameraNoise:
 
     def gain(self, exposure_gain: float, night: bool) -> float:
         """The total gain ``A`` of a frame with auto-exposure gain ``exposure_gain`` (module docstring), on the
-        sensor's grid of :attr:`gain_step_ev` stops (the nearest step; powers of two lie on every grid).
+        sensor's grid of :attr:`gain_step_ev` stops (the nearest step; powers of two lie on every grid of 1/n stops).
 
         >>> DEFAULT_NOISE.gain(1.0, False), DEFAULT_NOISE.gain(4.0, True), round(DEFAULT_NOISE.gain(3.0, True), 3)
         (1.0, 32.0, 23.629)

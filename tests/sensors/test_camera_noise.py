@@ -273,7 +273,7 @@ def test_the_gain_lies_on_the_sensors_grid_nearest_the_continuous_gain(g, night,
     assert abs(np.log2(a) - np.log2(exact)) <= step / 2 + 1e-12  # the nearest step: within half a step
     assert np.log2(a) / step == pytest.approx(round(np.log2(a) / step), abs=1e-9)  # a step of the grid
     assert noise.gain(2.0 ** (round(np.log2(exact) / step) * step) / (8.0 if night else 1.0), night) == pytest.approx(a)
-    assert noise.gain(1.0, False) == 1.0 and noise.gain(4.0, True) == 32.0  # powers of two lie on every grid
+    assert noise.gain(1.0, False) == 1.0 and noise.gain(4.0, True) == 32.0  # powers of two lie on grids of 1/n stops
 
 
 def test_frames_whose_gains_round_to_one_step_share_one_law_computed_once(monkeypatch):
