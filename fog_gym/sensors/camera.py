@@ -38,6 +38,7 @@ from fog_gym.render.antialias import antialias, filter_ground
 from fog_gym.render.raster import render
 from fog_gym.render.shadows import HALF, ShadowCache
 from fog_gym.render.surface import albedo_lut, ground_lut, shadow_lut, tiled_surface
+from fog_gym.render.view_cull import in_views
 from fog_gym.world.primitives import Primitives
 from fog_gym.world.scene import Scene, ego_primitives, prop_primitives
 from fog_gym.encoding import SEMANTIC_TAGS
@@ -162,7 +163,8 @@ class CameraRig:
         self.render_radius = float(render_radius)
         # each camera's ground-plane view (position, yaw, half horizontal FOV), for culling props out of every view
         self._flat = all(c.pose.pitch == 0 and c.pose.roll == 0 for c in cameras)
-        self._views = [(c.pose.x, c.pose.y, np.radians(c.pose.yaw), np.radians(c.fov) / 2 + 0.02) for c in cameras]
+        self._views = np.array([(c.pose.x, c.pose.y, np.radians(c.pose.yaw), np.radians(c.fov) / 2 + 0.02)
+                                for c in cameras], np.float64).reshape(-1, 4)  # fmt: skip
         self.names = tuple(c.name for c in cameras)
         self.intrinsics = {c.name: c.intrinsic() for c in cameras}
         self.sensor_to_vehicle = {c.name: geometry.transform_matrix(c.pose.location, c.pose.rotation) for c in cameras}
@@ -242,18 +244,9 @@ class CameraRig:
         return prims.take(self._view_mask(prims.centers, np.linalg.norm(prims.halves, axis=1) + 0.5, ego_pose))
 
     def _view_mask(self, centers: np.ndarray, radius: np.ndarray, ego_pose: tuple[float, float, float]) -> np.ndarray:
-        """Which boxes (centres, bounding-circle radii) some camera can see (:meth:`_in_view`)."""
-        ex, ey, eyaw = ego_pose
-        c, s = np.cos(eyaw), np.sin(eyaw)
-        keep = np.zeros(len(centers), bool)
-        for px, py, yaw, half in self._views:
-            cx, cy = ex + c * px - s * py, ey + s * px + c * py
-            dx, dy = centers[:, 0] - cx, centers[:, 1] - cy
-            dist = np.hypot(dx, dy)
-            off = np.abs((np.arctan2(dy, dx) - (eyaw + yaw) + np.pi) % (2 * np.pi) - np.pi)
-            margin = np.arcsin(np.clip(radius / np.maximum(dist, 1e-9), 0.0, 1.0))
-            keep |= (dist <= radius) | (off <= half + margin + 1e-3)
-        return keep
+        """Which boxes (centres, bounding-circle radii) some camera can see (:meth:`_in_view`;
+        :func:`fog_gym.render.view_cull.in_views`)."""
+        return in_views(centers, radius, ego_pose, self._views)
 
     def render(self, scene: Scene, prims: Primitives | None = None) -> dict[str, CameraFrame]:
         """Every camera's buffers; ``prims`` defaults to :meth:`primitives` of the scene."""
