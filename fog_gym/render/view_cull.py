@@ -7,9 +7,9 @@ its horizontal field of view plus a margin. A box at distance ``d`` from a camer
 when ``d ≤ r`` or when its bearing lies within ``θ = half + 10⁻³ + asin(r / d)`` of the camera's heading. Without
 an angle: for ``θ < π`` the bearing's cosine ``(δ · a) / d`` (``δ`` the offset to the box, ``a`` the heading's unit
 vector) is at least ``cos θ = cos H · √(d² − r²)/d − sin H · r/d`` (``H = half + 10⁻³``), so the test is
-``δ · a ≥ cos H · √(d² − r²) − sin H · r``: a square root a box and camera, where the bearing and the margin took an
-arctangent and an arcsine (the same decisions but where a box's circle touches the view's edge to rounding — a
-box that the margin beyond the field of view keeps either way). One pass over the boxes that stops at the first
+``δ · a ≥ cos H · √(d² − r²) − sin H · r``: one square root per box and camera, where the bearing and the margin
+took an arctangent and an arcsine (the same decisions but where a box's circle touches the view's edge to rounding
+— a box that the margin beyond the field of view keeps either way). One pass over the boxes that stops at the first
 camera that sees a box.
 
 Example:
