@@ -13,10 +13,11 @@ kernels of its path ahead, in parallel worker processes, with a progress bar tha
 (:func:`compile_kernels`, the paths in :mod:`fog_gym.envs.kernel_table`); a kernel compiled on its first call
 instead is named on stderr.
 
-Small workloads (the RL presets' 64×64 camera, a 32-channel LiDAR sweep) run faster on one thread: a parallel
-kernel pays a launch per parallel region (tens of µs with workqueue), more than such a frame's work.
-:func:`serial_twin` compiles a parallel kernel a second time without ``parallel``; :func:`pick` chooses it below a work
-size (:data:`SERIAL_BELOW`). Both give the same bits (tests compare them).
+Small workloads (the RL presets' 64×64 camera, their sweep's fog) run faster on one thread: a parallel kernel pays a
+launch per parallel region (tens of µs with workqueue), more than such a frame's work. :func:`serial_twin` compiles a
+parallel kernel a second time without ``parallel``; :func:`pick` chooses it below a work size (:data:`SERIAL_BELOW`,
+or the kernel's own: the ray cast, whose rays cost far more than pixels, from 8 192 rays). Both give the same bits
+(tests compare them).
 
 **Kernels release the GIL** (``nogil=True``, every kernel; a test checks it), so Python threads can step several
 worlds at once (the pixel vector env's :func:`worker_pool`). The workqueue layer is not thread safe: in a worker thread

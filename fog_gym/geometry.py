@@ -18,6 +18,7 @@ Example:
 
 from __future__ import annotations
 
+import functools
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
@@ -96,10 +97,16 @@ def rotation_matrix(pitch_deg: float, roll_deg: float, yaw_deg: float) -> np.nda
 
 
 def transform_matrix(location: tuple[float, float, float], rotation: tuple[float, float, float]) -> np.ndarray:
-    """4×4 sensor→parent transform from ``(x, y, z)`` metres and ``(pitch, roll, yaw)`` degrees."""
+    """4×4 sensor→parent transform from ``(x, y, z)`` metres and ``(pitch, roll, yaw)`` degrees (a new array)."""
+    return _mount(*(float(v) for v in location), *(float(v) for v in rotation)).copy()
+
+
+@functools.lru_cache(maxsize=256)
+def _mount(x: float, y: float, z: float, pitch: float, roll: float, yaw: float) -> np.ndarray:
+    # transform_matrix's array, built once per mount (a rig's sensors ask for theirs every frame)
     m = np.eye(4)
-    m[:3, :3] = rotation_matrix(*rotation)
-    m[:3, 3] = location
+    m[:3, :3] = rotation_matrix(pitch, roll, yaw)
+    m[:3, 3] = (x, y, z)
     return m
 
 

@@ -220,13 +220,14 @@ class FogWrapper(gym.Wrapper):
         sweep's under "clear" (paired); nothing when the rig has no LiDAR or the base env counted none."""
         if "num_lidar_pts" not in b3 or not self._fog_lidar:
             return {}
+        from fog_gym.channels.packing import unpack_points
         from fog_gym.labels.visibility import points_in_boxes
 
         base = self.env.unwrapped
         channel, clouds = self._fog_lidar
         m = np.linalg.inv(self._lidar_to_world()) @ base.sensor_to_world(channel)
         counts = {name: points_in_boxes(p[:, :3] @ m[:3, :3].T + m[:3, 3], b3["center"], b3["size"], b3["yaw"])
-                  for name, p in clouds.items()}  # fmt: skip
+                  for name, p in ((n, unpack_points(c, channel, copy=False)) for n, c in clouds.items())}  # fmt: skip
         if not self.paired:
             return {"num_lidar_pts": counts[self.levels[0].name]}
         return {"num_lidar_pts": {"clear": b3["num_lidar_pts"], **counts}}
@@ -300,12 +301,11 @@ class FogWrapper(gym.Wrapper):
         return clean, base.camera_record if clean else None
 
     def _keep_lidar(self, obs: dict, fogged: dict[str, dict[str, np.ndarray]]) -> None:
-        """The fogged LiDAR sweeps of this frame, for the boxes' ``num_lidar_pts`` per level."""
-        from fog_gym.channels.packing import unpack_points
-
+        """The fogged LiDAR sweeps of this frame (their packed channels: :meth:`_fogged_counts`, in the same call,
+        unpacks them only when the boxes ask for ``num_lidar_pts``)."""
         lidar = next((ch for ch, m in self.models.items() if getattr(m, "name", "") == "hahner"), None)
-        self._fog_lidar = None if lidar is None else (lidar, {name: unpack_points(f[lidar], lidar)[:, :3]
-                                                              for name, f in fogged.items() if lidar in f})  # fmt: skip
+        self._fog_lidar = None if lidar is None else (lidar, {name: f[lidar] for name, f in fogged.items()
+                                                              if lidar in f})  # fmt: skip
 
     def _apply(self, obs: dict) -> dict:
         if not self.paired:

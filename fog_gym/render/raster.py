@@ -391,11 +391,15 @@ def _night_tone(night: dict | None) -> np.ndarray:
     return _TONE_TABLES[knee]
 
 
+#: A day frame's stand-ins for the night's arrays (read by no pixel of a day frame; made once).
+_DAY_PRIMS = (np.zeros((1, 3)), np.zeros((1, 3)), np.zeros((1, 2)), np.full((1, 6), -1, np.int64),
+              np.ones((1, 6, 2), np.int64), np.zeros((1, 3), np.float32), np.zeros(1, np.int64),
+              np.zeros((1, 3), np.float32))  # fmt: skip
+
+
 def _night_prims(night: dict | None) -> tuple:
     if night is None:
-        z3 = np.zeros((1, 3))
-        return (z3, z3, np.zeros((1, 2)), np.full((1, 6), -1, np.int64), np.ones((1, 6, 2), np.int64),
-                np.zeros((1, 3), np.float32), np.zeros(1, np.int64), np.zeros((1, 3), np.float32))  # fmt: skip
+        return _DAY_PRIMS
     return (night["centers"], night["halves"], night["cossin"], night["g_off"], night["g_dims"], night["g_data"],
             night["tri_base"], night["tri_irr"])  # fmt: skip
 

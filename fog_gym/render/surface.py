@@ -83,16 +83,34 @@ def surface_lut(class_rgb: np.ndarray, texture_amp: float) -> np.ndarray:
     return np.clip(np.rint(base + levels), 0, 255).astype(np.uint8).reshape(-1, 3)
 
 
+_SHADED: dict[tuple[float, float], np.ndarray] = {}
+
+
+def _shaded_lut(shade: float, texture_amp: float) -> np.ndarray:
+    # surface_lut of the surface colours times shade, kept per (shade, amplitude): a light's tables are the same every
+    # frame (shared: not to be written; not flagged read-only, which would give the kernels that read it a signature
+    # of its own to compile)
+    key = (float(shade), float(texture_amp))
+    lut = _SHADED.get(key)
+    if lut is None:
+        lut = surface_lut(SURFACE_RGB * key[0], key[1])
+        evict_oldest(_SHADED, 64)
+        _SHADED[key] = lut
+    return lut
+
+
 def ground_lut(lighting: Any) -> np.ndarray:
-    """The road-surface colours of a day :class:`~fog_gym.world.scene.Lighting`, shaded by its sun and ambient."""
-    return surface_lut(SURFACE_RGB * lighting.ground_shade, lighting.texture_amp)
+    """The road-surface colours of a day :class:`~fog_gym.world.scene.Lighting`, shaded by its sun and ambient
+    (the same array for every frame of a light: not to be written)."""
+    return _shaded_lut(lighting.ground_shade, lighting.texture_amp)
 
 
 def shadow_lut(lighting: Any) -> np.ndarray:
-    """The road-surface colours of a day :class:`~fog_gym.world.scene.Lighting` in shade: its ambient light only."""
-    return surface_lut(SURFACE_RGB * lighting.ambient, lighting.texture_amp)
+    """The road-surface colours of a day :class:`~fog_gym.world.scene.Lighting` in shade: its ambient light only
+    (shared, as :func:`ground_lut`'s)."""
+    return _shaded_lut(lighting.ambient, lighting.texture_amp)
 
 
 def albedo_lut() -> np.ndarray:
-    """Unshaded surface colours (day texture) for the night lighting pass."""
-    return surface_lut(SURFACE_RGB, 1.0)
+    """Unshaded surface colours (day texture) for the night lighting pass (shared, as :func:`ground_lut`'s)."""
+    return _shaded_lut(1.0, 1.0)

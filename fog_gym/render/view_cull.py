@@ -38,32 +38,44 @@ def in_views(centers: np.ndarray, radius: np.ndarray, ego_pose: tuple[float, flo
     views = np.ascontiguousarray(views, np.float64).reshape(-1, 4)
     if centers.ndim != 2 or centers.shape[1] < 2 or radius.shape != (len(centers),):
         raise ValueError(f"in_views needs centres (N, 2+) and radii (N,), got {centers.shape} and {radius.shape}")
+    keep = np.empty(len(centers), np.bool_)
+    _in_views(centers, radius, view_table(ego_pose, views), keep)
+    return keep
+
+
+def view_table(ego_pose: tuple[float, float, float], views: np.ndarray) -> np.ndarray:
+    """``(K, 7)``: per camera of ``views`` on an ego at ``ego_pose``, what the test reads — its place ``x, y`` in the
+    world, its heading's cosine and sine, ``cos H``, ``sin H`` and whether ``H ≥ π`` (every bearing in view)."""
+    views = np.ascontiguousarray(views, np.float64).reshape(-1, 4)
     ex, ey, eyaw = (float(v) for v in ego_pose)
     c, s = math.cos(eyaw), math.sin(eyaw)
-    h = views[:, 3] + 1e-3
-    cams = np.stack([ex + c * views[:, 0] - s * views[:, 1], ey + s * views[:, 0] + c * views[:, 1],
-                     np.cos(eyaw + views[:, 2]), np.sin(eyaw + views[:, 2]), np.cos(h), np.sin(h),
-                     (h >= np.pi).astype(np.float64)], axis=1)  # fmt: skip
-    keep = np.empty(len(centers), np.bool_)
-    _in_views(centers, radius, cams, keep)
-    return keep
+    k = len(views)
+    angles = np.concatenate((eyaw + views[:, 2], views[:, 3] + 1e-3))  # headings, then H (numpy's cos and sin)
+    cos, sin = np.cos(angles).tolist(), np.sin(angles).tolist()
+    cams = np.empty((k, 7))
+    for v, (x, y, _, half) in enumerate(views.tolist()):
+        cams[v] = (ex + c * x - s * y, ey + s * x + c * y, cos[v], sin[v], cos[k + v], sin[k + v],
+                   float(half + 1e-3 >= np.pi))  # fmt: skip
+    return cams
 
 
 @njit(cache=True, nogil=True)
 def _in_views(centers, radius, cams, keep):
-    # cams: per camera its place x, y, heading cos, sin, cos H, sin H and whether H ≥ π (every bearing is in view)
+    # cams: view_table's rows
     for i in range(centers.shape[0]):
-        seen = False
-        r = radius[i]
-        for v in range(cams.shape[0]):
-            dx, dy = centers[i, 0] - cams[v, 0], centers[i, 1] - cams[v, 1]
-            d2 = dx * dx + dy * dy
-            if d2 <= r * r or cams[v, 6] != 0.0:
-                seen = True
-                break
-            # θ ≥ π (nothing out of view) only when H > π/2 and asin(r/d) ≥ π − H, i.e. r/d ≥ sin H
-            wide = cams[v, 4] < 0.0 and r >= cams[v, 5] * math.sqrt(d2)
-            if wide or dx * cams[v, 2] + dy * cams[v, 3] >= cams[v, 4] * math.sqrt(d2 - r * r) - cams[v, 5] * r:
-                seen = True
-                break
-        keep[i] = seen
+        keep[i] = _sees(centers[i, 0], centers[i, 1], radius[i], cams)
+
+
+@njit(cache=True, inline="always")
+def _sees(x, y, r, cams):
+    # whether some camera of cams (view_table) sees the circle of radius r about (x, y): the first that does decides
+    for v in range(cams.shape[0]):
+        dx, dy = x - cams[v, 0], y - cams[v, 1]
+        d2 = dx * dx + dy * dy
+        if d2 <= r * r or cams[v, 6] != 0.0:
+            return True
+        # θ ≥ π (nothing out of view) only when H > π/2 and asin(r/d) ≥ π − H, i.e. r/d ≥ sin H
+        wide = cams[v, 4] < 0.0 and r >= cams[v, 5] * math.sqrt(d2)
+        if wide or dx * cams[v, 2] + dy * cams[v, 3] >= cams[v, 4] * math.sqrt(d2 - r * r) - cams[v, 5] * r:
+            return True
+    return False

@@ -38,6 +38,7 @@ from fog_gym.render.antialias import antialias, filter_ground
 from fog_gym.render.raster import render
 from fog_gym.render.shadows import HALF, ShadowCache
 from fog_gym.render.surface import albedo_lut, ground_lut, shadow_lut, tiled_surface
+from fog_gym.render.prop_select import select_rows, take_concat
 from fog_gym.render.view_cull import in_views
 from fog_gym.world.primitives import Primitives
 from fog_gym.world.scene import Scene, ego_primitives, prop_primitives
@@ -213,20 +214,12 @@ class CameraRig:
             near = self._near_cache = _NearProps.select(self._props_cache[1], self._props_cache[3], ego,
                                                         self.render_radius, self.detail_radius)  # fmt: skip
         # a box is kept within render_radius of the ego (centre distance less its half diagonal), drawn as its
-        # meshes and parts within detail_radius (when the static world has them)
-        boxes = near.table.centers[: near.n_boxes]
-        d = np.hypot(boxes[:, 0] - ego[0], boxes[:, 1] - ego[1]) - near.diagonals[: near.n_boxes]
-        within = d <= self.render_radius
-        if near.owner is None:
-            rows = np.flatnonzero(within)
-        else:
-            close = within & (d <= self.detail_radius)
-            rows = np.concatenate((np.flatnonzero(within & ~close), near.n_boxes + np.flatnonzero(close[near.owner])))
-        every = Primitives.concat(near.table.take(rows), scene.primitives)
-        if not self._flat or len(rows) == 0:
-            return every, every
-        seen = self._view_mask(near.table.centers[rows], near.diagonals[rows] + 0.5, scene.ego_pose)
-        return every, Primitives.concat(near.table.take(rows[seen]), scene.primitives)
+        # meshes and parts within detail_radius (when the static world has them); the cameras' rows are those some
+        # view meets (fog_gym.render.prop_select)
+        rows, seen = select_rows(near.table.centers, near.diagonals, near.n_boxes, near.owner, scene.ego_pose,
+                                 self.render_radius, self.detail_radius, self._views if self._flat else None)  # fmt: skip
+        every = take_concat(near.table, rows, scene.primitives)
+        return every, (every if len(seen) == len(rows) else take_concat(near.table, seen, scene.primitives))
 
     def in_view(self, prims: Primitives, scene: Scene) -> Primitives:
         """``prims`` without the props no camera can see (vehicles are few and always kept)."""

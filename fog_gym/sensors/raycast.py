@@ -42,6 +42,11 @@ MISS = -2
 NO_MATERIAL = 255
 #: ``material`` of a ray that hit a plain box (its tag and reflectivity are the primitive's).
 BOX_MATERIAL = MATERIAL_IDS["box"]
+#: Rays from which :func:`cast_rays` runs its parallel kernel (below, its serial twin). A ray costs far more than a
+#: pixel (60–70 ns against a mesh town), so the cast pays a parallel launch from fewer items than
+#: :data:`~fog_gym._numba.SERIAL_BELOW`: on two cores the RL presets' 10 016-ray sweep took 0.47 against 0.71 ms
+#: (meshes) and 0.28 against 0.44 ms (boxes), while 2 048 rays lost (0.41 against 0.26 ms; docs/performance.md).
+CAST_SERIAL_BELOW = 8192
 #: A box whose footprint comes this close (metres, horizontally) to the origin is put in every azimuth bin.
 NEAR_ALL = 0.05
 _PAD = 1e-9  # widening of every box's bin interval against rounding at cell borders
@@ -473,7 +478,7 @@ def cast_rays(
         return RayHits(np.zeros(0, np.float32), np.zeros(0, np.int32), np.zeros(0, np.float32), np.zeros(0, np.uint8))
     rotation = np.eye(3) if rotation is None else np.ascontiguousarray(rotation, np.float64).reshape(3, 3)
     lib = LIBRARY.arrays()
-    dist, index, cosine, material = pick(_cast, _cast_serial, n)(
+    dist, index, cosine, material = pick(_cast, _cast_serial, n, CAST_SERIAL_BELOW)(
         np.ascontiguousarray(origin, np.float64).reshape(3),
         rotation,
         directions,
