@@ -10,8 +10,9 @@
 
 With ``--previous DIR`` (a checkout of another release, e.g. ``git worktree add ../fog-gym-prev 3c4c6c8``) each
 vector-env and fog figure runs in child processes of both installs in turn (``PYTHONPATH`` picks the tree; a warm-up
-round first), ``--rounds`` times, and the ratio is the median of the per-round ratios. Prints Markdown; asserts no
-timing.
+round first), ``--rounds`` times, and the ratio is the median of the per-round ratios. The sums' cost over homogeneous
+fog is measured in this tree alone, each sum in one child that alternates it with homogeneous fog (:data:`RATIOS`: the
+median of the per-block ratios, then of the children). Prints Markdown; asserts no timing.
 
 Usage::
 
@@ -71,16 +72,13 @@ else:
     fields = {"homogeneous": "dense", "height+bank": HeightFog(50.0, 4.0) + FogBank(50.0, 40.0, 80.0),
               "two banks": FogBank(50.0, 20.0, 40.0) + FogBank(80.0, 90.0, 60.0)}
     kind, field = what.split(":")
-    if kind == "step":
-        env = gym.make("FogDriveRL-v0", fog=fields[field])
-        env.reset(seed=0)
-        for _ in range(3):
-            env.step(1)
-        t = time.perf_counter()
-        for _ in range(steps):
-            env.step(1)
-        out = (time.perf_counter() - t) / steps * 1000.0
-    else:
+    def unit(kind, field):  # one step of FogDriveRL-v0 in the field, or the LiDAR fog of 100 k points in it
+        if kind.endswith("step"):
+            env = gym.make("FogDriveRL-v0", fog=fields[field])
+            env.reset(seed=0)
+            for _ in range(3):
+                env.step(1)
+            return lambda: env.step(1)
         from fog_gym.fog.depth import field_pose
         from fog_gym.fog.lidar import fog_lidar
         from fog_gym.fog.lidar_field import fog_lidar_field
@@ -97,10 +95,30 @@ else:
         else:
             call = lambda: fog_lidar_field(pts, fields[field], rng, pose)
         call()
-        ts = []
-        for _ in range(steps):
-            t = time.perf_counter(); call(); ts.append(time.perf_counter() - t)
-        out = float(np.median(ts)) * 1000.0
+        return call
+    def block(call, k):
+        t = time.perf_counter()
+        for _ in range(k):
+            call()
+        return (time.perf_counter() - t) / k
+    if kind.startswith("ratio-"):  # the field against homogeneous fog in this process, alternating: median of ratios
+        base, other = unit(kind, "homogeneous"), unit(kind, field)
+        k = 5 if kind.endswith("step") else 1
+        ratios = []
+        for i in range(steps):  # each round in turn starts with the other
+            if i % 2:
+                t_base = block(base, k)
+                t_other = block(other, k)
+            else:
+                t_other = block(other, k)
+                t_base = block(base, k)
+            ratios.append(t_other / t_base)
+        out = float(np.median(ratios))
+    elif kind == "step":  # the mean step
+        out = block(unit(kind, field), steps) * 1000.0
+    else:  # the median call
+        call = unit(kind, field)
+        out = float(np.median([block(call, 1) for _ in range(steps)])) * 1000.0
 print(json.dumps({"value": out}))
 """
 
@@ -115,6 +133,17 @@ FIGURES = {
     "LiDAR fog, homogeneous": ("lidar:homogeneous", 10, "ms"),
     "LiDAR fog, HeightFog + FogBank": ("lidar:height+bank", 10, "ms"),
     "LiDAR fog, two banks": ("lidar:two banks", 10, "ms"),
+}
+
+
+#: The sums' cost over homogeneous fog in this tree, each measured in one child alternating the two (blocks of five
+#: steps, or single LiDAR fog calls): the median of the per-block ratios, a figure the machine's drift between
+#: processes does not move (the ratio of two figures measured minutes apart did: 1.49× in one run, 2.17× in another).
+RATIOS = {
+    "step, HeightFog + FogBank": ("ratio-step:height+bank", 24),
+    "step, two banks": ("ratio-step:two banks", 24),
+    "LiDAR fog, HeightFog + FogBank": ("ratio-lidar:height+bank", 20),
+    "LiDAR fog, two banks": ("ratio-lidar:two banks", 20),
 }
 
 
@@ -145,6 +174,18 @@ def bench_figures(trees: dict[str, str], rounds: int, quick: bool) -> dict[str, 
             a, b = runs["this tree"], runs["previous"]
             per_round = [x / y if unit == "steps/s" else y / x for x, y in zip(a, b)]
             res[name]["ratio"] = float(np.median(per_round))  # this tree's speed-up
+    return res
+
+
+def bench_ratios(tree: str, rounds: int, quick: bool) -> dict[str, Any]:
+    """Every ratio of :data:`RATIOS` in ``tree``, ``rounds`` child processes each: the per-child medians and their
+    median."""
+    from tqdm import tqdm
+
+    res: dict[str, Any] = {}
+    for name, (what, blocks) in tqdm(RATIOS.items(), desc="sums over homogeneous", unit="figure", file=sys.stderr):
+        runs = [child(tree, what, max(4, blocks // 4) if quick else blocks) for _ in range(rounds)]
+        res[name] = {"runs": runs, "ratio": float(np.median(runs))}
     return res
 
 
@@ -188,7 +229,7 @@ def bench_scaling(cores: list[int], quick: bool) -> dict[str, Any]:
     return out
 
 
-def render_figures(res: dict[str, Any], rounds: int) -> list[str]:
+def render_figures(res: dict[str, Any], rounds: int, ratios: dict[str, Any] | None = None) -> list[str]:
     two = any("ratio" in r for r in res.values())
     rows = []
     for name, r in res.items():
@@ -201,18 +242,24 @@ def render_figures(res: dict[str, Any], rounds: int) -> list[str]:
             row.append("" if target is None or not name.startswith(("objects", "pixels")) else
                        f"≥ {target:g}×: {'met' if r['ratio'] >= target else 'not met'}")  # fmt: skip
         rows.append(row)
-    # the sums' cost over homogeneous fog, in this tree
+    # the sums' cost over homogeneous fog, in this tree: alternating in one process (ratios), else the figures' medians
     for kind in ("step", "LiDAR fog"):
         base = res.get(f"{kind}, homogeneous")
         for field in ("HeightFog + FogBank", "two banks"):
-            r = res.get(f"{kind}, {field}")
-            if base and r:
-                ratio = r["median"]["this tree"] / base["median"]["this tree"]
-                target = TARGETS[f"{kind}, {field}"]
-                rows.append([f"{kind}, {field} / homogeneous (this tree)", f"**{ratio:.2f}×**"]
-                            + ([""] * 2 if two else []) + ([f"≤ {target:g}×: {'met' if ratio <= target else 'not met'}"]
-                                                          if two else []))  # fmt: skip
-    header = ["figure", "this tree"] + (["previous", "this / previous", "target"] if two else [])
+            name = f"{kind}, {field}"
+            r = res.get(name)
+            if name in (ratios or {}):
+                ratio, how = ratios[name]["ratio"], "alternating in one process"
+            elif base and r:
+                ratio, how = r["median"]["this tree"] / base["median"]["this tree"], "figures' medians"
+            else:
+                continue
+            target = TARGETS[name]
+            rows.append([f"{name} / homogeneous (this tree, {how})", f"**{ratio:.2f}×**"]
+                        + ([""] * 2 if two else []) + [f"≤ {target:g}×: {'met' if ratio <= target else 'not met'}"])
+    header = ["figure", "this tree"] + (["previous", "this / previous", "target"] if two else ["target"])
+    if not two:  # the target column only on the ratio rows
+        rows = [row + [""] if len(row) == 2 else row for row in rows]
     return [f"**Speed** ({rounds} rounds, child processes in turn; medians)", "", markdown_table(header, rows)]
 
 
@@ -256,15 +303,16 @@ def main(argv: list[str] | None = None) -> int:
     meta = run_meta(rounds=rounds, quick=args.quick, previous=args.previous)
     t0 = time.perf_counter()
     figures = None if args.no_figures else bench_figures(trees, rounds, args.quick)
+    ratios = None if args.no_figures else bench_ratios(here, rounds, args.quick)
     cores = [k for k in (1, 2, 4, 8, 16, 32, 64) if k <= (os.cpu_count() or 1)]
     scaling = None if args.no_scaling else bench_scaling(cores, args.quick)
     finish_meta(meta, t0)
     print(meta_line(meta))
     if figures:
-        print("\n".join(render_figures(figures, rounds)))
+        print("\n".join(render_figures(figures, rounds, ratios)))
     if scaling:
         print("\n" + "\n".join(render_scaling(scaling)))
-    write_json(args.json, {"meta": meta, "figures": figures, "scaling": scaling})
+    write_json(args.json, {"meta": meta, "figures": figures, "ratios": ratios, "scaling": scaling})
     return 0
 
 
