@@ -1,7 +1,7 @@
 """A frame's props in two numba calls: which rows of the near props' table every sensor sees and which of them the
 cameras see (:func:`select_rows`), then those rows followed by the vehicles as new primitives (:func:`take_concat`) —
 what :meth:`fog_gym.sensors.camera.CameraRig.scene_primitives` did with a dozen numpy passes and two ``take`` and
-``concat`` over the eight fields of :class:`~fog_gym.world.primitives.Primitives` per set (104 → 40 µs a frame on
+``concat`` over the eight fields of :class:`~fog_gym.world.primitives.Primitives` per set (105 → 42–53 µs a frame on
 ``FogDriveRL-v0``'s town, the same rows in the same order).
 
 The rule, per box ``b`` of the table's first ``n_boxes`` rows (the boxes; after them, the parts of the boxes near the
