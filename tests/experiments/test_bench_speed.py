@@ -30,3 +30,16 @@ def test_without_the_ratios_the_sums_rows_fall_back_to_the_figures_medians():
     rows = rows_of(render_figures(figures(2.0, 5.0), 3))
     assert rows["step, two banks / homogeneous (this tree, figures' medians)"] == ["**2.50×**", "≤ 1.5×: not met"]
     assert all(len(cells) == 2 for cells in rows.values())  # a target column for every row (empty but on the sums)
+
+
+def test_fog_gym_bench_refuses_a_bad_previous_install_or_rounds_before_any_work(capsys):
+    import pytest
+
+    from fog_gym.experiments.bench.suite import main
+
+    for argv, match in ((["--previous", "/no/such/checkout"], "--previous must be a checkout of fog-gym"),
+                        (["--speed", "--rounds", "0"], "--rounds must be >= 1")):  # fmt: skip
+        with pytest.raises(SystemExit) as err:
+            main(argv)
+        assert err.value.code == 2
+        assert match in capsys.readouterr().err

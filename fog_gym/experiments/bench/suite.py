@@ -13,7 +13,10 @@ fog_gym.experiments.bench.<name>``):
 * :mod:`~fog_gym.experiments.bench.augment`: fog on real data per core (a KITTI-sized scan per level and in a bank, a
   KITTI-sized image with depth completion) beside the reference fog program's cost;
 * :mod:`~fog_gym.experiments.bench.realism`: sensors like real ones against the same work without them (dual LiDAR
-  returns, a sweep that takes time, camera noise, anti-aliasing), each a ratio measured in one run.
+  returns, a sweep that takes time, camera noise, anti-aliasing), each a ratio measured in one run;
+* :mod:`~fog_gym.experiments.bench.speed` (with ``--speed``, ``--previous DIR`` or ``--scaling``): the vector envs and
+  the sums of fog fields, against another install in one run with ``--previous`` (child processes in turn, the
+  median of per-round ratios; the sums over homogeneous fog alternating in one process), and scaling over cores.
 
 Usage::
 
@@ -21,11 +24,13 @@ Usage::
     fog-gym bench --quick          # smoke run (3 frames, 3 profiled steps)
     fog-gym bench --town merge --repeats 50 --json out/bench.json
     fog-gym bench --night-only --night-figure docs/images/night_bench.png
+    fog-gym bench --previous ../fog-gym-prev --rounds 3   # also the speed figures against another install
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import time
 from pathlib import Path
 
@@ -36,6 +41,7 @@ from fog_gym.experiments.bench import env as bench_env
 from fog_gym.experiments.bench import fog as bench_fog
 from fog_gym.experiments.bench import geometry as bench_geometry
 from fog_gym.experiments.bench import sensors as bench_sensors
+from fog_gym.experiments.bench import speed as bench_speed
 from fog_gym.experiments.bench.common import add_common_arguments, finish_meta, repeats_of, run_meta, write_json
 from fog_gym.world.towns import TOWNS
 
@@ -48,7 +54,8 @@ def build_parser(prog: str = "fog-gym bench") -> argparse.ArgumentParser:
         "semantic LiDAR and radar), against a bare highway-env step; the point sensors alone on a 50-vehicle "
         "highway, with and without 500 boxes out of range; fog, ground truth, recording, the RL preset, night vs "
         "day cameras. It runs the env, sensors, fog and dataset benchmarks (python -m fog_gym.experiments.bench.<name>), prints Markdown "
-        "tables and asserts nothing.",
+        "tables and asserts nothing. With --speed or --previous DIR also the vector envs and the sums of fog fields "
+        "(against another install in one run), with --scaling generate and the sharded vector env over cores.",
     )
     add_common_arguments(parser)
     parser.add_argument("--town", choices=TOWNS, default="highway", help="fog-gym town (default highway)")
@@ -56,11 +63,27 @@ def build_parser(prog: str = "fog-gym bench") -> argparse.ArgumentParser:
                         help="only time the full rig's cameras by night against by day (same scenes)")
     parser.add_argument("--night-figure", type=Path, default=None, metavar="PNG",
                         help="write the night vs day camera bar chart to PNG")
+    parser.add_argument("--speed", action="store_true",
+                        help="also the speed figures: the vector envs and the sums of fog fields "
+                             "(python -m fog_gym.experiments.bench.speed)")  # fmt: skip
+    parser.add_argument("--previous", metavar="DIR", default=None,
+                        help="a checkout of another release: the speed figures against it, in one run (implies --speed)")
+    parser.add_argument("--rounds", type=int, default=3, help="rounds of each speed figure per install (default 3)")
+    parser.add_argument("--scaling", action="store_true", help="also generate and the sharded vector env over 1 … N cores")
     return parser
 
 
 def main(argv: list[str] | None = None, prog: str = "fog-gym bench") -> int:
-    args = build_parser(prog).parse_args(argv)
+    parser = build_parser(prog)
+    args = parser.parse_args(argv)
+    if args.rounds < 1:
+        parser.error("--rounds must be >= 1")
+    trees = {"this tree": str(Path(__file__).resolve().parents[3])}
+    if args.previous is not None:
+        try:
+            trees["previous"] = bench_geometry._checkout(args.previous)
+        except ValueError as e:
+            parser.error(str(e))
     repeats = repeats_of(args)
     profile_steps = 3 if args.quick else bench_env.PROFILE_STEPS
     meta = run_meta(town=args.town, repeats=repeats, quick=args.quick, profile_steps=profile_steps)
@@ -82,10 +105,19 @@ def main(argv: list[str] | None = None, prog: str = "fog-gym bench") -> int:
     geometry = bench_geometry.bench_geometry(repeats, 5 if args.quick else 15)
     augment = bench_augment.bench_augment(repeats)
     realism = bench_realism.bench_realism(repeats, (320, 240) if args.quick else (1280, 960))
+    rounds = 1 if args.quick else args.rounds
+    speed = ratios = scaling = None
+    if args.speed or args.previous is not None:
+        speed = bench_speed.bench_figures(trees, rounds, args.quick)
+        ratios = bench_speed.bench_ratios(trees["this tree"], rounds, args.quick)
+    if args.scaling:
+        scaling = bench_speed.bench_scaling([k for k in (1, 2, 4, 8, 16, 32, 64) if k <= (os.cpu_count() or 1)],
+                                            args.quick)  # fmt: skip
     finish_meta(meta, t0)
     results = {"meta": meta, "rigs": rigs, "point_sensors": point_sensors, "fog": fog, "labels": labels,
                "recording": recording, "rl": rl, "baseline": baseline, "night": night, "geometry": geometry,
-               "augment": augment, "realism": realism}  # fmt: skip
+               "augment": augment, "realism": realism, "speed": speed, "speed_ratios": ratios,
+               "scaling": scaling}  # fmt: skip
 
     print(bench_env.render_stages(results))
     print("\n" + "\n".join(bench_sensors.render_point_sensors(point_sensors, repeats)))
@@ -98,6 +130,10 @@ def main(argv: list[str] | None = None, prog: str = "fog-gym bench") -> int:
     print("\n" + "\n".join(bench_geometry.render_geometry(geometry)))
     print("\n" + "\n".join(bench_augment.render_augment(augment, repeats)))
     print("\n" + "\n".join(bench_realism.render_realism(realism, repeats)))
+    if speed is not None:
+        print("\n" + "\n".join(bench_speed.render_figures(speed, rounds, ratios)))
+    if scaling is not None:
+        print("\n" + "\n".join(bench_speed.render_scaling(scaling)))
     write_json(args.json, results)
     return 0
 
