@@ -103,16 +103,23 @@ def _node_tops(dus, dzs, ks, du0, du_inv, n_du, dz0, dz_inv, n_dz, tops):
     # Per chunk of the points (a row of tops) and grid node, the farthest range node of the points whose cell it is a
     # corner of (0 where none); the caller takes the greatest over the chunks. The curves need go no farther (a
     # curve's values up to a range do not depend on how far it goes), and a node no point reads costs nothing.
-    n, chunks = dus.shape[0], tops.shape[0]
+    # Each point updates its cell's maximum (indexed by the cell's lower corner), each cell then its corners: the
+    # same maxima as every point updating its four corners, with one scattered write a point instead of four.
+    n, chunks, nodes = dus.shape[0], tops.shape[0], tops.shape[1]
     for c in prange(chunks):
+        cells = np.zeros(nodes, np.int64)
         for m in range(c * n // chunks, (c + 1) * n // chunks):
             ia, _, ib, _ = _cell(dus[m], dzs[m], du0, du_inv, n_du, dz0, dz_inv, n_dz)
+            i = ib * n_du + ia
+            cells[i] = max(cells[i], ks[m])
+        for i in range(nodes):
+            ia, ib = i % n_du, i // n_du
             for q in range(4):
                 da, db = q & 1, q >> 1
-                if (da and n_du == 1) or (db and n_dz == 1):
+                if (da and n_du == 1) or (db and n_dz == 1) or ia + da >= n_du or ib + db >= n_dz:
                     continue
-                i = (ib + db) * n_du + ia + da
-                tops[c, i] = max(tops[c, i], ks[m])
+                j = (ib + db) * n_du + ia + da
+                tops[c, j] = max(tops[c, j], cells[i])
 
 
 _node_tops_serial = serial_twin(_node_tops)
