@@ -51,8 +51,10 @@ def select_rows(centers: np.ndarray, diagonals: np.ndarray, n_boxes: int, owner:
         raise ValueError(f"select_rows needs centres (N, 2+), diagonals (N,) and 0 <= n_boxes <= N, got "
                          f"{centers.shape}, {diagonals.shape}, {n_boxes}")  # fmt: skip
     own = _NO_OWNER if owner is None else np.ascontiguousarray(owner, np.int64)
-    if own.shape != (len(centers) - n_boxes if owner is not None else 0,):
-        raise ValueError(f"owner must give each of the {len(centers) - n_boxes} parts its box, got {own.shape}")
+    if own.shape != (len(centers) - n_boxes if owner is not None else 0,) or (len(own) and not
+                                                                          0 <= own.min() <= own.max() < n_boxes):
+        raise ValueError(f"owner must give each of the {len(centers) - n_boxes} parts its box (0 .. {n_boxes - 1}), "
+                         f"got shape {own.shape}")  # fmt: skip
     cams = view_table(ego_pose, views if views is not None else np.zeros((0, 4)))
     rows = np.empty(len(centers), np.int64)
     seen = np.empty(len(centers), np.int64)

@@ -79,6 +79,7 @@ def test_bad_tables_and_rows_are_one_line_errors():
     for call, match in ((lambda: select_rows(table.centers, diag[:3], 5, None, (0.0, 0.0, 0.0), 1.0, 1.0, None), "diagonals"),
                         (lambda: select_rows(table.centers, diag, 6, None, (0.0, 0.0, 0.0), 1.0, 1.0, None), "n_boxes"),
                         (lambda: select_rows(table.centers, diag, 3, np.zeros(5), (0.0, 0.0, 0.0), 1.0, 1.0, None), "owner"),
+                        (lambda: select_rows(table.centers, diag, 3, np.array([0, 3]), (0.0, 0.0, 0.0), 1.0, 1.0, None), "owner"),
                         (lambda: take_concat(table, np.array([0, 5]), Primitives.empty()), "rows")):  # fmt: skip
         with pytest.raises((ValueError, IndexError), match=match) as err:
             call()
