@@ -177,6 +177,22 @@ def bench_figures(trees: dict[str, str], rounds: int, quick: bool) -> dict[str, 
     return res
 
 
+def installs(previous: str | None) -> dict[str, str]:
+    """The installs the figures run in: this tree and, when ``previous`` is given, that checkout (a ``ValueError``
+    when it holds no fog-gym)."""
+    from fog_gym.experiments.bench.geometry import _checkout
+
+    trees = {"this tree": str(Path(__file__).resolve().parents[3])}
+    if previous is not None:
+        trees["previous"] = _checkout(previous)
+    return trees
+
+
+def core_counts() -> list[int]:
+    """The core counts of the scaling curve: the powers of two up to this machine's cores."""
+    return [k for k in (1, 2, 4, 8, 16, 32, 64) if k <= (os.cpu_count() or 1)]
+
+
 def bench_ratios(tree: str, rounds: int, quick: bool) -> dict[str, Any]:
     """Every ratio of :data:`RATIOS` in ``tree``, ``rounds`` child processes each: the per-child medians and their
     median."""
@@ -291,21 +307,15 @@ def main(argv: list[str] | None = None) -> int:
     if args.rounds < 1:
         parser.error("--rounds must be >= 1")
     rounds = 1 if args.quick else args.rounds
-    here = str(Path(__file__).resolve().parents[3])
-    trees = {"this tree": here}
-    if args.previous is not None:
-        from fog_gym.experiments.bench.geometry import _checkout
-
-        try:
-            trees["previous"] = _checkout(args.previous)
-        except ValueError as e:
-            parser.error(str(e))
+    try:
+        trees = installs(args.previous)
+    except ValueError as e:
+        parser.error(str(e))
     meta = run_meta(rounds=rounds, quick=args.quick, previous=args.previous)
     t0 = time.perf_counter()
     figures = None if args.no_figures else bench_figures(trees, rounds, args.quick)
-    ratios = None if args.no_figures else bench_ratios(here, rounds, args.quick)
-    cores = [k for k in (1, 2, 4, 8, 16, 32, 64) if k <= (os.cpu_count() or 1)]
-    scaling = None if args.no_scaling else bench_scaling(cores, args.quick)
+    ratios = None if args.no_figures else bench_ratios(trees["this tree"], rounds, args.quick)
+    scaling = None if args.no_scaling else bench_scaling(core_counts(), args.quick)
     finish_meta(meta, t0)
     print(meta_line(meta))
     if figures:

@@ -30,7 +30,6 @@ Usage::
 from __future__ import annotations
 
 import argparse
-import os
 import time
 from pathlib import Path
 
@@ -78,12 +77,10 @@ def main(argv: list[str] | None = None, prog: str = "fog-gym bench") -> int:
     args = parser.parse_args(argv)
     if args.rounds < 1:
         parser.error("--rounds must be >= 1")
-    trees = {"this tree": str(Path(__file__).resolve().parents[3])}
-    if args.previous is not None:
-        try:
-            trees["previous"] = bench_geometry._checkout(args.previous)
-        except ValueError as e:
-            parser.error(str(e))
+    try:
+        trees = bench_speed.installs(args.previous)
+    except ValueError as e:
+        parser.error(str(e))
     repeats = repeats_of(args)
     profile_steps = 3 if args.quick else bench_env.PROFILE_STEPS
     meta = run_meta(town=args.town, repeats=repeats, quick=args.quick, profile_steps=profile_steps)
@@ -111,8 +108,7 @@ def main(argv: list[str] | None = None, prog: str = "fog-gym bench") -> int:
         speed = bench_speed.bench_figures(trees, rounds, args.quick)
         ratios = bench_speed.bench_ratios(trees["this tree"], rounds, args.quick)
     if args.scaling:
-        scaling = bench_speed.bench_scaling([k for k in (1, 2, 4, 8, 16, 32, 64) if k <= (os.cpu_count() or 1)],
-                                            args.quick)  # fmt: skip
+        scaling = bench_speed.bench_scaling(bench_speed.core_counts(), args.quick)
     finish_meta(meta, t0)
     results = {"meta": meta, "rigs": rigs, "point_sensors": point_sensors, "fog": fog, "labels": labels,
                "recording": recording, "rl": rl, "baseline": baseline, "night": night, "geometry": geometry,
