@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from fog_gym._numba import background, in_worker
+from fog_gym._numba import background, in_worker, vector_bits
 from fog_gym.sensors.camera_noise import CameraNoise, NoiseJob, NoiseLaw, frame_key, noise_laws
 from fog_gym.sensors.motion_blur import blur_motion, image_flow
 
@@ -40,9 +40,23 @@ from fog_gym.sensors.motion_blur import blur_motion, image_flow
 TABLE_CACHE = 64
 _LAWS: OrderedDict[tuple, NoiseLaw] = OrderedDict()
 _LAWS_LOCK = threading.Lock()
-#: Pixels of a night frame's images from which :meth:`CameraEffects.begin` draws the noise on the background thread
+#: Pixels of a frame's images from which :meth:`CameraEffects.begin` draws the noise on the background thread
 #: (below, the hand-over costs about what it saves).
 OVERLAP_FROM = 1 << 16
+
+
+def overlaps(night: bool, pixels: int) -> bool:
+    """Whether :meth:`CameraEffects.begin` draws a frame's noise on the background thread: from :data:`OVERLAP_FROM`
+    pixels, at night (the laws' recurrences wait on latency, which the points and labels fill) and, by day, where
+    numba's kernels lack 512-bit vectors (:func:`fog_gym._numba.vector_bits`): there the Gaussian draw costs about
+    five times more a value, and overlapping it with the points and labels took a 1280 × 960 full-rig day frame's
+    noise from 1.27–1.29× to 1.20–1.21× (``docs/sensors.md``, "Camera noise without 512-bit vectors"); with them one
+    parallel launch in line was faster.
+
+    >>> overlaps(True, OVERLAP_FROM), overlaps(True, OVERLAP_FROM - 1)
+    (True, False)
+    """
+    return pixels >= OVERLAP_FROM and (night or vector_bits() < 512)
 
 
 class CameraEffects:
@@ -114,14 +128,14 @@ class CameraEffects:
 
     def begin(self, images: Mapping[str, np.ndarray], variant: int,
               overlap: bool = True) -> Callable[[], dict[str, np.ndarray]]:  # fmt: skip
-        """:meth:`apply_all`, begun: a function that returns its dict. With ``overlap``, a night frame and at least
-        :data:`OVERLAP_FROM` pixels, the laws and the noise run on the process's background thread
-        (:func:`fog_gym._numba.background`, serial kernels) while the caller goes on — an env computes its points
-        and labels meanwhile — and the function takes the tasks not yet begun and waits for the rest; until it is
-        called, this object and ``images`` must not be changed. A day frame's noise is drawn here, in one parallel
-        launch: its laws are cheap and the draw, which the background thread would share with the caller's own
-        parallel kernels, ran faster in line (``docs/sensors.md``, "A day frame's noise in line"). Motion blur runs
-        first, here (its kernels are parallel). The same images either way."""
+        """:meth:`apply_all`, begun: a function that returns its dict. With ``overlap``, where :func:`overlaps` says
+        so (night frames from :data:`OVERLAP_FROM` pixels; day frames too on machines without 512-bit vectors), the
+        laws and the noise run on the process's background thread (:func:`fog_gym._numba.background`, serial
+        kernels) while the caller goes on — an env computes its points and labels meanwhile — and the function takes
+        the tasks not yet begun and waits for the rest; until it is called, this object and ``images`` must not be
+        changed. Otherwise the noise is drawn here, in one parallel launch (with 512-bit vectors a day frame's draw
+        ran faster so: ``docs/sensors.md``, "A day frame's noise in line"). Motion blur runs first, here (its kernels
+        are parallel). The same images either way."""
         out = dict(images)
         names = [n for n in images if n in self._frame]
         if not names:
@@ -137,7 +151,7 @@ class CameraEffects:
             return NoiseJob(rgbs, [laws[n] for n in names], keys)
 
         pixels = sum(x.shape[0] * x.shape[1] for x in rgbs)
-        if not (overlap and self._night) or in_worker() or pixels < OVERLAP_FROM:
+        if not overlap or in_worker() or not overlaps(self._night, pixels):
             out.update(zip(names, job().run()))
             return lambda: out
         jobs: list[NoiseJob] = []

@@ -63,6 +63,36 @@ def test_a_begun_recording_equals_apply_all(monkeypatch, night, variant):
     assert all((a.apply(n, images[n], variant) == want[n]).all() for n in images)  # the laws stay for the variants
 
 
+@pytest.mark.parametrize("bits", [128, 256, 512])
+def test_day_frames_overlap_their_noise_only_without_512_bit_vectors_and_night_frames_always(monkeypatch, bits):
+    monkeypatch.setattr(effects, "vector_bits", lambda: bits)
+    big, small = effects.OVERLAP_FROM, effects.OVERLAP_FROM - 1
+    assert effects.overlaps(True, big) and not effects.overlaps(True, small)
+    assert effects.overlaps(False, big) == (bits < 512) and not effects.overlaps(False, small)
+
+
+@pytest.mark.parametrize("bits", [256, 512])
+def test_a_day_frame_begun_on_either_kind_of_machine_equals_apply_all(monkeypatch, bits):
+    monkeypatch.setattr(effects, "OVERLAP_FROM", 1)
+    monkeypatch.setattr(effects, "vector_bits", lambda: bits)
+    takers: list[str] = []
+    work = NoiseJob.work
+
+    def spy(self):
+        takers.append(threading.current_thread().name)
+        return work(self)
+
+    monkeypatch.setattr(camera_noise.NoiseJob, "work", spy)
+    rng = np.random.default_rng(4)
+    images = {n: rng.integers(0, 256, (30, 40, 3), dtype=np.uint8) for n in ("CAM_FRONT", "CAM_BACK")}
+    a, b = _effects(), _effects()
+    a.prepare(2, 1, {}, False)
+    b.prepare(2, 1, {}, False)
+    got, want = a.begin(images, 0)(), b.apply_all(images, 0)
+    assert all((got[n] == want[n]).all() for n in want)
+    assert any(t.startswith("fog-gym-world") for t in takers) == (bits < 512)
+
+
 def test_an_error_on_the_background_thread_reaches_the_caller(monkeypatch):
     monkeypatch.setattr(effects, "OVERLAP_FROM", 1)
     fx = _effects()
