@@ -63,6 +63,19 @@ def test_a_begun_recording_equals_apply_all(monkeypatch, night, variant):
     assert all((a.apply(n, images[n], variant) == want[n]).all() for n in images)  # the laws stay for the variants
 
 
+def _takers(monkeypatch) -> list[str]:
+    """The names of the threads that take a NoiseJob's tasks from now on (appended as they take them)."""
+    takers: list[str] = []
+    work = NoiseJob.work
+
+    def spy(self):
+        takers.append(threading.current_thread().name)
+        return work(self)
+
+    monkeypatch.setattr(camera_noise.NoiseJob, "work", spy)
+    return takers
+
+
 @pytest.mark.parametrize("bits", [128, 256, 512])
 def test_day_frames_overlap_their_noise_only_without_512_bit_vectors_and_night_frames_always(monkeypatch, bits):
     monkeypatch.setattr(effects, "vector_bits", lambda: bits)
@@ -75,14 +88,7 @@ def test_day_frames_overlap_their_noise_only_without_512_bit_vectors_and_night_f
 def test_a_day_frame_begun_on_either_kind_of_machine_equals_apply_all(monkeypatch, bits):
     monkeypatch.setattr(effects, "OVERLAP_FROM", 1)
     monkeypatch.setattr(effects, "vector_bits", lambda: bits)
-    takers: list[str] = []
-    work = NoiseJob.work
-
-    def spy(self):
-        takers.append(threading.current_thread().name)
-        return work(self)
-
-    monkeypatch.setattr(camera_noise.NoiseJob, "work", spy)
+    takers = _takers(monkeypatch)
     rng = np.random.default_rng(4)
     images = {n: rng.integers(0, 256, (30, 40, 3), dtype=np.uint8) for n in ("CAM_FRONT", "CAM_BACK")}
     a, b = _effects(), _effects()
@@ -109,14 +115,7 @@ def test_an_error_on_the_background_thread_reaches_the_caller(monkeypatch):
 
 def test_the_env_step_draws_its_noise_on_the_background_thread_and_returns_the_recorded_frames(monkeypatch):
     monkeypatch.setattr(effects, "OVERLAP_FROM", 1)
-    takers: list[str] = []
-    work = NoiseJob.work
-
-    def spy(self):
-        takers.append(threading.current_thread().name)
-        return work(self)
-
-    monkeypatch.setattr(camera_noise.NoiseJob, "work", spy)
+    takers = _takers(monkeypatch)
     for light in ("day", "night"):
         kwargs = dict(town="highway", resolution=(64, 48), cameras=["CAM_FRONT", "CAM_LEFT"], labels=None,
                       camera_noise="default", time_of_day=light)  # fmt: skip
