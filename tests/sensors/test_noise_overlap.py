@@ -102,7 +102,7 @@ def test_a_day_frame_begun_on_either_kind_of_machine_equals_apply_all(monkeypatc
 def test_an_error_on_the_background_thread_reaches_the_caller(monkeypatch):
     monkeypatch.setattr(effects, "OVERLAP_FROM", 1)
     fx = _effects()
-    fx.prepare(1, 0, {}, True)  # (a night frame: a day frame's noise is drawn in line)
+    fx.prepare(1, 0, {}, True)  # (a night frame: overlapped on every machine; a day frame only without AVX-512)
 
     def broken(*args, **kwargs):
         raise RuntimeError("no law")
