@@ -158,8 +158,10 @@ def _cast_ranges(rays: np.ndarray) -> np.ndarray:
     return cast_rays(np.array([0.0, 0.0, 1.8]), rays, 100.0, box).distance
 
 
-@pytest.mark.parametrize("cpu, features, bits", [("generic", "", 128), ("znver1", "+avx2,+fma,+popcnt", 256),
-                                                 ("x86-64-v4", "+avx2,+avx512f", 512), ("haswell", "+avx2,-avx512f", 256)])  # fmt: skip
+@pytest.mark.parametrize("cpu, features, bits", [
+    ("generic", "", 128), ("znver1", "+avx2,+fma,+popcnt", 256), ("x86-64-v4", "+avx2,+avx512f", 512),
+    ("haswell", "+avx2,-avx512f", 256),
+])  # fmt: skip
 def test_vector_bits_follow_a_named_target_s_features(cpu, features, bits):
     assert fog_gym._numba._vector_bits(cpu, features) == bits
 
