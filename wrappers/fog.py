@@ -282,7 +282,8 @@ class FogWrapper(gym.Wrapper):
                              base.scene is not None and base.scene.lighting.night, self.lidar_noise, reflect, poses,
                              self.field_frame, self._field_time(),
                              lidar.returns if lidar is not None else "strongest", clean, record,
-                             {lv.name: _level_key(lv) + 1 for lv in levels})  # fmt: skip
+                             {lv.name: _level_key(lv) + 1 for lv in levels},
+                             base.point_rows(obs) if hasattr(base, "point_rows") else {})  # fmt: skip
         for channel, model in self.models.items():  # the model of each sensor kind (fog_gym.fog.models)
             for name, fogged in model.apply(obs, channel, levels, context).items():
                 out[name][channel] = fogged

@@ -188,6 +188,7 @@ class FogDriveEnv(gym.Env):
         self.scene: Scene | None = None
         self.frames: dict[str, CameraFrame] = {}
         self.points: dict[str, np.ndarray] = {}  # the latest sweep of each point sensor, (N, C) float32
+        self._packed: dict[str, np.ndarray] = {}  # the point channels of the latest observation, as packed here
         self._static: StaticWorld | None = None
         self._lighting: Lighting | None = None
         self._steps = 0
@@ -293,6 +294,7 @@ class FogDriveEnv(gym.Env):
         self.points = self.point_sensors.measure(self.scene, prims, self._sensor_rng, tick)
         for name, pts in self.points.items():
             obs[name] = pack_points(pts, self.observation_space[name].shape[0])
+        self._packed = {name: obs[name] for name in self.points}
         return obs if overlap else self._recorded(obs)
 
     def _recorded(self, obs: dict[str, np.ndarray]) -> dict[str, np.ndarray]:
@@ -399,6 +401,12 @@ class FogDriveEnv(gym.Env):
                  if frame is not None and frame.instance is not None and len(b["vehicle_ids"]) else np.zeros(len(b["vehicle_ids"])))  # fmt: skip
             out[cam] = b.with_fields(contrast=c)
         return boxes_3d, out
+
+    def point_rows(self, obs: dict[str, np.ndarray]) -> dict[str, int]:
+        """Per point channel of ``obs`` that is the very array this env packed for its latest observation, the number
+        of its leading rows that are points (the rest are zero): a reader takes them without scanning the channel
+        (the LiDAR fog). A channel a wrapper replaced is not listed."""
+        return {name: len(self.points[name]) for name, packed in self._packed.items() if obs.get(name) is packed}
 
     def sensor_to_world(self, channel: str) -> np.ndarray:
         """4×4 transform of the sensor that fills ``channel`` at the current frame: a camera's optical frame (x right,

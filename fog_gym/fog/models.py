@@ -60,6 +60,9 @@ class FogContext:
     clean_rgb: Mapping[str, np.ndarray] = field(default_factory=dict)
     record: Callable[[str, np.ndarray, int], np.ndarray] | None = None
     variants: Mapping[str, int] = field(default_factory=dict)
+    #: Point channels the env packed itself (``FogDriveEnv.point_rows``): how many leading rows are points, the
+    #: rest zero. The LiDAR fog reads them without scanning the channel; any other channel is unpacked
+    point_rows: Mapping[str, int] = field(default_factory=dict)
 
 
 @runtime_checkable
@@ -136,7 +139,8 @@ class Hahner:
         # the clean sweep read in place (the fog only reads it); in dual mode without its return column (all 0),
         # which the return rule writes anew. x, y, z, intensity feed the physics; further columns (a sweep's time)
         # ride along with each beam
-        rows = unpack_points(obs, channel, copy=False)
+        n = context.point_rows.get(channel)
+        rows = unpack_points(obs, channel, copy=False) if n is None else obs[channel][:n]
         width = rows.shape[1] - (mode == "dual")
         clean = rows if mode != "dual" else rows[:, :width]
         capacity = obs[channel].shape[0]

@@ -100,6 +100,33 @@ def test_the_env_names_the_channels_of_each_mode_and_strongest_is_unchanged(envs
     assert changed.sum() == len(extra) and np.array_equal(last[changed, :3], extra[:, :3])
 
 
+@pytest.mark.parametrize("mode", ["strongest", "dual"])
+def test_the_fog_reads_the_envs_own_point_counts_with_the_bits_of_a_scan_of_the_channel(envs, mode, monkeypatch):
+    """The env tells the fog how many leading rows of each point channel it packed are points (so the fog does not
+    scan the channel's empty tail): the same fogged channels as unpacking; a channel a wrapper replaced is not told."""
+    from fog_gym.fog.models import FogContext, model_for
+
+    env, obs = envs[mode]
+    base = env.unwrapped
+    channel = "LIDAR_TOP" if mode == "strongest" else "LIDAR_TOP_DUAL"
+    rows = base.point_rows(obs)
+    assert rows[channel] == len(unpack_points(obs, channel)) == len(base.points[channel]) > 0
+    assert channel not in base.point_rows({**obs, channel: obs[channel].copy()})  # not the array the env packed
+    told, scanned = ({"dense": np.random.default_rng(3)} for _ in range(2))
+    hahner = model_for("lidar")
+    a = hahner.apply(obs, channel, [parse_fog("dense")], FogContext(rngs=told, lidar_returns=mode, point_rows=rows))
+    b = hahner.apply(obs, channel, [parse_fog("dense")], FogContext(rngs=scanned, lidar_returns=mode))
+    assert np.array_equal(a["dense"], b["dense"]) and a["dense"].shape == obs[channel].shape
+    # and through the wrapper: a step with the counts equals one without them
+    env.reset(seed=9)
+    with_rows, _, _, _, _ = env.step(base.idle_action)
+    monkeypatch.setattr(base, "point_rows", lambda obs: {})
+    env.reset(seed=9)
+    without, _, _, _, _ = env.step(base.idle_action)
+    fogged = [k for k in with_rows if k.startswith(channel) and k.endswith("FOG_DENSE")]
+    assert fogged and all(np.array_equal(with_rows[k], without[k]) for k in fogged)
+
+
 def test_a_fog_field_gives_the_same_modes_with_its_optical_depth():
     """A bank of dense fog around the LiDAR: the strongest echoes are today's, and the last echoes come back where
     the hard target's echo through the bank's optical depth reaches the floor. (Deep inside a thin-edged bank the

@@ -78,7 +78,10 @@ def bench_realism(repeats: int, resolution: tuple[int, int] = (1280, 960)) -> di
     capacity = instant.space().shape[0]  # the channels' own capacities: one row per ray, two for dual
     obs4 = {"LIDAR_TOP": pack_points(sweep, capacity)}
     obs5 = {"LIDAR_TOP_DUAL": pack_points(np.c_[sweep, np.zeros(len(sweep), np.float32)], 2 * capacity)}
-    ctx = {m: FogContext(rngs={dense.name: np.random.default_rng(1)}, lidar_returns=m) for m in ("strongest", "dual")}
+    # the counts of points the env gives the fog wrapper for the channels it packed (FogDriveEnv.point_rows)
+    rows = {"LIDAR_TOP": len(sweep), "LIDAR_TOP_DUAL": len(sweep)}
+    ctx = {m: FogContext(rngs={dense.name: np.random.default_rng(1)}, lidar_returns=m, point_rows=rows)
+           for m in ("strongest", "dual")}  # fmt: skip
     results["dual returns"] = paired(lambda: hahner.apply(obs4, "LIDAR_TOP", [dense], ctx["strongest"]),
                                      lambda: hahner.apply(obs5, "LIDAR_TOP_DUAL", [dense], ctx["dual"]), repeats)  # fmt: skip
     results["points"] = int(len(sweep))
