@@ -35,11 +35,11 @@ read noise ``σ_r = 2.5 e⁻`` is an assumption (the 2–3 e⁻ of the pixel fam
 **How it is drawn.** The output of a pixel depends only on its noise-free level ``v`` (0–255), the gain and its
 random draw, so per camera and frame :func:`noise_law` holds the exact distribution of the model for every ``v``
 (the Poisson ⊛ Gaussian law summed exactly, :func:`fog_gym.sensors.poisson_gauss._cdf_tables`), tabulated as
-:data:`TABLE_SIZE` quantiles (:func:`noise_table`). Two kernels draw from it (:func:`add_noise`, :func:`add_noise_many`), both from a
-counter-based hash of the frame's key and the value's index, so the same key gives the same noise on any machine
+:data:`TABLE_SIZE` quantiles (:func:`noise_table`). Two kernels draw from it (:func:`add_noise`, :func:`add_noise_many`), both from one
+counter-based 32-bit hash (:func:`_hash32`) of the frame's key and the pixel's or the value's index, so the same key gives the same noise on any machine
 and thread count, and every (episode, frame, camera, fog variant) has its own key (:func:`frame_key`):
 
-* **the exact table** — each pixel's SplitMix64 hash picks its three channels' quantiles, one table look-up each;
+* **the exact table** — each pixel's hash picks its three channels' quantiles (10 bits each), one look-up each;
 * **the Gaussian draw** — where the exact law *is* Gaussian to within a grey level's rounding, as by day, where the
   darkest level still collects 49 electrons (a Poisson count of 49 has skewness 1/7, and the read-out divides it
   by 50 electrons a grey level): ``round(v + σ_v·z)``, ``σ_v² = c₀ + c₁·v`` (:func:`predicted_variance` without
@@ -354,33 +354,6 @@ _BLOCK = 256  # pixels whose hashes are drawn together
 _CHUNKS = 16  # each image's spans in the parallel kernel (whole spans, not rows: a row's work is too small to share)
 
 
-@njit(cache=True, nogil=True, inline="always")
-def _noise_span(flat, table, key, out, p0, p1):
-    """The exact table: pixels ``p0 .. p1 − 1`` of the flattened image ``flat`` into ``out``: pixel ``p``'s hash is
-    SplitMix64 of ``key + (p + 1)·φ``; bits 0–9, 12–21 and 24–33 pick its red, green and blue quantiles. The hashes
-    of a block of pixels first (a loop the compiler vectorises), then their lookups: 28 % less time than one loop
-    doing both."""
-    golden = np.uint64(0x9E3779B97F4A7C15)
-    c1 = np.uint64(0xBF58476D1CE4E5B9)
-    c2 = np.uint64(0x94D049BB133111EB)
-    mask = np.uint64(TABLE_SIZE - 1)
-    s30, s27, s31, s12, s24 = np.uint64(30), np.uint64(27), np.uint64(31), np.uint64(12), np.uint64(24)
-    hashes = np.empty(_BLOCK, np.uint64)
-    for b0 in range(p0, p1, _BLOCK):
-        b1 = min(p1, b0 + _BLOCK)
-        for j in range(b1 - b0):
-            z = key + (np.uint64(b0 + j) + np.uint64(1)) * golden
-            z = (z ^ (z >> s30)) * c1
-            z = (z ^ (z >> s27)) * c2
-            hashes[j] = z ^ (z >> s31)
-        for j in range(b1 - b0):
-            z = hashes[j]
-            q = 3 * (b0 + j)
-            out[q] = table[(np.intp(flat[q]) << _BITS) | np.intp(z & mask)]
-            out[q + 1] = table[(np.intp(flat[q + 1]) << _BITS) | np.intp((z >> s12) & mask)]
-            out[q + 2] = table[(np.intp(flat[q + 2]) << _BITS) | np.intp((z >> s24) & mask)]
-
-
 # -- 32-bit integer operations: numba widens uint32 arithmetic to 64 bits, which halves the lanes of a vector and
 # -- needs 64-bit multiplies; these stay in 32 bits (wrapping), as a C compiler's would
 def _u32_op(name):
@@ -432,6 +405,40 @@ def _to_level(typingctx, y):
     return types.uint8(types.float32), codegen
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _hash32(i, k1, k2):
+    """A 32-bit hash of index ``i`` under the key ``(k1, k2)``: ``i ^ k1`` through two multiply–xorshift rounds,
+    ``k2`` added between them (the two draws' mixer: 32-bit vector arithmetic, no 64-bit multiplies)."""
+    x = _xor32(i, k1)
+    x = _mul32(_xor32(x, _shr32(x, np.uint32(16))), np.uint32(0x7FEB352D))
+    x = _add32(x, k2)
+    x = _mul32(_xor32(x, _shr32(x, np.uint32(15))), np.uint32(0x846CA68B))
+    return _xor32(x, _shr32(x, np.uint32(16)))
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _noise_span(flat, table, k1, k2, out, p0, p1):
+    """The exact table: pixels ``p0 .. p1 − 1`` of the flattened image ``flat`` into ``out``: pixel ``p``'s hash is
+    :func:`_hash32` of ``p``; its bits 0–9, 11–20 and 22–31 pick its red, green and blue quantiles. The hashes of a
+    block of pixels first (a loop the compiler vectorises), then their lookups: 28 % less time than one loop doing
+    both. (A 64-bit SplitMix64 hash per pixel, the draw before 2026-12-03, cost 1.4× this on machines without
+    AVX-512's 64-bit multiplies.)"""
+    mask = np.uint32(TABLE_SIZE - 1)
+    s11, s22 = np.uint32(11), np.uint32(22)
+    hashes = np.empty(_BLOCK, np.uint32)
+    for b0 in range(p0, p1, _BLOCK):
+        b1 = min(p1, b0 + _BLOCK)
+        base = np.uint32(b0)
+        for j in range(b1 - b0):
+            hashes[j] = _hash32(_add32(np.uint32(j), base), k1, k2)
+        for j in range(b1 - b0):
+            z = hashes[j]
+            q = 3 * (b0 + j)
+            out[q] = table[(np.intp(flat[q]) << _BITS) | np.intp(_and32(z, mask))]
+            out[q + 1] = table[(np.intp(flat[q + 1]) << _BITS) | np.intp(_and32(_shr32(z, s11), mask))]
+            out[q + 2] = table[(np.intp(flat[q + 2]) << _BITS) | np.intp(_shr32(z, s22))]
+
+
 @njit(cache=True, nogil=True)
 def _gaussian_tv(cdf, rows, c0, c1, z, p):
     """The largest total variation, over the levels ``rows``, between the Gaussian draw's law (``z`` the draw's
@@ -463,16 +470,11 @@ def _gauss_span(flat, out, k1, k2, c0, c1, p0, p1):
     ``v + ½ + σ_v·z`` truncated and clipped, ``σ_v = √(c1·v + c0)``, in float32 with fused multiply–adds and no
     fast-math (the same bits as :func:`fma32` in numpy)."""
     inv, off = _DRAW_INV, _DRAW_OFF
-    s8, s15, s16 = np.uint32(8), np.uint32(15), np.uint32(16)
-    m1, m2 = np.uint32(0x7FEB352D), np.uint32(0x846CA68B)
+    s8, s16 = np.uint32(8), np.uint32(16)
     low16, byte = np.uint32(0xFFFF), np.uint32(0xFF)
     f, o, base = flat[p0:p1], out[p0:p1], np.uint32(p0)
     for i in range(f.shape[0]):  # from 0 over slices: the compiler sees unit strides and no negative index
-        x = _xor32(_add32(np.uint32(i), base), k1)
-        x = _mul32(_xor32(x, _shr32(x, s16)), m1)
-        x = _add32(x, k2)
-        x = _mul32(_xor32(x, _shr32(x, s15)), m2)
-        x = _xor32(x, _shr32(x, s16))
+        x = _hash32(_add32(np.uint32(i), base), k1, k2)
         y = _shr32(x, s16)
         t = _add32(_add32(_shl32(_popcount32(_and32(x, low16)), s8), _and32(y, byte)), _shr32(y, s8))
         z = _fma(np.float32(t), inv, off)
@@ -486,15 +488,15 @@ def _noise_task(flats, outs, tables, gauss, c0, c1, keys, t):
     draw where ``gauss[i]``, else by its exact table (flattened)."""
     i, c = t // _CHUNKS, t % _CHUNKS
     flat, out = flats[i], outs[i]
+    k1, k2 = np.uint32(keys[i] & np.uint64(0xFFFFFFFF)), np.uint32(keys[i] >> np.uint64(32))
     if gauss[i]:
         n = flat.shape[0]
         step = (n + _CHUNKS - 1) // _CHUNKS
-        k1, k2 = np.uint32(keys[i] & np.uint64(0xFFFFFFFF)), np.uint32(keys[i] >> np.uint64(32))
         _gauss_span(flat, out, k1, k2, c0[i], c1[i], c * step, min(n, (c + 1) * step))
     else:
         n = flat.shape[0] // 3
         step = (n + _CHUNKS - 1) // _CHUNKS
-        _noise_span(flat, tables[i], keys[i], out, c * step, min(n, (c + 1) * step))
+        _noise_span(flat, tables[i], k1, k2, out, c * step, min(n, (c + 1) * step))
 
 
 @njit(cache=True, nogil=True, parallel=True)

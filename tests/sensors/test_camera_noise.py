@@ -82,23 +82,27 @@ def test_kernel_draws_follow_the_table_and_are_reproducible_and_independent():
     assert (img == 64).all()  # the input is not changed
 
 
+def _hash32(i: np.ndarray, key: int) -> np.ndarray:
+    """The kernels' 32-bit hash in numpy: i ^ k1 through two multiply–xorshift rounds, k2 added between them."""
+    k1, k2 = np.uint32(key & 0xFFFFFFFF), np.uint32(key >> 32)
+    x = i.astype(np.uint32) ^ k1
+    x = (x ^ (x >> np.uint32(16))) * np.uint32(0x7FEB352D) + k2
+    x = (x ^ (x >> np.uint32(15))) * np.uint32(0x846CA68B)
+    return x ^ (x >> np.uint32(16))
+
+
 def _reference_noise(img: np.ndarray, table: np.ndarray, key: int) -> np.ndarray:
-    """The kernel's draws in numpy: pixel p (row-major) hashes key + (p + 1)·φ with SplitMix64; bits 0-9, 12-21 and
-    24-33 are its red, green and blue quantiles."""
-    with np.errstate(over="ignore"):
-        p = np.arange(img.shape[0] * img.shape[1], dtype=np.uint64)
-        z = np.uint64(key) + (p + np.uint64(1)) * np.uint64(0x9E3779B97F4A7C15)
-        z = (z ^ (z >> np.uint64(30))) * np.uint64(0xBF58476D1CE4E5B9)
-        z = (z ^ (z >> np.uint64(27))) * np.uint64(0x94D049BB133111EB)
-        z ^= z >> np.uint64(31)
-    m = np.uint64(TABLE_SIZE - 1)
-    u = np.stack([(z >> np.uint64(s)) & m for s in (0, 12, 24)], axis=1).astype(np.intp)
+    """The kernel's draws in numpy: pixel p (row-major) hashes p with the 32-bit hash; bits 0-9, 11-20 and 22-31 are
+    its red, green and blue quantiles."""
+    z = _hash32(np.arange(img.shape[0] * img.shape[1], dtype=np.uint32), key)
+    m = np.uint32(TABLE_SIZE - 1)
+    u = np.stack([(z >> np.uint32(s)) & m for s in (0, 11, 22)], axis=1).astype(np.intp)
     return table[img.reshape(-1, 3), u].reshape(img.shape)
 
 
 @settings(max_examples=20, deadline=None)
 @given(st.integers(1, 90), st.integers(1, 90), st.integers(0, 2**64 - 1), st.integers(0, 2**32))
-def test_kernel_is_splitmix_over_the_pixels_on_one_thread_and_in_parallel(h, w, key, seed):
+def test_kernel_is_the_32_bit_hash_over_the_pixels_on_one_thread_and_in_parallel(h, w, key, seed):
     from fog_gym.sensors.camera_noise import _noise_kernel, _noise_kernel_serial
 
     img = np.random.default_rng(seed).integers(0, 256, (h, w, 3), dtype=np.uint8)
@@ -121,11 +125,7 @@ def _reference_gauss(img: np.ndarray, law: NoiseLaw, key: int) -> np.ndarray:
     """The Gaussian draw in numpy: channel value i (row-major) hashes i ^ k1 with two multiply–xorshift rounds (k2
     added between them); 256 × the set bits of its low 16 plus its two high bytes, standardised, scales σ_v; float32
     with fused multiply–adds (fma32), truncated and clipped."""
-    k1, k2 = np.uint32(key & 0xFFFFFFFF), np.uint32(key >> 32)
-    x = np.arange(img.size, dtype=np.uint32) ^ k1
-    x = (x ^ (x >> np.uint32(16))) * np.uint32(0x7FEB352D) + k2
-    x = (x ^ (x >> np.uint32(15))) * np.uint32(0x846CA68B)
-    x ^= x >> np.uint32(16)
+    x = _hash32(np.arange(img.size, dtype=np.uint32), key)
     bits = np.unpackbits((x & np.uint32(0xFFFF)).astype("<u2").view(np.uint8)).reshape(-1, 16).sum(1)
     t = 256 * bits.astype(np.uint32) + ((x >> np.uint32(16)) & np.uint32(255)) + (x >> np.uint32(24))
     z = fma32(t.astype(np.float32), np.float32(1.0 / DRAW_SD), np.float32(-DRAW_MEAN / DRAW_SD))
