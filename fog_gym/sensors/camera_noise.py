@@ -35,9 +35,10 @@ read noise ``σ_r = 2.5 e⁻`` is an assumption (the 2–3 e⁻ of the pixel fam
 **How it is drawn.** The output of a pixel depends only on its noise-free level ``v`` (0–255), the gain and its
 random draw, so per camera and frame :func:`noise_law` holds the exact distribution of the model for every ``v``
 (the Poisson ⊛ Gaussian law summed exactly, :func:`fog_gym.sensors.poisson_gauss._cdf_tables`), tabulated as
-:data:`TABLE_SIZE` quantiles (:func:`noise_table`). Two kernels draw from it (:func:`add_noise`, :func:`add_noise_many`), both from one
-counter-based 32-bit hash (:func:`_hash32`) of the frame's key and the pixel's or the value's index, so the same key gives the same noise on any machine
-and thread count, and every (episode, frame, camera, fog variant) has its own key (:func:`frame_key`):
+:data:`TABLE_SIZE` quantiles (:func:`noise_table`). Two kernels draw from it (:func:`add_noise`,
+:func:`add_noise_many`), both from one counter-based 32-bit hash (:func:`_hash32`) of the frame's key and the
+pixel's or the value's index, so the same key gives the same noise on any machine and thread count, and every
+(episode, frame, camera, fog variant) has its own key (:func:`frame_key`):
 
 * **the exact table** — each pixel's hash picks its three channels' quantiles (10 bits each), one look-up each;
 * **the Gaussian draw** — where the exact law *is* Gaussian to within a grey level's rounding, as by day, where the
