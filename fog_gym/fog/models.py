@@ -61,7 +61,7 @@ class FogContext:
     record: Callable[[str, np.ndarray, int], np.ndarray] | None = None
     variants: Mapping[str, int] = field(default_factory=dict)
     #: Point channels the env packed itself (``FogDriveEnv.point_rows``): how many leading rows are points, the
-    #: rest zero. The LiDAR fog reads them without scanning the channel; any other channel is unpacked
+    #: rest zero. The LiDAR fog reads them without scanning the channel; any other channel is unpacked.
     point_rows: Mapping[str, int] = field(default_factory=dict)
 
 

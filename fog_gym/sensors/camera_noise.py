@@ -422,8 +422,8 @@ def _noise_span(flat, table, k1, k2, out, p0, p1):
     """The exact table: pixels ``p0 .. p1 − 1`` of the flattened image ``flat`` into ``out``: pixel ``p``'s hash is
     :func:`_hash32` of ``p``; its bits 0–9, 11–20 and 22–31 pick its red, green and blue quantiles. The hashes of a
     block of pixels first (a loop the compiler vectorises), then their lookups: 28 % less time than one loop doing
-    both. (A 64-bit SplitMix64 hash per pixel, the draw before 2026-12-03, cost 1.4× this on machines without
-    AVX-512's 64-bit multiplies.)"""
+    both. (A 64-bit SplitMix64 hash per pixel, the draw before 2026-12-03, cost twice this on a machine without
+    AVX-512's 64-bit multiplies: four 1280 × 960 images on one thread, 33.9 against 17.1 ms.)"""
     mask = np.uint32(TABLE_SIZE - 1)
     s11, s22 = np.uint32(11), np.uint32(22)
     hashes = np.empty(_BLOCK, np.uint32)
