@@ -239,6 +239,23 @@ def _run_hahner(pts, c, level, rng, noise, reflectance, out, mode, floor, flags,
     )  # fmt: skip
 
 
+@njit(cache=True, nogil=True, parallel=True)
+def _zero_rows(channel, start):
+    """``channel[start:] = 0`` for a C-contiguous 2-D channel, in eight parallel chunks: a dual channel's empty
+    tail is about 1.9 MB (95 000 rows of 5), which one thread clears in 54 µs and two in 34 µs (this project's
+    two-core machine)."""
+    flat = channel.reshape(-1)
+    first = start * channel.shape[1]
+    n = flat.shape[0] - first
+    for c in prange(8):
+        flat[first + c * n // 8:first + (c + 1) * n // 8] = 0.0
+
+
+_zero_rows_serial = serial_twin(_zero_rows)
+#: Values of a channel's empty tail from which :func:`fog_lidar_into` clears it in parallel (a quarter of a MB).
+ZERO_SERIAL_BELOW = 1 << 16
+
+
 def fog_lidar_into(points: np.ndarray, level: FogLevel, rng: np.random.Generator, channel: np.ndarray,
                    mode: str = "strongest", noise: float = 10.0, reflectance: float | None = None,
                    columns: int | None = None) -> int:  # fmt: skip
@@ -282,7 +299,7 @@ def fog_lidar_into(points: np.ndarray, level: FogLevel, rng: np.random.Generator
     flags, behind = (np.empty(n, np.uint8), np.empty(n)) if dual else (_NO_FLAGS, _NO_HARD)
     _run_hahner(pts, c, level, rng, noise, reflectance, channel, RETURN_CODES[mode], DETECTION_FLOOR, flags, behind)
     rows = _append_last(pts, c, flags, behind, channel) if dual else n
-    channel[rows:] = 0.0
+    pick(_zero_rows, _zero_rows_serial, (len(channel) - rows) * channel.shape[1], ZERO_SERIAL_BELOW)(channel, rows)
     return rows
 
 

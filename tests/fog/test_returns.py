@@ -274,6 +274,36 @@ def test_the_fused_fog_and_return_pass_equals_the_fog_then_the_rule(seed, n, fog
     assert rows == len(unpack_points(channel, "LIDAR_TOP_DUAL" if dual else "LIDAR_TOP"))
 
 
+@settings(max_examples=30, deadline=None)
+@given(rows=st.integers(1, 3000), columns=st.integers(4, 6), start=st.integers(0, 3000))
+def test_a_channels_tail_is_cleared_in_parallel_chunks_and_its_points_kept(rows, columns, start):
+    """The packed channel's empty tail after the points is cleared by a parallel kernel for large tails (a dual
+    channel's 1.9 MB): both twins zero exactly the rows from ``start`` on and leave the rows before it as they were."""
+    from fog_gym.fog.lidar import _zero_rows, _zero_rows_serial
+
+    start = min(start, rows)
+    before = np.random.default_rng(rows).uniform(-5, 5, (rows, columns)).astype(np.float32)
+    for kernel in (_zero_rows, _zero_rows_serial):
+        channel = before.copy()
+        channel[start:] = np.nan
+        kernel(channel, start)
+        assert np.array_equal(channel[:start], before[:start]) and not channel[start:].any()
+
+
+def test_a_large_dual_channel_is_written_whole_with_its_tail_cleared_in_parallel():
+    from fog_gym.fog.lidar import ZERO_SERIAL_BELOW, fog_lidar_into
+
+    n = 20_000
+    clean = _cloud(3, n)
+    level = parse_fog("dense")
+    channel = np.full((2 * n + 30_000, 5), np.nan, np.float32)  # the tail alone is above the parallel threshold
+    rows = fog_lidar_into(clean, level, np.random.default_rng(3), channel, "dual")
+    assert (len(channel) - rows) * 5 >= ZERO_SERIAL_BELOW
+    reference = apply_returns(clean, fog_lidar(clean, level, np.random.default_rng(3)), None, "dual",
+                              alpha=level.alpha, capacity=len(channel))  # fmt: skip
+    assert np.array_equal(channel, reference)
+
+
 def test_writing_into_a_channel_refuses_a_wrong_one_before_any_work():
     from fog_gym.fog.lidar import fog_lidar_into
 
