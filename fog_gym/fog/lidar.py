@@ -256,6 +256,11 @@ _zero_rows_serial = serial_twin(_zero_rows)
 ZERO_SERIAL_BELOW = 1 << 16
 
 
+def _clear_tail(channel: np.ndarray, rows: int) -> None:
+    """Zero the rows of a packed channel after its first ``rows`` (in parallel from :data:`ZERO_SERIAL_BELOW`)."""
+    pick(_zero_rows, _zero_rows_serial, (len(channel) - rows) * channel.shape[1], ZERO_SERIAL_BELOW)(channel, rows)
+
+
 def fog_lidar_into(points: np.ndarray, level: FogLevel, rng: np.random.Generator, channel: np.ndarray,
                    mode: str = "strongest", noise: float = 10.0, reflectance: float | None = None,
                    columns: int | None = None) -> int:  # fmt: skip
@@ -294,12 +299,12 @@ def fog_lidar_into(points: np.ndarray, level: FogLevel, rng: np.random.Generator
     if level.is_clear:  # every mode is the clean sweep
         channel[:n, :c] = pts[:, :c]
         channel[:n, c:] = 0.0
-        channel[n:] = 0.0
+        _clear_tail(channel, n)
         return n
     flags, behind = (np.empty(n, np.uint8), np.empty(n)) if dual else (_NO_FLAGS, _NO_HARD)
     _run_hahner(pts, c, level, rng, noise, reflectance, channel, RETURN_CODES[mode], DETECTION_FLOOR, flags, behind)
     rows = _append_last(pts, c, flags, behind, channel) if dual else n
-    pick(_zero_rows, _zero_rows_serial, (len(channel) - rows) * channel.shape[1], ZERO_SERIAL_BELOW)(channel, rows)
+    _clear_tail(channel, rows)
     return rows
 
 

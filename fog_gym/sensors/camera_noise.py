@@ -466,7 +466,7 @@ def _gaussian_tv(cdf, rows, c0, c1, z, p):
 @njit(cache=True, nogil=True, inline="always")
 def _gauss_span(flat, out, k1, k2, c0, c1, p0, p1):
     """The Gaussian draw: channel values ``p0 .. p1 − 1`` of the flattened image (module docstring). Value ``i``'s
-    hash ``x`` is ``i ^ k1`` through a 32-bit mixer (two multiply–xorshift rounds, ``k2`` added between them);
+    hash ``x`` is :func:`_hash32` of ``i`` (the table's draw hashes pixels with it);
     ``t = 256·popcount(x & 0xFFFF) + (x >> 16 & 255) + (x >> 24)``, ``z = (t − DRAW_MEAN)/DRAW_SD``; the output is
     ``v + ½ + σ_v·z`` truncated and clipped, ``σ_v = √(c1·v + c0)``, in float32 with fused multiply–adds and no
     fast-math (the same bits as :func:`fma32` in numpy)."""
