@@ -31,7 +31,6 @@ Example:
 
 from __future__ import annotations
 
-import functools
 import os
 import sys
 import threading
@@ -172,29 +171,6 @@ def background():
     if _BACKGROUND is None or _BACKGROUND[0] != os.getpid():
         _BACKGROUND = (os.getpid(), worker_pool(1))
     return _BACKGROUND[1]
-
-
-def vector_bits() -> int:
-    """The widest vectors numba's kernels get in this process: 512 where the host has AVX-512 and numba compiles for
-    the host (``NUMBA_CPU_NAME`` unset or ``host``), else 256 with AVX2, else 128. Vector-bound kernels (the camera
-    noise's Gaussian draw) cost several times more per value on 256 bits than on 512 (``docs/sensors.md``, "Camera
-    noise without 512-bit vectors"), which changes where they are best run.
-
-    >>> vector_bits() in (128, 256, 512)
-    True
-    """
-    return _vector_bits(numba.config.CPU_NAME or "host", numba.config.CPU_FEATURES or "")
-
-
-@functools.lru_cache(maxsize=None)
-def _vector_bits(cpu_name: str, cpu_features: str) -> int:
-    if cpu_name != "host":  # a named target (``generic`` for portable caches): its own features, when given
-        features = {f[1:] for f in cpu_features.split(",") if f.startswith("+")}
-    else:
-        import llvmlite.binding as ll
-
-        features = {k for k, on in ll.get_host_cpu_features().items() if on}
-    return 512 if "avx512f" in features else 256 if "avx2" in features else 128
 
 
 def readonly(a):

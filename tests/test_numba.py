@@ -156,18 +156,3 @@ def _cast_ranges(rays: np.ndarray) -> np.ndarray:
     box = {"centers": np.array([[10.0, 0.0, 1.0], [-6.0, 3.0, 1.5]]), "halves": np.array([[1.0, 2.0, 1.0]] * 2),
            "yaws": np.array([0.0, 0.7])}
     return cast_rays(np.array([0.0, 0.0, 1.8]), rays, 100.0, box).distance
-
-
-@pytest.mark.parametrize("cpu, features, bits", [
-    ("generic", "", 128), ("znver1", "+avx2,+fma,+popcnt", 256), ("x86-64-v4", "+avx2,+avx512f", 512),
-    ("haswell", "+avx2,-avx512f", 256),
-])  # fmt: skip
-def test_vector_bits_follow_a_named_target_s_features(cpu, features, bits):
-    assert fog_gym._numba._vector_bits(cpu, features) == bits
-
-
-def test_vector_bits_of_the_host_follow_llvm_s_host_features():
-    import llvmlite.binding as ll
-
-    on = {k for k, v in ll.get_host_cpu_features().items() if v}
-    assert fog_gym._numba._vector_bits("host", "") == (512 if "avx512f" in on else 256 if "avx2" in on else 128)

@@ -31,7 +31,7 @@ from typing import Any
 
 import numpy as np
 
-from fog_gym._numba import background, in_worker, vector_bits
+from fog_gym._numba import background, in_worker
 from fog_gym.sensors.camera_noise import CameraNoise, NoiseJob, NoiseLaw, frame_key, noise_laws
 from fog_gym.sensors.motion_blur import blur_motion, image_flow
 
@@ -45,18 +45,16 @@ _LAWS_LOCK = threading.Lock()
 OVERLAP_FROM = 1 << 16
 
 
-def overlaps(night: bool, pixels: int) -> bool:
+def overlaps(pixels: int) -> bool:
     """Whether :meth:`CameraEffects.begin` draws a frame's noise on the background thread: from :data:`OVERLAP_FROM`
-    pixels, at night (the laws' recurrences wait on latency, which the points and labels fill) and, by day, where
-    numba's kernels lack 512-bit vectors (:func:`fog_gym._numba.vector_bits`): there the Gaussian draw costs about
-    five times more a value, and overlapping it with the points and labels took a 1280 × 960 full-rig day frame's
-    noise from 1.27–1.29× to 1.20–1.21× (``docs/sensors.md``, "Camera noise without 512-bit vectors"); with them one
-    parallel launch in line was faster.
+    pixels, by day and at night (the draws overlap the points and labels: a 1280 × 960 full-rig day frame's noise
+    1.07–1.09× in line with them against 1.14–1.17× drawn before them on this project's AVX2 machine;
+    ``docs/sensors.md``, "Day frames from the table too").
 
-    >>> overlaps(True, OVERLAP_FROM), overlaps(True, OVERLAP_FROM - 1)
+    >>> overlaps(OVERLAP_FROM), overlaps(OVERLAP_FROM - 1)
     (True, False)
     """
-    return pixels >= OVERLAP_FROM and (night or vector_bits() < 512)
+    return pixels >= OVERLAP_FROM
 
 
 class CameraEffects:
@@ -151,7 +149,7 @@ class CameraEffects:
             return NoiseJob(rgbs, [laws[n] for n in names], keys)
 
         pixels = sum(x.shape[0] * x.shape[1] for x in rgbs)
-        if not overlap or in_worker() or not overlaps(self._night, pixels):
+        if not overlap or in_worker() or not overlaps(pixels):
             out.update(zip(names, job().run()))
             return lambda: out
         jobs: list[NoiseJob] = []

@@ -35,24 +35,14 @@ read noise ``σ_r = 2.5 e⁻`` is an assumption (the 2–3 e⁻ of the pixel fam
 **How it is drawn.** The output of a pixel depends only on its noise-free level ``v`` (0–255), the gain and its
 random draw, so per camera and frame :func:`noise_law` holds the exact distribution of the model for every ``v``
 (the Poisson ⊛ Gaussian law summed exactly, :func:`fog_gym.sensors.poisson_gauss._cdf_tables`), tabulated as
-:data:`TABLE_SIZE` quantiles (:func:`noise_table`). Two kernels draw from it (:func:`add_noise`,
-:func:`add_noise_many`), both from one counter-based 32-bit hash (:func:`_hash32`) of the frame's key and the
-pixel's or the value's index, so the same key gives the same noise on any machine and thread count, and every
-(episode, frame, camera, fog variant) has its own key (:func:`frame_key`):
-
-* **the exact table** — each pixel's hash picks its three channels' quantiles (10 bits each), one look-up each;
-* **the Gaussian draw** — where the exact law *is* Gaussian to within a grey level's rounding, as by day, where the
-  darkest level still collects 49 electrons (a Poisson count of 49 has skewness 1/7, and the read-out divides it
-  by 50 electrons a grey level): ``round(v + σ_v·z)``, ``σ_v² = c₀ + c₁·v`` (:func:`predicted_variance` without
-  the rounding's 1/12), ``z`` from a 32-bit hash: the number of set bits among its low 16 (binomial, n = 16)
-  plus two of its bytes as a dither (their sum spans a binomial step: a triangular kernel that smooths the
-  binomial's steps), standardised (:data:`DRAW_MEAN`, :data:`DRAW_SD`) — all of it vector arithmetic with fused
-  multiply–adds, about twice as fast as the table's look-ups, which the compiler cannot vectorise.
-  :func:`noise_law` uses it only when the draw's law (its output histogram, computed exactly from the 4 607 values
-  the hash's bits give) is within a total variation of :data:`GAUSSIAN_TV` of the exact law at every level; else the
-  table. Default sensor by day: 0.0076 (the table's own rounding to 1/1024 quantiles: 0.0036), so day frames take
-  the Gaussian draw; at night the darkest levels hold a few electrons and the shoulder of the tone curve bends the
-  law, so night frames take the table.
+:data:`TABLE_SIZE` quantiles (:func:`noise_table`). One kernel draws from it (:func:`add_noise`,
+:func:`add_noise_many`): each pixel's counter-based 32-bit hash (:func:`_hash32`) of the frame's key and the pixel's
+index picks its three channels' quantiles (bits 0–9, 11–20 and 22–31), one look-up each, so the same key gives the
+same noise on any machine and thread count, and every (episode, frame, camera, fog variant) has its own key
+(:func:`frame_key`). Day and night frames alike: the table is the exact law (its own rounding to 1/1024 quantiles
+is a total variation of 0.0036 from it by day), and on this project's AVX2 machine its look-ups cost 0.58× the
+Gaussian draw in vector arithmetic that day frames took from 2026-11-29 to 2026-12-03 (``docs/sensors.md``, "Day
+frames from the table too").
 
 **Motion blur** (``motion_blur=True``, opt-in): the frame is averaged over the exposure time along each pixel's image
 motion (:func:`blur_motion`, a velocity-buffer blur: the ego's motion for the static world and each vehicle's own
@@ -67,14 +57,12 @@ Example:
     >>> img = np.full((4, 4, 3), 128, np.uint8)
     >>> bool((add_noise(img, table, frame_key(0, 0, 0, 0)) == add_noise(img, table, frame_key(0, 0, 0, 0))).all())
     True
-    >>> day, night = noise_law(DEFAULT_NOISE, 1.0, False), noise_law(DEFAULT_NOISE, 4.0, True)
-    >>> day.gaussian, round(day.tv, 4), night.gaussian
-    (True, 0.0076, False)
+    >>> (noise_law(DEFAULT_NOISE, 1.0, False).table == table).all()
+    np.True_
 """
 
 from __future__ import annotations
 
-import functools
 import itertools
 import math
 from dataclasses import dataclass
@@ -82,7 +70,6 @@ from collections.abc import Sequence
 from typing import Any, NamedTuple
 
 import numpy as np
-from llvmlite import ir
 from numba import njit, prange, types
 from numba.extending import intrinsic
 
@@ -232,62 +219,13 @@ def noise_table(noise: CameraNoise, gain: float, night: bool) -> np.ndarray:
 
 
 class NoiseLaw(NamedTuple):
-    """A frame's noise (:func:`noise_law`): the exact law's ``table`` (:func:`noise_table`); whether the kernels
-    draw the Gaussian law instead (``gaussian``), its variance ``c0 + c1·v`` [DN²] and ``tv``, the largest total
-    variation between that draw's law and the exact one over the 256 levels (:func:`noise_law`)."""
+    """A frame's noise (:func:`noise_law`): the exact law's ``table`` (:func:`noise_table`)."""
 
     table: np.ndarray
-    gaussian: bool
-    c0: float
-    c1: float
-    tv: float
-
-
-#: The largest total variation between the Gaussian draw's law and the exact law, over the levels, for which
-#: :func:`noise_law` draws the Gaussian (module docstring): about three times the exact table's own rounding.
-GAUSSIAN_TV = 0.01
-#: Mean and standard deviation of the draw's integer ``t = 256·popcount(x & 0xFFFF) + (x >> 16 & 255) + (x >> 24)``
-#: for a uniform 32-bit ``x``: ``256·8 + 2·127.5`` and ``√(256²·4 + 2·(256² − 1)/12)`` (binomial and two bytes).
-DRAW_MEAN = 256.0 * 8.0 + 255.0
-DRAW_SD = math.sqrt(256.0**2 * 4.0 + 2.0 * (256.0**2 - 1.0) / 12.0)
-_DRAW_INV, _DRAW_OFF = np.float32(1.0 / DRAW_SD), np.float32(-DRAW_MEAN / DRAW_SD)
-
-
-def fma32(a, b, c) -> np.ndarray:
-    """``a·b + c`` in float32 with one rounding, as the kernel's fused multiply–adds (numpy has none: the product is
-    exact in the 64-bit mantissa of x86's long double, so only the sum rounds before float32's rounding)."""
-    ld = np.longdouble
-    return (np.asarray(a, np.float32).astype(ld) * np.asarray(b, np.float32).astype(ld)
-            + np.asarray(c, np.float32).astype(ld)).astype(np.float32)  # fmt: skip
-
-
-@functools.cache
-def _draw_law() -> tuple[np.ndarray, np.ndarray]:
-    """The draw's 4 607 values of ``t`` as the kernel's ``z`` (its own float32 arithmetic) and their probabilities."""
-    spikes = np.zeros(16 * 256 + 1)  # the binomial's 17 values, 256 apart
-    spikes[::256] = [math.comb(16, j) / 2.0**16 for j in range(17)]
-    u = np.full(256, 1.0 / 256)
-    p = np.convolve(spikes, np.convolve(u, u))  # plus the two dither bytes: 4 607 values
-    return fma32(np.arange(p.size, dtype=np.float32), _DRAW_INV, _DRAW_OFF), p
-
-
-def gaussian_levels(c0: float, c1: float, z: np.ndarray, levels: np.ndarray | None = None) -> np.ndarray:
-    """``(len(levels), len(z))`` uint8: the Gaussian draw's output for each noise-free level of ``levels`` (default
-    all 256) and each ``z``, in the kernel's float32 arithmetic (``round(v + σ_v·z)``, clipped to 0–255)."""
-    v = (np.arange(256) if levels is None else np.asarray(levels)).astype(np.float32)[:, None]
-    y = fma32(np.sqrt(fma32(c1, v, c0)), np.asarray(z, np.float32)[None, :], v + np.float32(0.5))
-    return np.clip(y.astype(np.int32), 0, 255).astype(np.uint8)
-
-
-#: :func:`noise_law`'s levels checked in turn: first the darkest and the brightest (where a law fails: too few
-#: electrons, the night tone curve's shoulder), then the rest of the darkest and brightest eight, then the others
-_CHECKED = (np.r_[0, 254, 255], np.r_[1:8, 248:254], np.r_[8:248])
 
 
 def noise_law(noise: CameraNoise, gain: float, night: bool) -> NoiseLaw:
-    """The noise of a frame with auto-exposure gain ``gain`` (module docstring): the exact table, and the Gaussian
-    draw where its law is within :data:`GAUSSIAN_TV` of the exact one at every level (when it is not, ``tv`` is the
-    largest over the levels checked up to the first group that failed: the darkest and brightest come first)."""
+    """The noise of a frame with auto-exposure gain ``gain`` (module docstring): the exact law's table."""
     return noise_laws([noise], [gain], night)[0]
 
 
@@ -298,20 +236,7 @@ def noise_laws(noises: Sequence[CameraNoise], gains: Sequence[float], night: boo
         raise ValueError(f"noises and gains must be as many, got {len(noises)} and {len(gains)}")
     if not len(noises):
         return []
-    cdfs = _exact_cdfs(noises, gains, night)
-    tables = _quantiles(cdfs)
-    z, p = _draw_law()
-    out = []
-    for noise, gain, cdf, table in zip(noises, gains, cdfs, tables):
-        k = 255.0 * noise.gain(gain, night) / noise.full_well_e  # DN per electron
-        c0, c1 = (k * noise.read_noise_e) ** 2, k  # K²(σ_r² + μ_e), μ_e = v/K electrons
-        tv = 0.0
-        for rows in _CHECKED:  # the levels that fail first (dark, the shoulder) before the others
-            tv = max(tv, _gaussian_tv(cdf, rows, np.float32(c0), np.float32(c1), z, p))
-            if tv > GAUSSIAN_TV:
-                break  # the table, whatever the other levels give (tv is then the largest among those checked)
-        out.append(NoiseLaw(table, tv <= GAUSSIAN_TV, float(c0), float(c1), tv))
-    return out
+    return [NoiseLaw(table) for table in _quantiles(_exact_cdfs(noises, gains, night))]
 
 
 def predicted_variance(noise: CameraNoise, level: float, gain: float, night: bool = False) -> float:
@@ -368,48 +293,13 @@ def _u32_op(name):
     return op
 
 
-_add32, _mul32, _xor32, _and32, _shr32, _shl32 = (_u32_op(n) for n in ("add", "mul", "xor", "and_", "lshr", "shl"))
-
-
-@intrinsic
-def _popcount32(typingctx, a):
-    """Set bits of a 32-bit integer (LLVM's ctpop: one instruction where the CPU has it, the same count elsewhere)."""
-
-    def codegen(context, builder, signature, args):
-        return builder.ctpop(args[0])
-
-    return types.uint32(types.uint32), codegen
-
-
-@intrinsic
-def _fma(typingctx, a, b, c):
-    """``a·b + c`` in float32, rounded once (LLVM's fma: exact on every machine, one instruction on most)."""
-
-    def codegen(context, builder, signature, args):
-        return builder.fma(*args)
-
-    return types.float32(types.float32, types.float32, types.float32), codegen
-
-
-@intrinsic
-def _to_level(typingctx, y):
-    """A float32 output to its 8-bit level: truncated, clipped to 0–255 (a saturating conversion)."""
-
-    def codegen(context, builder, signature, args):
-        i32 = ir.IntType(32)
-        i = builder.fptosi(args[0], i32)
-        lo, hi = ir.Constant(i32, 0), ir.Constant(i32, 255)
-        i = builder.select(builder.icmp_signed("<", i, lo), lo, i)
-        i = builder.select(builder.icmp_signed(">", i, hi), hi, i)
-        return builder.trunc(i, ir.IntType(8))
-
-    return types.uint8(types.float32), codegen
+_add32, _mul32, _xor32, _and32, _shr32 = (_u32_op(n) for n in ("add", "mul", "xor", "and_", "lshr"))
 
 
 @njit(cache=True, nogil=True, inline="always")
 def _hash32(i, k1, k2):
     """A 32-bit hash of index ``i`` under the key ``(k1, k2)``: ``i ^ k1`` through two multiply–xorshift rounds,
-    ``k2`` added between them (the two draws' mixer: 32-bit vector arithmetic, no 64-bit multiplies)."""
+    ``k2`` added between them (32-bit vector arithmetic, no 64-bit multiplies)."""
     x = _xor32(i, k1)
     x = _mul32(_xor32(x, _shr32(x, np.uint32(16))), np.uint32(0x7FEB352D))
     x = _add32(x, k2)
@@ -419,102 +309,56 @@ def _hash32(i, k1, k2):
 
 @njit(cache=True, nogil=True, inline="always")
 def _noise_span(flat, table, k1, k2, out, p0, p1):
-    """The exact table: pixels ``p0 .. p1 − 1`` of the flattened image ``flat`` into ``out``: pixel ``p``'s hash is
-    :func:`_hash32` of ``p``; its bits 0–9, 11–20 and 22–31 pick its red, green and blue quantiles. The hashes of a
-    block of pixels first (a loop the compiler vectorises), then their lookups: 28 % less time than one loop doing
-    both. (A 64-bit SplitMix64 hash per pixel, the draw before 2026-12-03, cost twice this on a machine without
-    AVX-512's 64-bit multiplies: four 1280 × 960 images on one thread, 33.9 against 17.1 ms.)"""
+    """Pixels ``p0 .. p1 − 1`` of the flattened image ``flat`` into ``out``: pixel ``p``'s hash is :func:`_hash32` of
+    ``p``; its bits 0–9, 11–20 and 22–31 pick its red, green and blue quantiles. The hashes of a block of pixels first
+    (a loop the compiler vectorises), then their look-ups through slices that start at 0 with unsigned indices (no
+    check for negative indices in the loop: 18 % less time than signed indices into the whole image). (A 64-bit
+    SplitMix64 hash per pixel, the draw before 2026-12-03, cost twice this on a machine without AVX-512's 64-bit
+    multiplies: four 1280 × 960 images on one thread, 33.9 against 17.1 ms.)"""
     mask = np.uint32(TABLE_SIZE - 1)
     s11, s22 = np.uint32(11), np.uint32(22)
+    bits, one, two = np.uint64(_BITS), np.uint64(1), np.uint64(2)
     hashes = np.empty(_BLOCK, np.uint32)
     for b0 in range(p0, p1, _BLOCK):
         b1 = min(p1, b0 + _BLOCK)
         base = np.uint32(b0)
         for j in range(b1 - b0):
             hashes[j] = _hash32(_add32(np.uint32(j), base), k1, k2)
+        f, o = flat[3 * b0:3 * b1], out[3 * b0:3 * b1]
         for j in range(b1 - b0):
             z = hashes[j]
-            q = 3 * (b0 + j)
-            out[q] = table[(np.intp(flat[q]) << _BITS) | np.intp(_and32(z, mask))]
-            out[q + 1] = table[(np.intp(flat[q + 1]) << _BITS) | np.intp(_and32(_shr32(z, s11), mask))]
-            out[q + 2] = table[(np.intp(flat[q + 2]) << _BITS) | np.intp(_shr32(z, s22))]
-
-
-@njit(cache=True, nogil=True)
-def _gaussian_tv(cdf, rows, c0, c1, z, p):
-    """The largest total variation, over the levels ``rows``, between the Gaussian draw's law (``z`` the draw's
-    values, ``p`` their probabilities; the output of each as :func:`_gauss_span` computes it, :func:`gaussian_levels`
-    in numpy) and the exact law of ``cdf`` (``P(output <= d)``, ``d = 0..254``)."""
-    hist = np.empty(256)
-    worst = 0.0
-    for v in rows:
-        hist[:] = 0.0
-        x = np.float32(v)
-        sd = math.sqrt(_fma(c1, x, c0))
-        for i in range(z.shape[0]):
-            hist[_to_level(_fma(sd, z[i], x + np.float32(0.5)))] += p[i]
-        tv = 0.0
-        below = 0.0
-        for d in range(256):
-            at = cdf[v, d] if d < 255 else 1.0
-            tv += abs(hist[d] - (at - below))
-            below = at
-        worst = max(worst, 0.5 * tv)
-    return worst
+            q = np.uint64(3 * j)
+            o[q] = table[(np.uint64(f[q]) << bits) | np.uint64(_and32(z, mask))]
+            o[q + one] = table[(np.uint64(f[q + one]) << bits) | np.uint64(_and32(_shr32(z, s11), mask))]
+            o[q + two] = table[(np.uint64(f[q + two]) << bits) | np.uint64(_shr32(z, s22))]
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _gauss_span(flat, out, k1, k2, c0, c1, p0, p1):
-    """The Gaussian draw: channel values ``p0 .. p1 − 1`` of the flattened image (module docstring). Value ``i``'s
-    hash ``x`` is :func:`_hash32` of ``i`` (the table's draw hashes pixels with it);
-    ``t = 256·popcount(x & 0xFFFF) + (x >> 16 & 255) + (x >> 24)``, ``z = (t − DRAW_MEAN)/DRAW_SD``; the output is
-    ``v + ½ + σ_v·z`` truncated and clipped, ``σ_v = √(c1·v + c0)``, in float32 with fused multiply–adds and no
-    fast-math (the same bits as :func:`fma32` in numpy)."""
-    inv, off = _DRAW_INV, _DRAW_OFF
-    s8, s16 = np.uint32(8), np.uint32(16)
-    low16, byte = np.uint32(0xFFFF), np.uint32(0xFF)
-    f, o, base = flat[p0:p1], out[p0:p1], np.uint32(p0)
-    for i in range(f.shape[0]):  # from 0 over slices: the compiler sees unit strides and no negative index
-        x = _hash32(_add32(np.uint32(i), base), k1, k2)
-        y = _shr32(x, s16)
-        t = _add32(_add32(_shl32(_popcount32(_and32(x, low16)), s8), _and32(y, byte)), _shr32(y, s8))
-        z = _fma(np.float32(t), inv, off)
-        v = np.float32(f[i])
-        o[i] = _to_level(_fma(math.sqrt(_fma(c1, v, c0)), z, v + np.float32(0.5)))
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _noise_task(flats, outs, tables, gauss, c0, c1, keys, t):
-    """Task ``t`` of a frame's noise: span ``t % _CHUNKS`` of image ``t // _CHUNKS`` (flattened), by the Gaussian
-    draw where ``gauss[i]``, else by its exact table (flattened)."""
+def _noise_task(flats, outs, tables, keys, t):
+    """Task ``t`` of a frame's noise: span ``t % _CHUNKS`` of image ``t // _CHUNKS`` (flattened) from its table
+    (flattened)."""
     i, c = t // _CHUNKS, t % _CHUNKS
-    flat, out = flats[i], outs[i]
     k1, k2 = np.uint32(keys[i] & np.uint64(0xFFFFFFFF)), np.uint32(keys[i] >> np.uint64(32))
-    if gauss[i]:
-        n = flat.shape[0]
-        step = (n + _CHUNKS - 1) // _CHUNKS
-        _gauss_span(flat, out, k1, k2, c0[i], c1[i], c * step, min(n, (c + 1) * step))
-    else:
-        n = flat.shape[0] // 3
-        step = (n + _CHUNKS - 1) // _CHUNKS
-        _noise_span(flat, tables[i], k1, k2, out, c * step, min(n, (c + 1) * step))
+    n = flats[i].shape[0] // 3
+    step = (n + _CHUNKS - 1) // _CHUNKS
+    _noise_span(flats[i], tables[i], k1, k2, outs[i], c * step, min(n, (c + 1) * step))
 
 
 @njit(cache=True, nogil=True, parallel=True)
-def _noise_kernel(flats, outs, tables, gauss, c0, c1, keys):
+def _noise_kernel(flats, outs, tables, keys):
     """Every image of a frame in one launch (a launch per camera pays the pool's wake-up each time): its tasks
     (:func:`_noise_task`) over the pool's threads."""
     for t in prange(len(flats) * _CHUNKS):
-        _noise_task(flats, outs, tables, gauss, c0, c1, keys, t)
+        _noise_task(flats, outs, tables, keys, t)
     return outs
 
 
 @njit(cache=True, nogil=True)
-def _noise_tasks(flats, outs, tables, gauss, c0, c1, keys, t0, t1):
+def _noise_tasks(flats, outs, tables, keys, t0, t1):
     """Tasks ``t0 .. t1 − 1`` of a frame's noise on the calling thread (:class:`NoiseJob`: Python threads share
     them)."""
     for t in range(t0, t1):
-        _noise_task(flats, outs, tables, gauss, c0, c1, keys, t)
+        _noise_task(flats, outs, tables, keys, t)
 
 
 _noise_kernel_serial = serial_twin(_noise_kernel)
@@ -541,7 +385,7 @@ class NoiseJob:
         for img in imgs:
             if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
                 raise ValueError(f"rgb must be an (H, W, 3) uint8 image, got {img.dtype} {img.shape}")
-        laws = [law if isinstance(law, NoiseLaw) else NoiseLaw(law, False, 0.0, 0.0, 1.0) for law in laws]
+        laws = [law if isinstance(law, NoiseLaw) else NoiseLaw(law) for law in laws]
         for law in laws:
             t = law.table
             if not isinstance(t, np.ndarray) or t.shape != (256, TABLE_SIZE) or t.dtype != np.uint8:
@@ -556,9 +400,7 @@ class NoiseJob:
         self.outs = [block[e - x.size:e].reshape(x.shape) for x, e in zip(imgs, ends)]
         self.pixels = sum(x.shape[0] * x.shape[1] for x in imgs)
         self.args = (tuple(x.reshape(-1) for x in imgs), tuple(o.reshape(-1) for o in self.outs),
-                     tuple(law.table.reshape(-1) for law in laws), np.array([law.gaussian for law in laws]),
-                     np.array([law.c0 for law in laws], np.float32), np.array([law.c1 for law in laws], np.float32),
-                     np.array([int(k) & _M64 for k in keys], np.uint64))  # fmt: skip
+                     tuple(law.table.reshape(-1) for law in laws), np.array([int(k) & _M64 for k in keys], np.uint64))
         self.tasks = len(imgs) * _CHUNKS
         self._next = itertools.count()  # its next() is atomic: each task is taken by one thread
 
@@ -576,12 +418,11 @@ class NoiseJob:
 
 def add_noise_many(images: Sequence[np.ndarray], laws: Sequence[NoiseLaw | np.ndarray], keys: Sequence[int]) -> list[np.ndarray]:
     """Each (H, W, 3) uint8 image of ``images`` with the noise of its law (a :class:`NoiseLaw`, or a bare
-    :func:`noise_table`: the exact table) drawn from its key (:func:`frame_key`), in one kernel launch; new arrays
+    :func:`noise_table`) drawn from its key (:func:`frame_key`), in one kernel launch; new arrays
     (views of one new block), the inputs are not changed."""
     return NoiseJob(images, laws, keys).run()
 
 
 def add_noise(rgb: np.ndarray, law: NoiseLaw | np.ndarray, key: int) -> np.ndarray:
-    """``rgb`` (H, W, 3) uint8 with the noise of ``law`` (a :func:`noise_law`, or a :func:`noise_table`: the exact
-    table) drawn from ``key`` (:func:`frame_key`); a new array, the input is not changed."""
+    """``rgb`` (H, W, 3) uint8 with the noise of ``law`` (a :func:`noise_law`, or a :func:`noise_table`) drawn from ``key`` (:func:`frame_key`); a new array, the input is not changed."""
     return add_noise_many([rgb], [law], [key])[0]

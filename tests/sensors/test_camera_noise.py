@@ -11,9 +11,9 @@ from hypothesis import strategies as st
 from fog_gym.envs.fogdrive import FogDriveEnv
 from fog_gym.geometry import Pose
 from fog_gym.sensors.camera import CameraConfig
-from fog_gym.sensors.camera_noise import (DEFAULT_NOISE, DRAW_MEAN, DRAW_SD, GAUSSIAN_TV, TABLE_SIZE, CameraNoise,
-                                          NoiseLaw, add_noise, add_noise_many, fma32, frame_key, gaussian_levels,
-                                          level_signal, noise_law, noise_laws, noise_table, parse_noise, predicted_variance)  # fmt: skip
+from fog_gym.sensors.camera_noise import (DEFAULT_NOISE, TABLE_SIZE, CameraNoise, NoiseLaw, add_noise, add_noise_many,
+                                          frame_key, level_signal, noise_law, noise_laws, noise_table, parse_noise,
+                                          predicted_variance)  # fmt: skip
 from fog_gym.sensors.motion_blur import blur_motion, image_flow
 from fog_gym.wrappers import FogWrapper
 
@@ -110,58 +110,38 @@ def test_kernel_is_the_32_bit_hash_over_the_pixels_on_one_thread_and_in_parallel
     want = _reference_noise(img, table, key)
     assert (add_noise(img, table, key) == want).all()
     for kernel in (_noise_kernel, _noise_kernel_serial):  # every span split: fewer pixels than spans too
-        assert (_run(kernel, [img], [NoiseLaw(table, False, 0.0, 0.0, 1.0)], [key])[0] == want).all()
+        assert (_run(kernel, [img], [NoiseLaw(table)], [key])[0] == want).all()
 
 
 def _run(kernel, imgs, laws, keys):
     outs = [np.empty_like(x) for x in imgs]
-    kernel(tuple(x.reshape(-1) for x in imgs), tuple(o.reshape(-1) for o in outs), tuple(law.table.reshape(-1) for law in laws),
-           np.array([law.gaussian for law in laws]), np.array([law.c0 for law in laws], np.float32),
-           np.array([law.c1 for law in laws], np.float32), np.array(keys, np.uint64))  # fmt: skip
+    kernel(tuple(x.reshape(-1) for x in imgs), tuple(o.reshape(-1) for o in outs),
+           tuple(law.table.reshape(-1) for law in laws), np.array(keys, np.uint64))
     return outs
-
-
-def _reference_gauss(img: np.ndarray, law: NoiseLaw, key: int) -> np.ndarray:
-    """The Gaussian draw in numpy: channel value i (row-major) hashes i ^ k1 with two multiply–xorshift rounds (k2
-    added between them); 256 × the set bits of its low 16 plus its two high bytes, standardised, scales σ_v; float32
-    with fused multiply–adds (fma32), truncated and clipped."""
-    x = _hash32(np.arange(img.size, dtype=np.uint32), key)
-    bits = np.unpackbits((x & np.uint32(0xFFFF)).astype("<u2").view(np.uint8)).reshape(-1, 16).sum(1)
-    t = 256 * bits.astype(np.uint32) + ((x >> np.uint32(16)) & np.uint32(255)) + (x >> np.uint32(24))
-    z = fma32(t.astype(np.float32), np.float32(1.0 / DRAW_SD), np.float32(-DRAW_MEAN / DRAW_SD))
-    v = img.reshape(-1).astype(np.float32)
-    y = fma32(np.sqrt(fma32(law.c1, v, law.c0)), z, v + np.float32(0.5))
-    return np.clip(y.astype(np.int32), 0, 255).astype(np.uint8).reshape(img.shape)
 
 
 @settings(max_examples=20, deadline=None)
 @given(st.lists(st.tuples(st.integers(1, 70), st.integers(1, 70), st.booleans()), min_size=1, max_size=4),
        st.integers(0, 2**64 - 1), st.integers(0, 2**32))  # fmt: skip
-def test_gaussian_draw_is_its_numpy_reference_and_mixes_with_tables_in_one_launch(shapes, key, seed):
+def test_day_and_night_images_in_one_launch_each_follow_the_numpy_reference(shapes, key, seed):
     from fog_gym.sensors.camera_noise import _noise_kernel, _noise_kernel_serial
 
     rng = np.random.default_rng(seed)
     day, night = noise_law(DEFAULT_NOISE, 1.0, False), noise_law(DEFAULT_NOISE, 2.0, True)
     imgs = [rng.integers(0, 256, (h, w, 3), dtype=np.uint8) for h, w, _ in shapes]
-    laws = [day if gauss else night for _, _, gauss in shapes]
+    laws = [day if by_day else night for _, _, by_day in shapes]
     keys = [(key + 7919 * i) % 2**64 for i in range(len(imgs))]
-    want = [_reference_gauss(x, law, k) if law.gaussian else _reference_noise(x, law.table, k)
-            for x, law, k in zip(imgs, laws, keys)]  # fmt: skip
+    want = [_reference_noise(x, law.table, k) for x, law, k in zip(imgs, laws, keys)]
     assert all((a == b).all() for a, b in zip(add_noise_many(imgs, laws, keys), want))
     for kernel in (_noise_kernel, _noise_kernel_serial):
         assert all((a == b).all() for a, b in zip(_run(kernel, imgs, laws, keys), want))
 
 
-def test_day_draws_the_gaussian_within_its_bound_and_night_the_exact_table():
-    day = noise_law(DEFAULT_NOISE, 1.0, False)
-    assert day.gaussian and day.tv <= GAUSSIAN_TV
-    assert (day.table == noise_table(DEFAULT_NOISE, 1.0, False)).all()
-    k = 255 / DEFAULT_NOISE.full_well_e
-    assert day.c1 == pytest.approx(k) and day.c0 == pytest.approx((k * DEFAULT_NOISE.read_noise_e) ** 2)
-    for gain in (1.0, 4.0, 16.0):  # the darkest levels hold a few electrons, the tone curve bends: the table
-        assert not noise_law(DEFAULT_NOISE, gain, True).gaussian
-    few = CameraNoise(full_well_e=600.0)  # by day too, when a grey level is a couple of electrons
-    assert not noise_law(few, 1.0, False).gaussian
+def test_day_and_night_laws_are_the_exact_tables():
+    for gain, night in ((1.0, False), (1.0, True), (4.0, True), (16.0, True)):
+        assert (noise_law(DEFAULT_NOISE, gain, night).table == noise_table(DEFAULT_NOISE, gain, night)).all()
+    few = CameraNoise(full_well_e=600.0)  # a grey level is a couple of electrons: the table is the law all the same
+    assert (noise_law(few, 1.0, False).table == noise_table(few, 1.0, False)).all()
 
 
 def _reference_quantiles(cdf: np.ndarray) -> np.ndarray:
@@ -184,7 +164,7 @@ def test_a_frames_laws_computed_together_are_each_computed_alone(full, read, nig
     cdfs = _exact_cdfs([noise] * len(gains), gains, night)
     for gain, law, cdf in zip(gains, together, cdfs):
         alone = noise_law(noise, gain, night)
-        assert (law.table == alone.table).all() and (law.gaussian, law.c0, law.c1, law.tv) == alone[1:]
+        assert (law.table == alone.table).all()
         assert (cdf == _exact_cdf(noise, gain, night)).all() and (cdf >= 0).all() and (cdf <= 1).all()
         assert (np.diff(cdf, axis=1) >= -1e-12).all()
         assert (law.table == _reference_quantiles(cdf)).all()
@@ -196,58 +176,14 @@ def test_a_frames_laws_computed_together_are_each_computed_alone(full, read, nig
     assert (_cdf_tables(lam, t, sigma) == _cdf_tables_serial(lam, t, sigma)).all()
 
 
-def test_a_night_law_is_decided_by_its_first_levels():
-    """The darkest and brightest levels are checked first: a night law fails there (the tone curve's shoulder bends
-    the brightest), so its check stops at them; a day law checks every level."""
-    night = noise_law(DEFAULT_NOISE, 2.0, True)
-    assert not night.gaussian and night.tv > 0.5
-    day = noise_law(DEFAULT_NOISE, 1.0, False)
-    assert day.gaussian and 0.005 < day.tv <= GAUSSIAN_TV
-
-
-@settings(max_examples=10, deadline=None)
-@given(full=st.floats(300, 50_000), read=st.floats(0, 20), gain=st.floats(1, 16), night=st.booleans())
-def test_the_gaussian_test_is_the_total_variation_of_the_numpy_draws_law(full, read, gain, night):
-    """The kernel that decides between the Gaussian draw and the table (noise_law's test) gives the total variation
-    computed in numpy from gaussian_levels (the draw's own arithmetic) and the exact CDF."""
-    from fog_gym.sensors.camera_noise import _draw_law, _exact_cdf, _gaussian_tv
-
-    noise = CameraNoise(full_well_e=full, read_noise_e=read)
-    cdf = _exact_cdf(noise, gain, night)
-    k = 255.0 * noise.gain(gain, night) / noise.full_well_e
-    c0, c1 = (k * noise.read_noise_e) ** 2, k
-    z, p = _draw_law()
-    rows = np.array([0, 3, 40, 128, 200, 254, 255])
-    exact = np.diff(np.c_[np.zeros(len(rows)), cdf[rows], np.ones(len(rows))], axis=1)
-    drawn = np.stack([np.bincount(g, weights=p, minlength=256) for g in gaussian_levels(c0, c1, z, rows)])
-    want = float(0.5 * np.abs(drawn - exact).sum(axis=1).max())
-    assert _gaussian_tv(cdf, rows, np.float32(c0), np.float32(c1), z, p) == pytest.approx(want, abs=1e-12)
-
-
 def test_noise_laws_wants_a_gain_per_sensor():
     assert noise_laws([], [], False) == []
     with pytest.raises(ValueError, match="noises and gains must be as many"):
         noise_laws([DEFAULT_NOISE], [1.0, 2.0], False)
 
 
-def test_the_draws_law_is_standard_and_its_constants_are_the_bits_moments():
-    from fog_gym.sensors.camera_noise import _draw_law
-
-    z, p = _draw_law()
-    assert p.sum() == pytest.approx(1.0, abs=1e-12) and len(z) == 16 * 256 + 511
-    assert (p * z).sum() == pytest.approx(0.0, abs=1e-6) and (p * z * z).sum() == pytest.approx(1.0, abs=1e-6)
-    x = np.random.default_rng(0).integers(0, 2**32, 400_000, dtype=np.uint64).astype(np.uint32)  # uniform hashes
-    bits = np.unpackbits((x & np.uint32(0xFFFF)).astype("<u2").view(np.uint8)).reshape(-1, 16).sum(1)
-    t = 256.0 * bits + ((x >> np.uint32(16)) & np.uint32(255)) + (x >> np.uint32(24))
-    assert t.mean() == pytest.approx(DRAW_MEAN, abs=3.0) and t.std() == pytest.approx(DRAW_SD, rel=0.005)
-    assert fma32(np.float32(3.0), np.float32(1 / 3), np.float32(-1.0)) != np.float32(3.0) * np.float32(1 / 3) - 1  # one rounding
-
-
-def test_gaussian_draws_follow_their_law_the_emva_moments_and_are_independent():
-    from fog_gym.sensors.camera_noise import _draw_law
-
+def test_day_draws_follow_the_table_the_emva_moments_and_are_independent():
     law = noise_law(DEFAULT_NOISE, 1.0, False)
-    z, p = _draw_law()
     img = np.full((600, 800, 3), 128, np.uint8)
     img[300:] = 230
     a = add_noise(img, law, frame_key(3, 1, 0, 0))
@@ -256,8 +192,8 @@ def test_gaussian_draws_follow_their_law_the_emva_moments_and_are_independent():
         assert x.mean() == pytest.approx(level, abs=0.01)
         assert x.var() == pytest.approx(predicted_variance(DEFAULT_NOISE, level, 1.0), rel=0.02)
         hist = np.bincount(a[rows].ravel(), minlength=256) / x.size
-        drawn = np.bincount(gaussian_levels(law.c0, law.c1, z)[level], weights=p, minlength=256)
-        assert 0.5 * np.abs(hist - drawn).sum() < 0.005  # the histogram is the law noise_law checked
+        drawn = np.bincount(law.table[level], minlength=256) / TABLE_SIZE
+        assert 0.5 * np.abs(hist - drawn).sum() < 0.005  # the histogram is the table's law
     r = a[:300].astype(np.float64) - 128
     b = add_noise(img, law, frame_key(3, 1, 0, 1))[:300].astype(np.float64) - 128
     for u, v in ((r[..., 0], r[..., 1]), (r[:, :-1, 0], r[:, 1:, 0]), (r[:-1, :, 2], r[1:, :, 2]), (r, b)):
@@ -399,7 +335,7 @@ def test_bad_images_laws_and_keys_are_one_line_errors_before_any_draw(case):
         "dtype": (([img.astype(np.float32)], [law], [1]), "uint8 image"),
         "shape": (([img[..., :2]], [law], [1]), "uint8 image"),
         "table": (([img], [np.zeros((256, 7), np.uint8)], [1]), "noise table"),
-        "law": (([img], [NoiseLaw(np.zeros((3, 3)), True, 0.0, 1.0, 0.0)], [1]), "noise table"),
+        "law": (([img], [NoiseLaw(np.zeros((3, 3)))], [1]), "noise table"),
     }[case]
     with pytest.raises(ValueError, match=match) as err:
         add_noise_many(*args)
