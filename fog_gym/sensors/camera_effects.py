@@ -47,9 +47,9 @@ OVERLAP_FROM = 1 << 16
 
 def overlaps(pixels: int) -> bool:
     """Whether :meth:`CameraEffects.begin` draws a frame's noise on the background thread: from :data:`OVERLAP_FROM`
-    pixels, by day and at night (the draws overlap the points and labels: a 1280 × 960 full-rig day frame's noise
-    1.07–1.09× in line with them against 1.14–1.17× drawn before them on this project's AVX2 machine;
-    ``docs/sensors.md``, "Day frames from the table too").
+    pixels, by day and at night: the draws overlap the points and labels (a 1280 × 960 full-rig day frame's noise
+    cost 1.07–1.09× overlapped against 1.14–1.17× drawn in line, on this project's AVX2 machine; ``docs/sensors.md``,
+    "Day frames from the table too").
 
     >>> overlaps(OVERLAP_FROM), overlaps(OVERLAP_FROM - 1)
     (True, False)

@@ -3,7 +3,7 @@
 fog-gym's renderer gives each pixel an exposed linear signal ``x`` (the frame's 8-bit value over 255 by day; at night
 the value through the inverse of the night tone curve, :func:`fog_gym.render.shading.tone`). A real sensor turns
 that signal into electrons and back into a digital value, and on the way it adds noise. The linear camera model of
-the EMVA 1288 standard (research note ``fifth_layer.md`` §6):
+the EMVA 1288 standard (Release 4.0, its linear model of a camera's output and noise):
 
 * the pixel collects ``μ_e = x · Q / A`` electrons on average, ``Q`` the full-well capacity (a full-scale signal at
   the sensor's base gain fills the well) and ``A`` the total gain; the count is Poisson: ``σ_e² = μ_e``
@@ -45,7 +45,7 @@ Gaussian draw in vector arithmetic that day frames took from 2026-11-29 to 2026-
 frames from the table too").
 
 **Motion blur** (``motion_blur=True``, opt-in): the frame is averaged over the exposure time along each pixel's image
-motion (:func:`blur_motion`, a velocity-buffer blur: the ego's motion for the static world and each vehicle's own
+motion (:func:`fog_gym.sensors.motion_blur.blur_motion`, a velocity-buffer blur: the ego's motion for the static world and each vehicle's own
 motion from the instance buffer), before the noise, as the sensor integrates before it reads out.
 
 Example:
@@ -57,8 +57,8 @@ Example:
     >>> img = np.full((4, 4, 3), 128, np.uint8)
     >>> bool((add_noise(img, table, frame_key(0, 0, 0, 0)) == add_noise(img, table, frame_key(0, 0, 0, 0))).all())
     True
-    >>> (noise_law(DEFAULT_NOISE, 1.0, False).table == table).all()
-    np.True_
+    >>> bool((noise_law(DEFAULT_NOISE, 1.0, False).table == table).all())
+    True
 """
 
 from __future__ import annotations
@@ -76,7 +76,7 @@ from numba.extending import intrinsic
 import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
 from fog_gym._numba import pick, serial_twin
 from fog_gym.sensors.poisson_gauss import _cdf_tables, _cdf_tables_serial, _quantile_rows, _quantile_rows_serial
-from fog_gym.checks import finite
+from fog_gym.checks import finite, interval, positive
 from fog_gym.render.shading import KNEE
 
 #: Quantiles per level of a noise table (a draw resolves probabilities of 1/1024: tails beyond ±3.3 σ are cut; a
@@ -166,8 +166,9 @@ def parse_noise(value: Any, field: str = "camera_noise") -> CameraNoise | None:
 
 # -- the signal a level stands for and the level a signal gives ---------------------------------------------------
 def level_signal(levels: np.ndarray, night: bool) -> np.ndarray:
-    """The exposed linear signal ``x`` of 8-bit levels (inverse of :func:`encode_signal`; level 255 maps to the
-    middle of its rounding interval at night, where the shoulder never reaches 1)."""
+    """The exposed linear signal ``x`` of 8-bit levels: the level over 255 by day, through the inverse of the night
+    tone curve (:func:`fog_gym.render.shading.tone`) at night, where level 255 maps to the middle of its rounding
+    interval (the shoulder never reaches 1)."""
     y = np.asarray(levels, np.float64) / 255.0
     if not night:
         return y
@@ -182,9 +183,21 @@ def _thresholds(noise: CameraNoise, gain: float, night: bool) -> np.ndarray:
     return x * noise.full_well_e / gain
 
 
+def _checked_laws(noises: Sequence[CameraNoise], gains: Sequence[float]) -> list[float]:
+    """The gains as floats, or a one-line ``ValueError``: as many sensors (each a :class:`CameraNoise`) as gains,
+    each gain a finite number > 0 (an auto-exposure gain)."""
+    if len(noises) != len(gains):
+        raise ValueError(f"noises and gains must be as many, got {len(noises)} and {len(gains)}")
+    for noise in noises:
+        if not isinstance(noise, CameraNoise):
+            raise ValueError(f"noise must be a CameraNoise (parse_noise turns a preset name into one), got {noise!r}")
+    return [positive("gain", g) for g in gains]
+
+
 def _exact_cdfs(noises: Sequence[CameraNoise], gains: Sequence[float], night: bool) -> np.ndarray:
     """``(n, 256, 255)``: ``P(output <= d)`` for law ``i`` (sensor ``noises[i]`` at auto-exposure gain ``gains[i]``),
     a noise-free level ``v`` (row) and ``d = 0..254`` (column); every law in one kernel launch."""
+    gains = _checked_laws(noises, gains)
     lam = np.empty((len(noises), 256))
     thresholds = np.empty((len(noises), 255))
     signal = level_signal(np.arange(256), night)
@@ -232,8 +245,7 @@ def noise_law(noise: CameraNoise, gain: float, night: bool) -> NoiseLaw:
 def noise_laws(noises: Sequence[CameraNoise], gains: Sequence[float], night: bool) -> list[NoiseLaw]:
     """:func:`noise_law` of each (sensor, gain) pair — a frame's cameras — with every exact law summed in one
     kernel launch and tabulated in another."""
-    if len(noises) != len(gains):
-        raise ValueError(f"noises and gains must be as many, got {len(noises)} and {len(gains)}")
+    _checked_laws(noises, gains)
     if not len(noises):
         return []
     return [NoiseLaw(table) for table in _quantiles(_exact_cdfs(noises, gains, night))]
@@ -242,9 +254,11 @@ def noise_laws(noises: Sequence[CameraNoise], gains: Sequence[float], night: boo
 def predicted_variance(noise: CameraNoise, level: float, gain: float, night: bool = False) -> float:
     """EMVA 1288's output variance [DN²] at a noise-free level in the linear part of the encoding:
     ``K²(σ_r² + μ_e) + 1/12`` with ``K = 255·A/Q`` (clipping and the night shoulder not included)."""
+    (gain,) = _checked_laws([noise], [gain])
+    level = interval("level", level, 0.0, 255.0)
     a = noise.gain(gain, night)
     k = 255.0 * a / noise.full_well_e
-    mu_e = float(level) / 255.0 * noise.full_well_e / a
+    mu_e = level / 255.0 * noise.full_well_e / a
     return k * k * (noise.read_noise_e**2 + mu_e) + 1.0 / 12.0
 
 
@@ -386,6 +400,9 @@ class NoiseJob:
             if img.ndim != 3 or img.shape[2] != 3 or img.dtype != np.uint8:
                 raise ValueError(f"rgb must be an (H, W, 3) uint8 image, got {img.dtype} {img.shape}")
         laws = [law if isinstance(law, NoiseLaw) else NoiseLaw(law) for law in laws]
+        for k in keys:
+            if isinstance(k, bool) or not isinstance(k, (int, np.integer)):
+                raise ValueError(f"keys must be integers (frame_key), got {k!r}")
         for law in laws:
             t = law.table
             if not isinstance(t, np.ndarray) or t.shape != (256, TABLE_SIZE) or t.dtype != np.uint8:

@@ -182,6 +182,44 @@ def test_noise_laws_wants_a_gain_per_sensor():
         noise_laws([DEFAULT_NOISE], [1.0, 2.0], False)
 
 
+@settings(max_examples=30, deadline=None)
+@given(gain=st.one_of(st.floats(max_value=0.0), st.just(float("nan")), st.just(float("inf")), st.sampled_from(["", "x"]),
+                      st.booleans(), st.none()),
+       night=st.booleans())  # fmt: skip
+def test_a_gain_that_is_not_a_positive_finite_number_is_a_one_line_error_before_any_table(gain, night):
+    for call in (lambda: noise_table(DEFAULT_NOISE, gain, night), lambda: noise_law(DEFAULT_NOISE, gain, night),
+                 lambda: noise_laws([DEFAULT_NOISE], [gain], night),
+                 lambda: predicted_variance(DEFAULT_NOISE, 100, gain, night)):  # fmt: skip
+        with pytest.raises(ValueError, match="gain must") as err:
+            call()
+        assert "\n" not in str(err.value)
+
+
+@pytest.mark.parametrize("call, match", [
+    (lambda: noise_law("default", 1.0, False), "noise must be a CameraNoise"),
+    (lambda: predicted_variance(DEFAULT_NOISE, 300, 1.0), "level must lie in"),
+    (lambda: predicted_variance(DEFAULT_NOISE, -1, 1.0), "level must lie in"),
+    (lambda: add_noise(np.zeros((2, 2, 3), np.uint8), noise_table(DEFAULT_NOISE, 1.0, False), "x"), "keys must be"),
+    (lambda: add_noise(np.zeros((2, 2, 3), np.uint8), noise_table(DEFAULT_NOISE, 1.0, False), True), "keys must be"),
+])  # fmt: skip
+def test_a_sensor_a_level_or_a_key_of_the_wrong_kind_is_a_one_line_error(call, match):
+    with pytest.raises(ValueError, match=match) as err:
+        call()
+    assert "\n" not in str(err.value)
+
+
+def test_the_docs_contrast_table_is_the_noise_tables_own_standard_deviation():
+    """docs/sensors.md's table of what noise does to the 5 % rule: σ of one pixel from the table, the contrast of one
+    σ on the background, and the pixels a 5 % contrast needs for a contrast-to-noise ratio of 5 when averaged."""
+    rows = [(False, 1.0, 128, 1.6, 1.3, 2), (False, 1.0, 40, 0.95, 2.4, 6), (True, 1.0, 40, 2.6, 6.5, 42),
+            (True, 4.0, 40, 5.4, 13, 179), (True, 16.0, 20, 9.6, 48, 2287)]  # fmt: skip
+    for night, gain, level, sd, contrast, pixels in rows:
+        got = noise_table(DEFAULT_NOISE, gain, night)[level].astype(np.float64).std()
+        assert round(got, 1 if sd >= 1 else 2) == sd
+        assert round(100 * got / level, 1 if contrast < 10 else 0) == contrast
+        assert round((5 * got / (0.05 * level)) ** 2) == pixels
+
+
 def test_day_draws_follow_the_table_the_emva_moments_and_are_independent():
     law = noise_law(DEFAULT_NOISE, 1.0, False)
     img = np.full((600, 800, 3), 128, np.uint8)
