@@ -45,8 +45,9 @@ Gaussian draw in vector arithmetic that day frames took from 2026-11-29 to 2026-
 frames from the table too").
 
 **Motion blur** (``motion_blur=True``, opt-in): the frame is averaged over the exposure time along each pixel's image
-motion (:func:`fog_gym.sensors.motion_blur.blur_motion`, a velocity-buffer blur: the ego's motion for the static world and each vehicle's own
-motion from the instance buffer), before the noise, as the sensor integrates before it reads out.
+motion (:func:`fog_gym.sensors.motion_blur.blur_motion`, a velocity-buffer blur: the ego's motion for the static
+world and each vehicle's own motion from the instance buffer), before the noise, as the sensor integrates before it
+reads out.
 
 Example:
     >>> table = noise_table(DEFAULT_NOISE, gain=1.0, night=False)
@@ -441,5 +442,6 @@ def add_noise_many(images: Sequence[np.ndarray], laws: Sequence[NoiseLaw | np.nd
 
 
 def add_noise(rgb: np.ndarray, law: NoiseLaw | np.ndarray, key: int) -> np.ndarray:
-    """``rgb`` (H, W, 3) uint8 with the noise of ``law`` (a :func:`noise_law`, or a :func:`noise_table`) drawn from ``key`` (:func:`frame_key`); a new array, the input is not changed."""
+    """``rgb`` (H, W, 3) uint8 with the noise of ``law`` (a :func:`noise_law`, or a :func:`noise_table`) drawn from
+    ``key`` (:func:`frame_key`); a new array, the input is not changed."""
     return add_noise_many([rgb], [law], [key])[0]
