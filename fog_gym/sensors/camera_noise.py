@@ -245,9 +245,8 @@ def noise_law(noise: CameraNoise, gain: float, night: bool) -> NoiseLaw:
 
 def noise_laws(noises: Sequence[CameraNoise], gains: Sequence[float], night: bool) -> list[NoiseLaw]:
     """:func:`noise_law` of each (sensor, gain) pair — a frame's cameras — with every exact law summed in one
-    kernel launch and tabulated in another."""
-    _checked_laws(noises, gains)
-    if not len(noises):
+    kernel launch and tabulated in another (the pairs checked there, :func:`_checked_laws`)."""
+    if not len(noises) and not len(gains):
         return []
     return [NoiseLaw(table) for table in _quantiles(_exact_cdfs(noises, gains, night))]
 
