@@ -34,10 +34,11 @@ from numba import njit, prange
 
 import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
 from fog_gym._numba import pick, serial_twin
-from fog_gym.fog.depth import origin_constants, origin_depth
+from fog_gym.fog.depth import _height_term, _ramp_integral, origin_constants
 from fog_gym.fog.lidar import GAMMA, REFERENCE_REFLECTIVITY
-from fog_gym.fog.lidar_pulse import (FIELD_COARSE, FIELD_STEP, _curves, _field_rule, beam_soft_maximum,
+from fog_gym.fog.lidar_pulse import (FIELD_COARSE, FIELD_STEP, _curves, beam_soft_maximum,
                                      field_pulse_weights, peak_extinction)  # fmt: skip
+from fog_gym.fog.vexp import round_int, vexp
 
 #: Points per grid node :func:`grid_shape` aims at: a curve costs about what 40 points' own reading of the grid does.
 POINTS_PER_NODE = 40
@@ -66,22 +67,70 @@ def grid_shape(n_points: int, heights: bool) -> tuple[int, int]:
 HEIGHT = 1.0
 
 
-@njit(cache=True, nogil=True, parallel=True)
-def _directions(pts, pose, step, last, r0s, dus, dzs, ks, spans):
-    # Per point: range, run along u and rise per metre and range node; per chunk of the points (a row of spans): the
-    # least and greatest run and rise.
+#: Points whose per-point values :func:`_directions` computes together: loops over a block vectorise.
+_BLOCK = 256
+
+
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+def _directions(pts, pose, terms, consts, step, last, r0s, dus, dzs, ks, hards, spans):
+    # Per point: range, run along u and rise per metre, range node and hard return round(i·e^{−2τ}) (−1 where the ray
+    # sees no fog, τ = 0); per chunk of the points (a row of spans): the least and greatest run and rise. A block of
+    # points at a time in loops the compiler vectorises: the geometry, τ one term of the field at a time (the terms of
+    # origin_depth, in its order, with vexp), then the hard return. (Division by zero in a lane whose value is not
+    # taken gives inf or nan, not an exception: error_model="numpy".)
     n, chunks = pts.shape[0], spans.shape[0]
+    u0, z0 = pose[0], pose[1]
     for c in prange(chunks):
         lo_u, hi_u, lo_z, hi_z = np.inf, -np.inf, np.inf, -np.inf
-        for i in range(c * n // chunks, (c + 1) * n // chunks):
-            x, y, z = np.float64(pts[i, 0]), np.float64(pts[i, 1]), np.float64(pts[i, 2])
-            r0 = np.sqrt(x * x + y * y + z * z)
-            inv = 1.0 / max(r0, 1e-12)
-            du = (pose[2] * x + pose[3] * y + pose[4] * z) * inv
-            dz = (pose[5] * x + pose[6] * y + pose[7] * z) * inv
-            k = min(int(np.round(min(r0, 200.0) * (1.0 / step))), last)
-            r0s[i], dus[i], dzs[i], ks[i] = r0, du, dz, k
-            lo_u, hi_u, lo_z, hi_z = min(lo_u, du), max(hi_u, du), min(lo_z, dz), max(hi_z, dz)
+        tau = np.empty(_BLOCK)
+        stop = (c + 1) * n // chunks
+        for b0 in range(c * n // chunks, stop, _BLOCK):
+            m = min(_BLOCK, stop - b0)
+            pb, r0b, dub, dzb, kb, hb = (pts[b0:b0 + m], r0s[b0:b0 + m], dus[b0:b0 + m], dzs[b0:b0 + m], ks[b0:b0 + m],
+                                         hards[b0:b0 + m])  # fmt: skip
+            for j in range(m):
+                x, y, z = np.float64(pb[j, 0]), np.float64(pb[j, 1]), np.float64(pb[j, 2])
+                r0 = np.sqrt(x * x + y * y + z * z)
+                inv = 1.0 / max(r0, 1e-12)
+                r0b[j] = r0
+                dub[j] = (pose[2] * x + pose[3] * y + pose[4] * z) * inv
+                dzb[j] = (pose[5] * x + pose[6] * y + pose[7] * z) * inv
+                kb[j] = min(round_int(min(r0, 200.0) * (1.0 / step)), last)
+                tau[j] = 0.0
+            for j in range(m):
+                lo_u, hi_u, lo_z, hi_z = min(lo_u, dub[j]), max(hi_u, dub[j]), min(lo_z, dzb[j]), max(hi_z, dzb[j])
+            for t in range(terms.shape[0]):
+                kind, b = terms[t, 0], terms[t, 1]
+                if kind == 0.0:
+                    for j in range(m):
+                        tau[j] += b * r0b[j]
+                elif kind == 1.0 and consts[t, 3] != 0.0:  # origin_depth's height term seen from above the road
+                    c0, c1, c2 = consts[t, 0], consts[t, 1], consts[t, 2]
+                    for j in range(m):
+                        length = r0b[j]
+                        z1 = z0 + dzb[j] * length
+                        below = length * (-z1) / (z0 - z1)
+                        x = (z0 - z1) * c2
+                        mean = 1.0 + x * (0.5 + x * (1.0 / 6.0 + x / 24.0)) if abs(x) < 1e-3 else (vexp(x) - 1.0) / x
+                        tau[j] += b * (below + (length - below) * c1) if z1 < 0.0 else b * c0 * length * mean
+                elif kind == 1.0:  # from at or below the road: the general form
+                    for j in range(m):
+                        tau[j] += _height_term(b, terms[t, 2], z0, dzb[j], r0b[j])
+                else:  # a bank: origin_depth's, its ramp's branches as selects
+                    a, bb, cc, d, p, bg = terms[t, 2], terms[t, 3], terms[t, 4], terms[t, 5], terms[t, 6], terms[t, 7]
+                    w0 = consts[t, 0]
+                    for j in range(m):
+                        length = r0b[j]
+                        span = dub[j] * length
+                        u = u0 + 0.5 * span
+                        w = p * (u - a) / (bb - a) if u < bb else (p if u <= cc else p * (d - u) / (d - cc))
+                        w = 0.0 if u < a or u > d else w
+                        mean_w = w if abs(span) < 1e-6 else (_ramp_integral(u0 + span, a, bb, cc, d, p) - w0) / span
+                        tau[j] += (bg + b * mean_w) * length
+            for j in range(m):
+                i_orig = np.rint(np.float64(pb[j, 3]) * 255.0)
+                hard = np.rint(i_orig * vexp(-2.0 * tau[j]))
+                hb[j] = -1.0 if tau[j] == 0.0 else hard
         spans[c, 0], spans[c, 1], spans[c, 2], spans[c, 3] = lo_u, hi_u, lo_z, hi_z
 
 
@@ -130,58 +179,127 @@ def _i_soft(best, i_orig, r0, ratio):
     return min(255.0, best * i_orig * r0 * r0 * ratio)
 
 
-@njit(cache=True, nogil=True, parallel=True)
-def _hahner_grid(pts, pose, terms, consts, r0s, dus, dzs, ks, du0, du_inv, n_du, dz0, dz_inv, n_dz, best, where,
-                 stops, weights, ramp, weights5, ramp5, coarse, step, beta_max, log_noise, u, out, attenuation,
-                 exact):  # fmt: skip
-    # Each point from its grid cell's four curves where their decisions agree, else from its own beam (exact[n] = 1).
-    for n in prange(pts.shape[0]):
-        r0 = r0s[n]
-        tau0 = origin_depth(terms, consts, pose[0], pose[1], dus[n], dzs[n], r0)
-        if tau0 == 0.0:  # no fog on the ray: the point as in clear air
-            for c in range(pts.shape[1]):
-                out[n, c] = pts[n, c]
-            continue
-        k = ks[n]
-        i_orig = np.round(np.float64(pts[n, 3]) * 255.0)
-        i_hard = np.round(i_orig * np.exp(-2.0 * tau0))
-        ratio = np.pi / GAMMA
-        if attenuation >= 0.0:
-            rho = min(max(np.float64(pts[n, 3]) / np.exp(-attenuation * r0), 1e-3), 1.0)
-            ratio = ratio * REFERENCE_REFLECTIVITY / rho
-        ia, ta, ib, tb = _cell(dus[n], dzs[n], du0, du_inv, n_du, dz0, dz_inv, n_dz)
-        soft = 0.0
-        wins = 0
-        corners = 0
-        near, near_w = -1, -1.0
-        for q in range(4):
-            da, db = q & 1, q >> 1
-            if (da and n_du == 1) or (db and n_dz == 1):
-                continue
-            i = (ib + db) * n_du + ia + da
-            kk = min(k, stops[i])
-            v = best[i, kk]
-            w = (ta if da else 1.0 - ta) * (tb if db else 1.0 - tb)
-            soft += w * v
-            corners += 1
-            if _i_soft(v, i_orig, r0, ratio) > i_hard:
-                wins += 1
-            if w > near_w:
-                near, near_w = i, w
-        if wins == 0 or wins == corners:  # the cell agrees: its interpolated soft return decides as each corner does
-            r_tmp = where[near, min(k, stops[near])] * step
-        else:  # near a face: the point's own beam (the per-beam path)
-            soft, kk = beam_soft_maximum(terms, pose[0], pose[1], dus[n], dzs[n], r0, weights, ramp, weights5, ramp5,
-                                         coarse, step, beta_max)  # fmt: skip
-            r_tmp = kk * step
-            exact[n] = 1
-        scale, value = _field_rule(np.float64(pts[n, 3]), r0, i_orig, i_hard, soft, r_tmp, log_noise, u[n],
-                                   attenuation)  # fmt: skip
-        for c in range(pts.shape[1]):  # (written here: numba counted references to arrays a helper writes to)
-            out[n, c] = np.float32(np.float64(pts[n, c]) * scale) if c < 3 else (value if c == 3 else pts[n, c])
+#: Points a parallel task of :func:`_hahner_grid` takes (in blocks of :data:`_BLOCK`).
+_GRID_SPAN = 2048
+
+
+@njit(cache=True, nogil=True, parallel=True, error_model="numpy")
+def _hahner_grid(pts, pose, terms, r0s, dus, dzs, ks, hards, du0, du_inv, n_du, dz0, dz_inv, n_dz, best, where,
+                 stops, finals, reach, weights, ramp, weights5, ramp5, coarse, step, beta_max, log_noise, u, out,
+                 attenuation, exact):  # fmt: skip
+    # Each point from its grid cell's four curves where their decisions agree, else from its own beam (exact[n] = 1);
+    # its hard return from _directions (< 0: no fog on the ray, the point as in clear air). A block of points at a
+    # time, in four loops: per point its cell, corner weights, nearest corner and the factor g of a fog return
+    # min(255, v·g) (a loop that vectorises); the corners' curves (one point at a time: a point at or beyond the range
+    # where its cell's four curves have all stopped, `reach`, reads the cell's row of `finals`, finals_cell), whose
+    # decisions agree when the least or the greatest corner decides for all (the decision grows with v); Hahner et
+    # al.'s rule (_field_rule's, with vexp for the range noise; it vectorises); the rows. A grid of one row or column
+    # reads its corners twice (the second with weight 0).
+    n_pts = pts.shape[0]
+    step_a, step_b = (1 if n_du > 1 else 0), (n_du if n_dz > 1 else 0)
+    for c in prange((n_pts + _GRID_SPAN - 1) // _GRID_SPAN):
+        softs, r_tmps, gs, ratios, scales = (np.empty(_BLOCK), np.empty(_BLOCK), np.empty(_BLOCK), np.empty(_BLOCK),
+                                             np.empty(_BLOCK))  # fmt: skip
+        w00s, w10s, w01s, w11s = np.empty(_BLOCK), np.empty(_BLOCK), np.empty(_BLOCK), np.empty(_BLOCK)
+        cells, qs = np.empty(_BLOCK, np.int64), np.empty(_BLOCK, np.int64)
+        values = np.empty(_BLOCK, np.float32)
+        stop = min((c + 1) * _GRID_SPAN, n_pts)
+        for b0 in range(c * _GRID_SPAN, stop, _BLOCK):
+            m = min(_BLOCK, stop - b0)
+            pb, r0b, hb, ub, ob = pts[b0:b0 + m], r0s[b0:b0 + m], hards[b0:b0 + m], u[b0:b0 + m], out[b0:b0 + m]
+            dub, dzb, kb = dus[b0:b0 + m], dzs[b0:b0 + m], ks[b0:b0 + m]
+            if attenuation >= 0.0:  # reflectance intensities: the point's own reflectivity stands in for Γ
+                for j in range(m):
+                    rho = min(max(np.float64(pb[j, 3]) / vexp(-attenuation * r0b[j]), 1e-3), 1.0)
+                    ratios[j] = np.pi / GAMMA * REFERENCE_REFLECTIVITY / rho
+            else:
+                ratios[:m] = np.pi / GAMMA
+            for j in range(m):
+                r0 = r0b[j]
+                gs[j] = np.rint(np.float64(pb[j, 3]) * 255.0) * r0 * r0 * ratios[j]  # (a corner's fog return, rounding
+                # aside)
+                a = min(max((dub[j] - du0) * du_inv, 0.0), n_du - 1.0)  # _cell's, its indices held in floats (AVX2
+                ia = min(np.floor(a), n_du - 2.0) if n_du > 1 else 0.0  # converts no int64 to float)
+                ta = a - ia if n_du > 1 else 0.0
+                b = min(max((dzb[j] - dz0) * dz_inv, 0.0), n_dz - 1.0)
+                ib = min(np.floor(b), n_dz - 2.0) if n_dz > 1 else 0.0
+                tb = b - ib if n_dz > 1 else 0.0
+                cells[j] = round_int(ib * n_du + ia)
+                w00, w10, w01, w11 = (1.0 - ta) * (1.0 - tb), ta * (1.0 - tb), (1.0 - ta) * tb, ta * tb
+                w00s[j], w10s[j], w01s[j], w11s[j] = w00, w10, w01, w11
+                q = 1 if w10 > w00 else 0  # the heaviest corner, the first of equals
+                near_w = max(w10, w00)
+                q = 2 if w01 > near_w else q
+                qs[j] = 3 if w11 > max(w01, near_w) else q
+            for j in range(m):
+                i_hard, k, i00, g = hb[j], kb[j], cells[j], gs[j]
+                if i_hard < 0.0:  # no fog on the ray (the rule keeps the point)
+                    softs[j], r_tmps[j] = 0.0, 0.0
+                    continue
+                flat = k >= reach[i00]
+                if flat:
+                    v00, v10, v01, v11 = finals[i00, 0], finals[i00, 1], finals[i00, 2], finals[i00, 3]
+                    lo, hi = finals[i00, 8], finals[i00, 9]
+                else:
+                    i10, i01 = i00 + step_a, i00 + step_b
+                    i11 = i01 + step_a
+                    v00, v10 = best[i00, min(k, stops[i00])], best[i10, min(k, stops[i10])]
+                    v01, v11 = best[i01, min(k, stops[i01])], best[i11, min(k, stops[i11])]
+                    lo, hi = min(min(v00, v10), min(v01, v11)), max(max(v00, v10), max(v01, v11))
+                soft = 0.0 + w00s[j] * v00
+                soft += w10s[j] * v10
+                soft += w01s[j] * v01
+                soft += w11s[j] * v11
+                if min(255.0, lo * g) > i_hard or not min(255.0, hi * g) > i_hard:  # the cell agrees: its
+                    q = qs[j]  # interpolated soft return decides as each corner does
+                    near = i00 + (q & 1) * step_a + (q >> 1) * step_b
+                    r_tmps[j] = (finals[i00, 4 + q] if flat else where[near, min(k, stops[near])]) * step
+                else:  # near a face: the point's own beam (the per-beam path)
+                    soft, kk = beam_soft_maximum(terms, pose[0], pose[1], dub[j], dzb[j], r0b[j], weights, ramp,
+                                                 weights5, ramp5, coarse, step, beta_max)  # fmt: skip
+                    r_tmps[j] = kk * step
+                    exact[b0 + j] = 1
+                softs[j] = soft
+            for j in range(m):  # the rule: every value computed, then selected (the loop vectorises)
+                r0, i_hard, intensity = r0b[j], hb[j], pb[j, 3]
+                i_soft = _i_soft(softs[j], np.rint(np.float64(intensity) * 255.0), r0, ratios[j])
+                fog = (i_hard >= 0.0) & (i_soft > i_hard)
+                moved = r_tmps[j] / max(r0, 1e-12) * vexp(log_noise * ub[j])
+                scales[j] = moved if fog else 1.0
+                value = np.float32((i_soft if fog else i_hard) / 255.0)
+                values[j] = value if i_hard >= 0.0 else intensity
+            for j in range(m):  # the rows (a loop of its own: the compiler cannot tell pts from out)
+                scale = scales[j]
+                ob[j, 0] = np.float32(np.float64(pb[j, 0]) * scale)
+                ob[j, 1] = np.float32(np.float64(pb[j, 1]) * scale)
+                ob[j, 2] = np.float32(np.float64(pb[j, 2]) * scale)
+                ob[j, 3] = values[j]
+            for j in range(m):
+                for col in range(4, pts.shape[1]):
+                    ob[j, col] = pb[j, col]
 
 
 _hahner_grid_serial = serial_twin(_hahner_grid)
+
+
+def finals_cell(best: np.ndarray, where: np.ndarray, stops: np.ndarray, step_a: int, step_b: int):
+    """Per grid cell (indexed by its lower corner ``i``; corners ``i``, ``i + step_a``, ``i + step_b``,
+    ``i + step_a + step_b``): its four curves' final values, the nodes where they lie and the least and greatest of
+    the four values (``finals (nodes, 10)``), and the range node from which all four are final (``reach``: the greatest
+    of their ``stops``; a curve is constant beyond its stop). Rows of lower corners that are no cell's are not read.
+
+    >>> best, where = np.array([[1.0, 2.0, 2.0], [3.0, 5.0, 5.0]]), np.array([[0, 1, 1], [0, 1, 1]])
+    >>> finals, reach = finals_cell(best, where, np.array([1, 1]), 1, 0)
+    >>> finals[0].tolist(), reach.tolist()
+    ([2.0, 5.0, 2.0, 5.0, 1.0, 1.0, 1.0, 1.0, 2.0, 5.0], [1, 1])
+    """
+    nodes = len(stops)
+    i = np.arange(nodes)
+    corners = np.minimum(np.stack([i, i + step_a, i + step_b, i + step_a + step_b], axis=1), nodes - 1)
+    at = stops[corners]
+    values = best[corners, at]
+    return np.concatenate([values, where[corners, at], values.min(axis=1, keepdims=True),
+                           values.max(axis=1, keepdims=True)], axis=1), at.max(axis=1)  # fmt: skip
 
 
 def fog_lidar_grid(pts: np.ndarray, terms: np.ndarray, pose: np.ndarray, log_noise: float, u: np.ndarray,
@@ -194,8 +312,11 @@ def fog_lidar_grid(pts: np.ndarray, terms: np.ndarray, pose: np.ndarray, log_noi
     last = int(round(200.0 / FIELD_STEP))
     r0s, dus, dzs = np.empty((3, n))
     ks = np.empty(n, np.int64)
+    hards = np.empty(n)
     spans = np.empty((max(1, min(numba.get_num_threads(), n)), 4))
-    pick(_directions, _directions_serial, n)(pts, pose, FIELD_STEP, last, r0s, dus, dzs, ks, spans)
+    consts = origin_constants(terms, float(pose[0]), float(pose[1]))
+    pick(_directions, _directions_serial, n)(pts, pose, terms, consts, FIELD_STEP, last, r0s, dus, dzs, ks, hards,
+                                             spans)
     du_lo, du_hi = float(spans[:, 0].min()), float(spans[:, 1].max())
     heights = bool(np.any(terms[:, 0] == HEIGHT))
     shape = grid_shape(n, heights)
@@ -211,12 +332,13 @@ def fog_lidar_grid(pts: np.ndarray, terms: np.ndarray, pose: np.ndarray, log_noi
     tops = np.zeros((len(spans), len(node_du)), np.int64)
     pick(_node_tops, _node_tops_serial, n)(dus, dzs, ks, *cell, tops)
     tops = tops.max(axis=0)
-    consts = origin_constants(terms, float(pose[0]), float(pose[1]))
     best, where, stops = _curves(terms, pose, node_du, node_dz, tops, consts, n)
     weights, ramp = field_pulse_weights()
     weights5, ramp5 = field_pulse_weights(FIELD_STEP * FIELD_COARSE)
+    finals, reach = finals_cell(best, where, stops, 1 if n_du > 1 else 0, n_du if n_dz > 1 else 0)
     exact = np.zeros(n, np.uint8)
-    pick(_hahner_grid, _hahner_grid_serial, n)(pts, pose, terms, consts, r0s, dus, dzs, ks, *cell, best, where, stops,
+    pick(_hahner_grid, _hahner_grid_serial, n)(pts, pose, terms, r0s, dus, dzs, ks, hards, *cell, best, where, stops,
+                                               finals, reach,
                                                weights, ramp, weights5, ramp5, FIELD_COARSE, FIELD_STEP,
                                                peak_extinction(terms), log_noise, u, out, attenuation, exact)
     return int(exact.sum())

@@ -408,3 +408,23 @@ def test_sums_of_fields_read_a_grid_of_curves_and_decide_as_each_beam_alone(fiel
         monkeypatch.setattr(lidar_grid, kernel, lambda dus, dzs, ks, *cell_and_tops: cell_and_tops[-1].fill(ks.max()))
     far = np.empty_like(pts)
     assert fog_lidar_grid(pts, terms, pose, 0.0, np.zeros(len(pts)), far, -1.0) == exact and np.array_equal(far, grid)
+
+
+@pytest.mark.parametrize("field, reflectance, digest", [
+    (HeightFog(50.0, 4.0) + FogBank(50.0, 40.0, 80.0), None, "220f8cfcf8802530"),
+    (HeightFog(50.0, 4.0) + FogBank(50.0, 40.0, 80.0), 0.004, "1756602be97df593"),
+    (FogBank(50.0, 20.0, 40.0) + FogBank(80.0, 90.0, 60.0), None, "265134c84ba2d5fa"),
+    (FogBank(50.0, 20.0, 40.0) + FogBank(80.0, 90.0, 60.0), 0.004, "72d3d04f59a3742e"),
+])  # fmt: skip
+def test_the_grid_path_gives_the_points_it_gave_before_its_vector_loops(field, reflectance, digest):
+    # Digests recorded with the grid path of 2026-12-03 (commit f11d9c6, before τ, the hard return and the rule moved
+    # into loops that vectorise, with vexp): the same bits — vexp's last-place differences never reach a 0–255 level.
+    import hashlib
+
+    rng = np.random.default_rng(11)
+    n = 30_000
+    r, az, el = rng.uniform(1.5, 120.0, n), rng.uniform(-np.pi, np.pi, n), rng.choice(np.linspace(-0.35, 0.09, 64), n)
+    pts = np.c_[r * np.cos(el) * np.cos(az), r * np.cos(el) * np.sin(az), r * np.sin(el), rng.uniform(0.02, 1, n)]
+    pose = field_pose(LIDAR @ np.eye(4), (0.0, 0.0, 0.0))
+    out = fog_lidar_field(pts.astype(np.float32), field, np.random.default_rng(3), pose, reflectance=reflectance)
+    assert hashlib.sha256(out.tobytes()).hexdigest()[:16] == digest
