@@ -187,7 +187,8 @@ _GRID_SPAN = 2048
 def _hahner_grid(pts, pose, terms, r0s, dus, dzs, ks, hards, du0, du_inv, n_du, dz0, dz_inv, n_dz, best, where,
                  stops, finals, reach, weights, ramp, weights5, ramp5, coarse, step, beta_max, log_noise, u, out,
                  attenuation, exact):  # fmt: skip
-    # Each point from its grid cell's four curves where their decisions agree, else from its own beam (exact[n] = 1);
+    # Each point from its grid cell's four curves where their decisions agree, else from its own beam (counted in
+    # exact, a row per task);
     # its hard return from _directions (< 0: no fog on the ray, the point as in clear air). A block of points at a
     # time, in four loops: per point its cell, corner weights, nearest corner and the factor g of a fog return
     # min(255, v·g) (a loop that vectorises); the corners' curves (one point at a time: a point at or beyond the range
@@ -258,7 +259,7 @@ def _hahner_grid(pts, pose, terms, r0s, dus, dzs, ks, hards, du0, du_inv, n_du, 
                     soft, kk = beam_soft_maximum(terms, pose[0], pose[1], dub[j], dzb[j], r0b[j], weights, ramp,
                                                  weights5, ramp5, coarse, step, beta_max)  # fmt: skip
                     r_tmps[j] = kk * step
-                    exact[b0 + j] = 1
+                    exact[c] += 1
                 softs[j] = soft
             for j in range(m):  # the rule: every value computed, then selected (the loop vectorises)
                 r0, i_hard, intensity = r0b[j], hb[j], pb[j, 3]
@@ -282,7 +283,8 @@ def _hahner_grid(pts, pose, terms, r0s, dus, dzs, ks, hards, du0, du_inv, n_du, 
 _hahner_grid_serial = serial_twin(_hahner_grid)
 
 
-def finals_cell(best: np.ndarray, where: np.ndarray, stops: np.ndarray, step_a: int, step_b: int):
+@njit(cache=True, nogil=True)
+def finals_cell(best, where, stops, step_a, step_b):
     """Per grid cell (indexed by its lower corner ``i``; corners ``i``, ``i + step_a``, ``i + step_b``,
     ``i + step_a + step_b``): its four curves' final values, the nodes where they lie and the least and greatest of
     the four values (``finals (nodes, 10)``), and the range node from which all four are final (``reach``: the greatest
@@ -293,13 +295,42 @@ def finals_cell(best: np.ndarray, where: np.ndarray, stops: np.ndarray, step_a: 
     >>> finals[0].tolist(), reach.tolist()
     ([2.0, 5.0, 2.0, 5.0, 1.0, 1.0, 1.0, 1.0, 2.0, 5.0], [1, 1])
     """
-    nodes = len(stops)
-    i = np.arange(nodes)
-    corners = np.minimum(np.stack([i, i + step_a, i + step_b, i + step_a + step_b], axis=1), nodes - 1)
-    at = stops[corners]
-    values = best[corners, at]
-    return np.concatenate([values, where[corners, at], values.min(axis=1, keepdims=True),
-                           values.max(axis=1, keepdims=True)], axis=1), at.max(axis=1)  # fmt: skip
+    nodes = stops.shape[0]
+    finals = np.empty((nodes, 10))
+    reach = np.empty(nodes, np.int64)
+    for i in range(nodes):
+        lo, hi, top = np.inf, -np.inf, 0
+        for q in range(4):
+            j = min(i + (q & 1) * step_a + (q >> 1) * step_b, nodes - 1)
+            v = best[j, stops[j]]
+            finals[i, q], finals[i, 4 + q] = v, where[j, stops[j]]
+            lo, hi, top = min(lo, v), max(hi, v), max(top, stops[j])
+        finals[i, 8], finals[i, 9], reach[i] = lo, hi, top
+    return finals, reach
+
+
+@njit(cache=True, nogil=True)
+def _grid(spans, heights, n_du, n_dz):
+    # The grid of directions over the points' spans (rows of spans: per chunk, least and greatest run and rise) with up
+    # to n_du × n_dz nodes (one along an axis the points do not spread over, or along the rise without height terms):
+    # the nodes' runs and rises and the cell parameters (_node_tops' and _hahner_grid's).
+    du_lo, du_hi, dz_lo, dz_hi = np.inf, -np.inf, np.inf, -np.inf
+    for c in range(spans.shape[0]):
+        du_lo, du_hi = min(du_lo, spans[c, 0]), max(du_hi, spans[c, 1])
+        dz_lo, dz_hi = min(dz_lo, spans[c, 2]), max(dz_hi, spans[c, 3])
+    n_du = n_du if du_hi > du_lo else 1
+    if not heights:
+        dz_lo, dz_hi = 0.0, 0.0
+    n_dz = n_dz if heights and dz_hi > dz_lo else 1
+    grid_du = np.linspace(du_lo, du_hi, n_du)  # (numpy's nodes: start + i·step, the last the stop)
+    grid_dz = np.linspace(dz_lo, dz_hi, n_dz) if heights else np.zeros(1)
+    node_du, node_dz = np.empty(n_du * n_dz), np.empty(n_du * n_dz)
+    for b in range(n_dz):
+        for a in range(n_du):
+            node_du[b * n_du + a], node_dz[b * n_du + a] = grid_du[a], grid_dz[b]
+    cell = (du_lo, (n_du - 1) / (du_hi - du_lo) if n_du > 1 else 0.0, n_du, dz_lo,
+            (n_dz - 1) / (dz_hi - dz_lo) if n_dz > 1 else 0.0, n_dz)  # fmt: skip
+    return node_du, node_dz, cell
 
 
 def fog_lidar_grid(pts: np.ndarray, terms: np.ndarray, pose: np.ndarray, log_noise: float, u: np.ndarray,
@@ -317,28 +348,19 @@ def fog_lidar_grid(pts: np.ndarray, terms: np.ndarray, pose: np.ndarray, log_noi
     consts = origin_constants(terms, float(pose[0]), float(pose[1]))
     pick(_directions, _directions_serial, n)(pts, pose, terms, consts, FIELD_STEP, last, r0s, dus, dzs, ks, hards,
                                              spans)
-    du_lo, du_hi = float(spans[:, 0].min()), float(spans[:, 1].max())
-    heights = bool(np.any(terms[:, 0] == HEIGHT))
-    shape = grid_shape(n, heights)
-    n_du = shape[0] if du_hi > du_lo else 1
-    dz_lo, dz_hi = (float(spans[:, 2].min()), float(spans[:, 3].max())) if heights else (0.0, 0.0)
-    n_dz = shape[1] if heights and dz_hi > dz_lo else 1
-    grid_du = np.linspace(du_lo, du_hi, n_du)
-    grid_dz = np.linspace(dz_lo, dz_hi, n_dz) if heights else np.zeros(1)
-    node_du = np.tile(grid_du, n_dz)
-    node_dz = np.repeat(grid_dz, n_du)
-    cell = (du_lo, (n_du - 1) / (du_hi - du_lo) if n_du > 1 else 0.0, n_du, dz_lo,
-            (n_dz - 1) / (dz_hi - dz_lo) if n_dz > 1 else 0.0, n_dz)  # fmt: skip
+    heights = any(kind == HEIGHT for kind in terms[:, 0].tolist())
+    node_du, node_dz, cell = _grid(spans, heights, *grid_shape(n, heights))
     tops = np.zeros((len(spans), len(node_du)), np.int64)
     pick(_node_tops, _node_tops_serial, n)(dus, dzs, ks, *cell, tops)
     tops = tops.max(axis=0)
     best, where, stops = _curves(terms, pose, node_du, node_dz, tops, consts, n)
     weights, ramp = field_pulse_weights()
     weights5, ramp5 = field_pulse_weights(FIELD_STEP * FIELD_COARSE)
+    n_du, n_dz = cell[2], cell[5]
     finals, reach = finals_cell(best, where, stops, 1 if n_du > 1 else 0, n_du if n_dz > 1 else 0)
-    exact = np.zeros(n, np.uint8)
+    exact = np.zeros((n + _GRID_SPAN - 1) // _GRID_SPAN, np.int64)
     pick(_hahner_grid, _hahner_grid_serial, n)(pts, pose, terms, r0s, dus, dzs, ks, hards, *cell, best, where, stops,
-                                               finals, reach,
-                                               weights, ramp, weights5, ramp5, FIELD_COARSE, FIELD_STEP,
-                                               peak_extinction(terms), log_noise, u, out, attenuation, exact)
+                                               finals, reach, weights, ramp, weights5, ramp5, FIELD_COARSE,
+                                               FIELD_STEP, peak_extinction(terms), log_noise, u, out, attenuation,
+                                               exact)  # fmt: skip
     return int(exact.sum())
