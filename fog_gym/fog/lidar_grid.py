@@ -34,7 +34,7 @@ from numba import njit, prange
 
 import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
 from fog_gym._numba import pick, serial_twin
-from fog_gym.fog.depth import _height_term, _ramp_integral, origin_constants
+from fog_gym.fog.depth import _height_term, _ramp, _ramp_integral, origin_constants
 from fog_gym.fog.lidar import GAMMA, REFERENCE_REFLECTIVITY
 from fog_gym.fog.lidar_pulse import (FIELD_COARSE, FIELD_STEP, _curves, beam_soft_maximum,
                                      field_pulse_weights, peak_extinction)  # fmt: skip
@@ -82,7 +82,7 @@ def _directions(pts, pose, terms, consts, step, last, r0s, dus, dzs, ks, hards, 
     u0, z0 = pose[0], pose[1]
     for c in prange(chunks):
         lo_u, hi_u, lo_z, hi_z = np.inf, -np.inf, np.inf, -np.inf
-        tau = np.empty(_BLOCK)
+        tau, means = np.empty(_BLOCK), np.empty(_BLOCK)
         stop = (c + 1) * n // chunks
         for b0 in range(c * n // chunks, stop, _BLOCK):
             m = min(_BLOCK, stop - b0)
@@ -116,17 +116,21 @@ def _directions(pts, pose, terms, consts, step, last, r0s, dus, dzs, ks, hards, 
                 elif kind == 1.0:  # from at or below the road: the general form
                     for j in range(m):
                         tau[j] += _height_term(b, terms[t, 2], z0, dzb[j], r0b[j])
-                else:  # a bank: origin_depth's, its ramp's branches as selects
+                else:  # a bank: origin_depth's (a beam across the bank's axis, whose run is under 1 µm, after)
                     a, bb, cc, d, p, bg = terms[t, 2], terms[t, 3], terms[t, 4], terms[t, 5], terms[t, 6], terms[t, 7]
                     w0 = consts[t, 0]
+                    across = False
                     for j in range(m):
-                        length = r0b[j]
-                        span = dub[j] * length
-                        u = u0 + 0.5 * span
-                        w = p * (u - a) / (bb - a) if u < bb else (p if u <= cc else p * (d - u) / (d - cc))
-                        w = 0.0 if u < a or u > d else w
-                        mean_w = w if abs(span) < 1e-6 else (_ramp_integral(u0 + span, a, bb, cc, d, p) - w0) / span
-                        tau[j] += (bg + b * mean_w) * length
+                        span = dub[j] * r0b[j]
+                        means[j] = (_ramp_integral(u0 + span, a, bb, cc, d, p) - w0) / span
+                        across |= abs(span) < 1e-6
+                    if across:
+                        for j in range(m):
+                            span = dub[j] * r0b[j]
+                            if abs(span) < 1e-6:
+                                means[j] = _ramp(u0 + 0.5 * span, a, bb, cc, d, p)
+                    for j in range(m):
+                        tau[j] += (bg + b * means[j]) * r0b[j]
             for j in range(m):
                 i_orig = np.rint(np.float64(pb[j, 3]) * 255.0)
                 hard = np.rint(i_orig * vexp(-2.0 * tau[j]))

@@ -428,3 +428,28 @@ def test_the_grid_path_gives_the_points_it_gave_before_its_vector_loops(field, r
     pose = field_pose(LIDAR @ np.eye(4), (0.0, 0.0, 0.0))
     out = fog_lidar_field(pts.astype(np.float32), field, np.random.default_rng(3), pose, reflectance=reflectance)
     assert hashlib.sha256(out.tobytes()).hexdigest()[:16] == digest
+
+
+@pytest.mark.parametrize("field, digest", [
+    (HeightFog(50.0, 4.0) + FogBank(50.0, -40.0, 80.0), "ae33540d6ec8d0e3"),
+    (FogBank(50.0, -20.0, 40.0) + FogBank(80.0, 90.0, 60.0), "03d544d7716b6ab8"),
+])  # fmt: skip
+def test_beams_across_a_banks_axis_give_the_points_they_gave_before(field, digest):
+    # A beam whose run along the bank's axis is under 1 µm takes the bank's value where it runs (origin_depth's branch,
+    # taken after the block's vector loop): digests recorded at commit f11d9c6, as the test above.
+    import hashlib
+
+    from fog_gym.fog.lidar_grid import fog_lidar_grid
+
+    rng = np.random.default_rng(5)
+    n = 20_000
+    r, az, el = rng.uniform(1.5, 120.0, n), rng.uniform(-np.pi, np.pi, n), rng.choice(np.linspace(-0.35, 0.09, 64), n)
+    pts = np.c_[r * np.cos(el) * np.cos(az), r * np.cos(el) * np.sin(az), r * np.sin(el), rng.uniform(0.02, 1, n)]
+    pts[:3000, 0] = 0.0  # across the banks' axis (u along x): a run of 0, and of under 1e-8 m per metre
+    pts[3000:4000, 0] = rng.uniform(-1e-8, 1e-8, 1000)
+    pts = pts.astype(np.float32)
+    out = np.empty_like(pts)
+    pose = field_pose(LIDAR, (0.0, 0.0, 0.0))
+    fog_lidar_grid(pts, field.pack(1.0), pose, math.log(2.0), rng.uniform(-1, 1, n), out, -1.0)
+    assert np.any(out[:4000, :3] != pts[:4000, :3], axis=1).mean() > 0.4  # the fog reaches them
+    assert hashlib.sha256(out.tobytes()).hexdigest()[:16] == digest
