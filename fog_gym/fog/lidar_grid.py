@@ -223,12 +223,14 @@ def _hahner_grid(pts, pose, terms, r0s, dus, dzs, ks, hards, du0, du_inv, n_du, 
                 r0 = r0b[j]
                 gs[j] = np.rint(np.float64(pb[j, 3]) * 255.0) * r0 * r0 * ratios[j]  # (a corner's fog return, rounding
                 # aside)
-                a = min(max((dub[j] - du0) * du_inv, 0.0), n_du - 1.0)  # _cell's, its indices held in floats (AVX2
-                ia = min(np.floor(a), n_du - 2.0) if n_du > 1 else 0.0  # converts no int64 to float)
-                ta = a - ia if n_du > 1 else 0.0
+                # the cell's indices held in floats (AVX2 converts no int64 to float); an axis of one node has inverse
+                # spacing 0, so a = ia = ta = 0 there without a branch (which would load the directions under a mask)
+                a = min(max((dub[j] - du0) * du_inv, 0.0), n_du - 1.0)
+                ia = max(min(np.floor(a), n_du - 2.0), 0.0)
+                ta = a - ia
                 b = min(max((dzb[j] - dz0) * dz_inv, 0.0), n_dz - 1.0)
-                ib = min(np.floor(b), n_dz - 2.0) if n_dz > 1 else 0.0
-                tb = b - ib if n_dz > 1 else 0.0
+                ib = max(min(np.floor(b), n_dz - 2.0), 0.0)
+                tb = b - ib
                 cells[j] = round_int(ib * n_du + ia)
                 w00, w10, w01, w11 = (1.0 - ta) * (1.0 - tb), ta * (1.0 - tb), (1.0 - ta) * tb, ta * tb
                 w00s[j], w10s[j], w01s[j], w11s[j] = w00, w10, w01, w11
