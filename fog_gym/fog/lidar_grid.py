@@ -36,7 +36,7 @@ import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before 
 from fog_gym._numba import pick, serial_twin
 from fog_gym.fog.depth import _height_term, _ramp, _ramp_integral, origin_constants
 from fog_gym.fog.lidar import GAMMA, REFERENCE_REFLECTIVITY
-from fog_gym.fog.lidar_pulse import (FIELD_COARSE, FIELD_STEP, _curves, beam_soft_maximum,
+from fog_gym.fog.lidar_pulse import (FIELD_COARSE, FIELD_STEP, _curves, beam_soft_maximum_from,
                                      field_pulse_weights, peak_extinction)  # fmt: skip
 from fog_gym.fog.vexp import round_int, vexp
 
@@ -188,7 +188,7 @@ _GRID_SPAN = 2048
 
 
 @njit(cache=True, nogil=True, parallel=True, error_model="numpy")
-def _hahner_grid(pts, pose, terms, r0s, dus, dzs, ks, hards, du0, du_inv, n_du, dz0, dz_inv, n_dz, best, where,
+def _hahner_grid(pts, pose, terms, consts, r0s, dus, dzs, ks, hards, du0, du_inv, n_du, dz0, dz_inv, n_dz, best, where,
                  stops, finals, reach, weights, ramp, weights5, ramp5, coarse, step, beta_max, log_noise, u, out,
                  attenuation, exact):  # fmt: skip
     # Each point from its grid cell's four curves where their decisions agree, else from its own beam (counted in
@@ -262,8 +262,8 @@ def _hahner_grid(pts, pose, terms, r0s, dus, dzs, ks, hards, du0, du_inv, n_du, 
                     near = i00 + (q & 1) * step_a + (q >> 1) * step_b
                     r_tmps[j] = (finals[i00, 4 + q] if flat else where[near, min(k, stops[near])]) * step
                 else:  # near a face: the point's own beam (the per-beam path)
-                    soft, kk = beam_soft_maximum(terms, pose[0], pose[1], dub[j], dzb[j], r0b[j], weights, ramp,
-                                                 weights5, ramp5, coarse, step, beta_max)  # fmt: skip
+                    soft, kk = beam_soft_maximum_from(terms, consts, pose[0], pose[1], dub[j], dzb[j], r0b[j],
+                                                      weights, ramp, weights5, ramp5, coarse, step, beta_max)
                     r_tmps[j] = kk * step
                     exact[c] += 1
                 softs[j] = soft
@@ -365,7 +365,7 @@ def fog_lidar_grid(pts: np.ndarray, terms: np.ndarray, pose: np.ndarray, log_noi
     n_du, n_dz = cell[2], cell[5]
     finals, reach = finals_cell(best, where, stops, 1 if n_du > 1 else 0, n_du if n_dz > 1 else 0)
     exact = np.zeros((n + _GRID_SPAN - 1) // _GRID_SPAN, np.int64)
-    pick(_hahner_grid, _hahner_grid_serial, n)(pts, pose, terms, r0s, dus, dzs, ks, hards, *cell, best, where, stops,
+    pick(_hahner_grid, _hahner_grid_serial, n)(pts, pose, terms, consts, r0s, dus, dzs, ks, hards, *cell, best, where, stops,
                                                finals, reach, weights, ramp, weights5, ramp5, FIELD_COARSE,
                                                FIELD_STEP, peak_extinction(terms), log_noise, u, out, attenuation,
                                                exact)  # fmt: skip

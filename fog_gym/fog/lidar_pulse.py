@@ -195,20 +195,36 @@ def _window(weights, k, trans, count):
 
 
 @njit(cache=True, inline="always")
-def _transmission(terms, u0, z0, du, dz, r):
-    # E = e^{−2τ(r)} on the ray. Its callers cache it in their own array: the array is not passed in, since numba
-    # counted a reference to it at every call of a helper that wrote to it (two atomic operations per node: 14–16 µs
-    # a beam against 4.1 µs without)
+def _transmission(terms, consts, u0, z0, du, dz, r):
+    # E = e^{−2τ(r)} on the ray (τ from the start's constants, origin_depth, when consts has rows; else
+    # segment_depth). Its callers cache it in their own array: the array is not passed in, since numba counted a
+    # reference to it at every call of a helper that wrote to it (two atomic operations per node: 14–16 µs a beam
+    # against 4.1 µs without)
+    if consts.shape[0]:
+        return np.exp(-2.0 * origin_depth(terms, consts, u0, z0, du, dz, r))
     return np.exp(-2.0 * segment_depth(terms, u0, z0, du, dz, r))
+
+
+#: No start constants: :func:`beam_soft_maximum` takes τ from :func:`~fog_gym.fog.depth.segment_depth`.
+_NO_CONSTS = np.zeros((0, 4))
 
 
 @njit(cache=True, inline="always")
 def beam_soft_maximum(terms, u0, z0, du, dz, r0, weights, ramp, weights5, ramp5, coarse, step, beta_max):
+    """:func:`beam_soft_maximum_from` with τ from :func:`~fog_gym.fog.depth.segment_depth` (the per-beam path's)."""
+    return beam_soft_maximum_from(terms, _NO_CONSTS, u0, z0, du, dz, r0, weights, ramp, weights5, ramp5, coarse, step,
+                                  beta_max)  # fmt: skip
+
+
+@njit(cache=True, inline="always")
+def beam_soft_maximum_from(terms, consts, u0, z0, du, dz, r0, weights, ramp, weights5, ramp5, coarse, step, beta_max):
     """The soft return's maximum ``max_{R ≤ R0} F(R)`` (s/m², with the backscatter) on a beam from ``(u0, z0)`` with
     unit-direction components ``du`` (along u) and ``dz`` (up) to range ``r0``, and the range node where it lies:
     ``E_j = e^{−2τ(jΔ)}`` on the ray, ``F_k = Σ_n W[k, n]·E_{k−n}`` (:func:`field_pulse_weights`) on coarse ranges every
     ``coarse`` nodes (their own weights ``weights5``), stopped by the bound, then on every node near the sensor (where
-    1/R′² varies fast) and around the coarse maximum."""
+    1/R′² varies fast) and around the coarse maximum. τ from the sensor's constants ``consts``
+    (:func:`~fog_gym.fog.depth.origin_constants`, one exponential a node for a height term; the same decisions) or,
+    with no rows, from :func:`~fog_gym.fog.depth.segment_depth`."""
     n_nodes = weights.shape[1]
     top = min(int(np.round(min(r0, 200.0) / step)), weights.shape[0] - 1)
     trans = np.full(top + 1, -1.0)  # E_j, computed when a window first needs it (written here, not in a helper)
@@ -217,21 +233,21 @@ def beam_soft_maximum(terms, u0, z0, du, dz, r0, weights, ramp, weights5, ramp5,
     beta1 = point_extinction(terms, u0 + du * XI_R2, z0 + dz * XI_R2)
     near = 0.0
     if one <= top:
-        trans[one] = near = _transmission(terms, u0, z0, du, dz, one * step)
+        trans[one] = near = _transmission(terms, consts, u0, z0, du, dz, one * step)
     lift = beta1 * near * np.exp(beta1 * (XI_R2 - XI_R1))
     best5, best5_k, near5, near5_k = -1.0, -1, -1.0, -1  # the coarse maximum, and the one near the sensor
     for k5 in range((max(one, clear) + coarse - 1) // coarse, top // coarse + 1):
         back = k5 * coarse - (n_nodes - 1)  # where the pulse's window begins (the bound takes E there)
         if best5 > 0.0 and back >= 0:
             if trans[back] < 0.0:
-                trans[back] = _transmission(terms, u0, z0, du, dz, back * step)
+                trans[back] = _transmission(terms, consts, u0, z0, du, dz, back * step)
             if _soft_bound(k5 * coarse * step, beta_max, trans[back]) < 0.95 * best5:
                 break  # no farther range can beat the maximum so far (a margin for the coarse weights)
         f = ramp5[k5] * lift
         for m in range(min(weights5.shape[1], k5 + 1)):
             j = coarse * (k5 - m)
             if trans[j] < 0.0:
-                trans[j] = _transmission(terms, u0, z0, du, dz, j * step)
+                trans[j] = _transmission(terms, consts, u0, z0, du, dz, j * step)
             f += weights5[k5, m] * trans[j]
         if f > best5:
             best5, best5_k = f, k5 * coarse
@@ -248,7 +264,7 @@ def beam_soft_maximum(terms, u0, z0, du, dz, r0, weights, ramp, weights5, ramp5,
             for m in range(min(n_nodes, k + 1)):
                 j = k - m
                 if trans[j] < 0.0:
-                    trans[j] = _transmission(terms, u0, z0, du, dz, j * step)
+                    trans[j] = _transmission(terms, consts, u0, z0, du, dz, j * step)
                 f += weights[k, m] * trans[j]
             if f > best:
                 best, best_k = f, k
