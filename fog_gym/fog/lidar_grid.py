@@ -13,8 +13,11 @@ same decision (fog return or hard target), the point takes it, with the soft ret
 for a fog return, the range of the nearest corner's maximum (where two banks' faces hold nearly equal maxima, it
 may lie at the other face than the point's own beam puts it: a few metres, well within the model's range noise);
 where they disagree — near a bank's face, where the maximum jumps with the direction — the point's own beam is
-integrated (``beam_soft_maximum``, the per-beam path). The decisions are the per-beam path's (tested on random
-scenes and fields); the cost is the grid's curves plus the few points near a face.
+integrated (``beam_soft_maximum_from``, the per-beam path's integration). The decisions are the per-beam path's (tested
+on random scenes and fields); the cost is the grid's curves plus the few points near a face. Both passes over the
+points take a block of :data:`_BLOCK` points at a time in loops the compiler vectorises where it can — the directions,
+τ term by term and the hard return (:func:`fog_gym.fog.vexp.vexp`) in :func:`_directions`; the cells and weights, then
+the rule in :func:`_hahner_grid` — with the same output bit for bit as scalar passes (digests pinned by a test).
 
 Example:
     >>> from fog_gym.fog.fields import FogBank
@@ -192,14 +195,13 @@ def _hahner_grid(pts, pose, terms, consts, r0s, dus, dzs, ks, hards, du0, du_inv
                  stops, finals, reach, weights, ramp, weights5, ramp5, coarse, step, beta_max, log_noise, u, out,
                  attenuation, exact):  # fmt: skip
     # Each point from its grid cell's four curves where their decisions agree, else from its own beam (counted in
-    # exact, a row per task);
-    # its hard return from _directions (< 0: no fog on the ray, the point as in clear air). A block of points at a
-    # time, in four loops: per point its cell, corner weights, nearest corner and the factor g of a fog return
-    # min(255, v·g) (a loop that vectorises); the corners' curves (one point at a time: a point at or beyond the range
-    # where its cell's four curves have all stopped, `reach`, reads the cell's row of `finals`, finals_cell), whose
-    # decisions agree when the least or the greatest corner decides for all (the decision grows with v); Hahner et
-    # al.'s rule (_field_rule's, with vexp for the range noise; it vectorises); the rows. A grid of one row or column
-    # reads its corners twice (the second with weight 0).
+    # exact, a row per task); its hard return from _directions (< 0: no fog on the ray, the point as in clear air). A
+    # block of points at a time, in four loops: per point its cell, corner weights, nearest corner and the factor g of
+    # a corner's fog return min(255, v·g) (a loop that vectorises); the corners' curves (one point at a time: a point
+    # at or beyond the range where its cell's four curves have all stopped, `reach`, reads the cell's row of `finals`,
+    # finals_cell), whose decisions agree when the least or the greatest corner decides for all (the decision grows
+    # with v); Hahner et al.'s rule (_field_rule's, with vexp for the range noise; it vectorises); the rows. A grid of
+    # one row or column reads its corners twice (the second with weight 0).
     n_pts = pts.shape[0]
     step_a, step_b = (1 if n_du > 1 else 0), (n_du if n_dz > 1 else 0)
     for c in prange((n_pts + _GRID_SPAN - 1) // _GRID_SPAN):
@@ -221,8 +223,7 @@ def _hahner_grid(pts, pose, terms, consts, r0s, dus, dzs, ks, hards, du0, du_inv
                 ratios[:m] = np.pi / GAMMA
             for j in range(m):
                 r0 = r0b[j]
-                gs[j] = np.rint(np.float64(pb[j, 3]) * 255.0) * r0 * r0 * ratios[j]  # (a corner's fog return, rounding
-                # aside)
+                gs[j] = np.rint(np.float64(pb[j, 3]) * 255.0) * r0 * r0 * ratios[j]
                 # the cell's indices held in floats (AVX2 converts no int64 to float); an axis of one node has inverse
                 # spacing 0, so a = ia = ta = 0 there without a branch (which would load the directions under a mask)
                 a = min(max((dub[j] - du0) * du_inv, 0.0), n_du - 1.0)
@@ -365,8 +366,8 @@ def fog_lidar_grid(pts: np.ndarray, terms: np.ndarray, pose: np.ndarray, log_noi
     n_du, n_dz = cell[2], cell[5]
     finals, reach = finals_cell(best, where, stops, 1 if n_du > 1 else 0, n_du if n_dz > 1 else 0)
     exact = np.zeros((n + _GRID_SPAN - 1) // _GRID_SPAN, np.int64)
-    pick(_hahner_grid, _hahner_grid_serial, n)(pts, pose, terms, consts, r0s, dus, dzs, ks, hards, *cell, best, where, stops,
-                                               finals, reach, weights, ramp, weights5, ramp5, FIELD_COARSE,
-                                               FIELD_STEP, peak_extinction(terms), log_noise, u, out, attenuation,
-                                               exact)  # fmt: skip
+    pick(_hahner_grid, _hahner_grid_serial, n)(pts, pose, terms, consts, r0s, dus, dzs, ks, hards, *cell, best,
+                                               where, stops, finals, reach, weights, ramp, weights5, ramp5,
+                                               FIELD_COARSE, FIELD_STEP, peak_extinction(terms), log_noise, u, out,
+                                               attenuation, exact)  # fmt: skip
     return int(exact.sum())

@@ -1,6 +1,6 @@
-"""An exponential the compiler can vectorise: :func:`vexp` (and :func:`round_int`), for kernels whose loops would otherwise call the C
-library's ``exp`` once per element (numba has no vector exponential without Intel's SVML, which this project does
-not install).
+"""An exponential the compiler can vectorise: :func:`vexp` (and :func:`round_int`), for kernels whose loops would
+otherwise call the C library's ``exp`` once per element (numba has no vector exponential without Intel's SVML, which
+this project does not install).
 
 ``e^x = 2^n·e^r`` with ``n = round(x / ln 2)`` (rounded by adding and subtracting 1.5·2⁵², no float-to-integer
 conversion, which AVX2 lacks for 64-bit integers), ``r = x − n·ln 2`` in two parts (|r| ≤ ln 2 / 2) and ``e^r`` by
