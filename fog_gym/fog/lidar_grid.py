@@ -70,7 +70,8 @@ def grid_shape(n_points: int, heights: bool) -> tuple[int, int]:
 HEIGHT = 1.0
 
 
-#: Points whose per-point values :func:`_directions` computes together: loops over a block vectorise.
+#: Points whose per-point values both passes compute together (:func:`_directions`, :func:`_hahner_grid`): loops over a
+#: block vectorise.
 _BLOCK = 256
 
 
