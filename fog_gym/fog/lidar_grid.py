@@ -147,12 +147,14 @@ _directions_serial = serial_twin(_directions)
 
 @njit(cache=True, inline="always")
 def _cell(du, dz, du0, du_inv, n_du, dz0, dz_inv, n_dz):
-    # The grid cell around a direction: its lower corner's indices along du and dz and the position within the cell.
+    # The grid cell around a direction: its lower corner's indices along du and dz (held in floats: AVX2 converts no
+    # int64 to float) and the position within the cell. An axis of one node has inverse spacing 0, so a = ia = ta = 0
+    # there without a branch (in a vector loop a branch had the directions loaded under masks, slow on AVX2).
     a = min(max((du - du0) * du_inv, 0.0), n_du - 1.0)
-    ia = min(int(a), n_du - 2) if n_du > 1 else 0
+    ia = max(min(np.floor(a), n_du - 2.0), 0.0)
     b = min(max((dz - dz0) * dz_inv, 0.0), n_dz - 1.0)
-    ib = min(int(b), n_dz - 2) if n_dz > 1 else 0
-    return ia, (a - ia if n_du > 1 else 0.0), ib, (b - ib if n_dz > 1 else 0.0)
+    ib = max(min(np.floor(b), n_dz - 2.0), 0.0)
+    return ia, a - ia, ib, b - ib
 
 
 @njit(cache=True, nogil=True, parallel=True)
@@ -167,7 +169,7 @@ def _node_tops(dus, dzs, ks, du0, du_inv, n_du, dz0, dz_inv, n_dz, tops):
         cells = np.zeros(nodes, np.int64)
         for m in range(c * n // chunks, (c + 1) * n // chunks):
             ia, _, ib, _ = _cell(dus[m], dzs[m], du0, du_inv, n_du, dz0, dz_inv, n_dz)
-            i = ib * n_du + ia
+            i = round_int(ib * n_du + ia)
             cells[i] = max(cells[i], ks[m])
         for i in range(nodes):
             ia, ib = i % n_du, i // n_du
@@ -225,14 +227,7 @@ def _hahner_grid(pts, pose, terms, consts, r0s, dus, dzs, ks, hards, du0, du_inv
             for j in range(m):
                 r0 = r0b[j]
                 gs[j] = np.rint(np.float64(pb[j, 3]) * 255.0) * r0 * r0 * ratios[j]
-                # the cell's indices held in floats (AVX2 converts no int64 to float); an axis of one node has inverse
-                # spacing 0, so a = ia = ta = 0 there without a branch (which would load the directions under a mask)
-                a = min(max((dub[j] - du0) * du_inv, 0.0), n_du - 1.0)
-                ia = max(min(np.floor(a), n_du - 2.0), 0.0)
-                ta = a - ia
-                b = min(max((dzb[j] - dz0) * dz_inv, 0.0), n_dz - 1.0)
-                ib = max(min(np.floor(b), n_dz - 2.0), 0.0)
-                tb = b - ib
+                ia, ta, ib, tb = _cell(dub[j], dzb[j], du0, du_inv, n_du, dz0, dz_inv, n_dz)
                 cells[j] = round_int(ib * n_du + ia)
                 w00, w10, w01, w11 = (1.0 - ta) * (1.0 - tb), ta * (1.0 - tb), (1.0 - ta) * tb, ta * tb
                 w00s[j], w10s[j], w01s[j], w11s[j] = w00, w10, w01, w11
