@@ -199,12 +199,13 @@ def _hahner_grid(pts, pose, terms, consts, r0s, dus, dzs, ks, hards, du0, du_inv
                  attenuation, exact):  # fmt: skip
     # Each point from its grid cell's four curves where their decisions agree, else from its own beam (counted in
     # exact, a row per task); its hard return from _directions (< 0: no fog on the ray, the point as in clear air). A
-    # block of points at a time, in four loops: per point its cell, corner weights, nearest corner and the factor g of
+    # block of points at a time, in five loops: per point its cell, corner weights, nearest corner and the factor g of
     # a corner's fog return min(255, v·g) (a loop that vectorises); the corners' curves (one point at a time: a point
     # at or beyond the range where its cell's four curves have all stopped, `reach`, reads the cell's row of `finals`,
     # finals_cell), whose decisions agree when the least or the greatest corner decides for all (the decision grows
-    # with v); Hahner et al.'s rule (_field_rule's, with vexp for the range noise; it vectorises); the rows. A grid of
-    # one row or column reads its corners twice (the second with weight 0).
+    # with v), kept as a flag: a branch on it, which goes either way from point to point, cost more than the loop's
+    # reads; the points whose corners disagree; Hahner et al.'s rule (_field_rule's, with vexp for the range noise;
+    # it vectorises); the rows. A grid of one row or column reads its corners twice (the second with weight 0).
     n_pts = pts.shape[0]
     step_a, step_b = (1 if n_du > 1 else 0), (n_du if n_dz > 1 else 0)
     for c in prange((n_pts + _GRID_SPAN - 1) // _GRID_SPAN):
@@ -213,6 +214,7 @@ def _hahner_grid(pts, pose, terms, consts, r0s, dus, dzs, ks, hards, du0, du_inv
         w00s, w10s, w01s, w11s = np.empty(_BLOCK), np.empty(_BLOCK), np.empty(_BLOCK), np.empty(_BLOCK)
         cells, qs = np.empty(_BLOCK, np.int64), np.empty(_BLOCK, np.int64)
         values = np.empty(_BLOCK, np.float32)
+        agree = np.empty(_BLOCK, np.bool_)
         stop = min((c + 1) * _GRID_SPAN, n_pts)
         for b0 in range(c * _GRID_SPAN, stop, _BLOCK):
             m = min(_BLOCK, stop - b0)
@@ -238,32 +240,32 @@ def _hahner_grid(pts, pose, terms, consts, r0s, dus, dzs, ks, hards, du0, du_inv
             for j in range(m):
                 i_hard, k, i00, g = hb[j], kb[j], cells[j], gs[j]
                 if i_hard < 0.0:  # no fog on the ray (the rule keeps the point)
-                    softs[j], r_tmps[j] = 0.0, 0.0
+                    softs[j], r_tmps[j], agree[j] = 0.0, 0.0, True
                     continue
-                flat = k >= reach[i00]
-                if flat:
+                q = qs[j]
+                if k >= reach[i00]:
                     v00, v10, v01, v11 = finals[i00, 0], finals[i00, 1], finals[i00, 2], finals[i00, 3]
-                    lo, hi = finals[i00, 8], finals[i00, 9]
+                    lo, hi, r_near = finals[i00, 8], finals[i00, 9], finals[i00, 4 + q]
                 else:
                     i10, i01 = i00 + step_a, i00 + step_b
                     i11 = i01 + step_a
                     v00, v10 = best[i00, min(k, stops[i00])], best[i10, min(k, stops[i10])]
                     v01, v11 = best[i01, min(k, stops[i01])], best[i11, min(k, stops[i11])]
                     lo, hi = min(min(v00, v10), min(v01, v11)), max(max(v00, v10), max(v01, v11))
+                    near = i00 + (q & 1) * step_a + (q >> 1) * step_b
+                    r_near = where[near, min(k, stops[near])]
                 soft = 0.0 + w00s[j] * v00
                 soft += w10s[j] * v10
                 soft += w01s[j] * v01
                 soft += w11s[j] * v11
-                if min(255.0, lo * g) > i_hard or not min(255.0, hi * g) > i_hard:  # the cell agrees: its
-                    q = qs[j]  # interpolated soft return decides as each corner does
-                    near = i00 + (q & 1) * step_a + (q >> 1) * step_b
-                    r_tmps[j] = (finals[i00, 4 + q] if flat else where[near, min(k, stops[near])]) * step
-                else:  # near a face: the point's own beam (the per-beam path)
+                softs[j], r_tmps[j] = soft, r_near * step
+                agree[j] = (min(255.0, lo * g) > i_hard) | (not min(255.0, hi * g) > i_hard)
+            for j in range(m):
+                if not agree[j]:  # near a face: the point's own beam (the per-beam path)
                     soft, kk = beam_soft_maximum_from(terms, consts, pose[0], pose[1], dub[j], dzb[j], r0b[j],
                                                       weights, ramp, weights5, ramp5, coarse, step, beta_max)
-                    r_tmps[j] = kk * step
+                    softs[j], r_tmps[j] = soft, kk * step
                     exact[c] += 1
-                softs[j] = soft
             for j in range(m):  # the rule: every value computed, then selected (the loop vectorises)
                 r0, i_hard, intensity = r0b[j], hb[j], pb[j, 3]
                 i_soft = _i_soft(softs[j], np.rint(np.float64(intensity) * 255.0), r0, ratios[j])

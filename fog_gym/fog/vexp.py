@@ -77,9 +77,11 @@ def vexp(x):
     t = _fma(xc, _LOG2E, _SHIFTER)
     n = t - _SHIFTER
     r = _fma(-n, _LN2_LO, _fma(-n, _LN2_HI, xc))
-    p = _fma(_C[13], r, _C[12])
-    for i in range(11, -1, -1):
-        p = _fma(p, r, _C[i])
+    r2 = r * r  # the terms from r⁴ on in pairs (Estrin's scheme: a shorter chain of dependent operations), the
+    r4 = r2 * r2  # first four in Horner's (their rounding decides the result's)
+    high = _fma(_fma(_fma(_C[13], r, _C[12]), r4, _fma(_fma(_C[11], r, _C[10]), r2, _fma(_C[9], r, _C[8]))), r4,
+                _fma(_fma(_C[7], r, _C[6]), r2, _fma(_C[5], r, _C[4])))  # fmt: skip
+    p = _fma(_fma(_fma(_fma(high, r, _C[3]), r, _C[2]), r, _C[1]), r, _C[0])
     y = p * _bits_float((_float_bits(t) - _SHIFTER_BITS + 1022) << 52) * 2.0  # 2^(n−1)·2: n = 1024 stays finite
     y = 0.0 if x < UNDERFLOW else y
     return np.inf if x > OVERFLOW else y
