@@ -3,16 +3,15 @@ otherwise call the C library's ``exp`` once per element (numba has no vector exp
 this project does not install).
 
 ``e^x = 2^n·e^r`` with ``n = round(x / ln 2)`` (rounded by adding and subtracting 1.5·2⁵², no float-to-integer
-conversion, which AVX2 lacks for 64-bit integers), ``r = x − n·ln 2`` in two parts (|r| ≤ ln 2 / 2) and ``e^r`` by
-its Taylor polynomial of degree 13 — the terms from ``r⁴`` on in Estrin's pairs (a chain of dependent operations
-half as long), the first four in Horner's scheme, whose rounding decides the result's; ``2^n`` is built in the
-exponent bits. Every multiply–add is
-LLVM's ``fma`` (rounded once: the same bits on every machine, one instruction where the machine has FMA). Within one
-unit in the last place of the C library's ``exp`` everywhere from ``e^−707`` to the overflow at ``x ≈ 709.78``, equal
-to it on 94 % of arguments (a test checks a million); below ``e^−707`` it gives 0 (the C library's subnormals, under
-1e−307), above it ``inf``, and ``nan`` for ``nan``. On this project's AVX2 machine a loop of them costs 4.1 ns an
-element against the C library's 7.5 (Horner's scheme throughout: 4.7 ns, the same bits on all but 4 in 100 000
-arguments; Estrin's throughout: 4.4 ns but two units in the last place).
+conversion, which AVX2 lacks for 64-bit integers), ``r = x − n·ln 2`` in two parts (|r| ≤ ln 2 / 2) and ``e^r`` by its
+Taylor polynomial of degree 13 — the terms from ``r⁴`` on in Estrin's pairs, the first four in Horner's scheme, whose
+rounding decides the result's (a chain of 8 dependent operations instead of 13); ``2^n`` is built in the exponent bits.
+Every multiply–add is LLVM's ``fma`` (rounded once: the same bits on every machine, one instruction where the machine
+has FMA). Within one unit in the last place of the C library's ``exp`` everywhere from ``e^−707`` to the overflow at
+``x ≈ 709.78``, equal to it on 94 % of arguments (a test checks a million); below ``e^−707`` it gives 0 (the C library's
+subnormals, under 1e−307), above it ``inf``, and ``nan`` for ``nan``. On this project's AVX2 machine a loop of them
+costs 4.1 ns an element against the C library's 7.5 (Horner's scheme throughout: 4.7 ns, the same bits on all but about
+4 in 100 000 arguments; Estrin's throughout: 4.4 ns but two units in the last place).
 
 Example:
     >>> from numba import njit
@@ -80,7 +79,7 @@ def vexp(x):
     t = _fma(xc, _LOG2E, _SHIFTER)
     n = t - _SHIFTER
     r = _fma(-n, _LN2_LO, _fma(-n, _LN2_HI, xc))
-    r2 = r * r  # the terms from r⁴ on in pairs (Estrin's scheme: a shorter chain of dependent operations), the
+    r2 = r * r  # the terms from r⁴ on in pairs (Estrin's scheme: fewer operations that wait on each other), the
     r4 = r2 * r2  # first four in Horner's (their rounding decides the result's)
     high = _fma(_fma(_fma(_C[13], r, _C[12]), r4, _fma(_fma(_C[11], r, _C[10]), r2, _fma(_C[9], r, _C[8]))), r4,
                 _fma(_fma(_C[7], r, _C[6]), r2, _fma(_C[5], r, _C[4])))  # fmt: skip
