@@ -418,7 +418,8 @@ def test_sums_of_fields_read_a_grid_of_curves_and_decide_as_each_beam_alone(fiel
 ])  # fmt: skip
 def test_the_grid_path_gives_the_points_it_gave_before_its_vector_loops(field, reflectance, digest):
     # Digests recorded with the grid path of 2026-12-03 (commit f11d9c6, before τ, the hard return and the rule moved
-    # into loops that vectorise, with vexp): the same bits — vexp's last-place differences never reach a 0–255 level.
+    # into loops that vectorise, with vexp, and before the corners' agreement became a flag): the same bits — vexp's
+    # last-place differences never reach a 0–255 level.
     import hashlib
 
     rng = np.random.default_rng(11)
