@@ -157,6 +157,17 @@ def _cell(du, dz, du0, du_inv, n_du, dz0, dz_inv, n_dz):
     return ia, a - ia, ib, b - ib
 
 
+@njit(cache=True, inline="always")
+def corner_steps(n_du, n_dz):
+    """A grid cell's steps from its lower corner's node to the next along ``du`` and along ``dz`` (0 along an axis of
+    one node: its cells read the same corner twice).
+
+    >>> corner_steps(16, 8), corner_steps(64, 1)
+    ((1, 16), (1, 0))
+    """
+    return (1 if n_du > 1 else 0), (n_du if n_dz > 1 else 0)
+
+
 @njit(cache=True, nogil=True, parallel=True)
 def _node_tops(dus, dzs, ks, du0, du_inv, n_du, dz0, dz_inv, n_dz, tops):
     # Per chunk of the points (a row of tops) and grid node, the farthest range node of the points whose cell it is a
@@ -207,7 +218,7 @@ def _hahner_grid(pts, pose, terms, consts, r0s, dus, dzs, ks, hards, du0, du_inv
     # reads; the points whose corners disagree; Hahner et al.'s rule (_field_rule's, with vexp for the range noise;
     # it vectorises); the rows. A grid of one row or column reads its corners twice (the second with weight 0).
     n_pts = pts.shape[0]
-    step_a, step_b = (1 if n_du > 1 else 0), (n_du if n_dz > 1 else 0)
+    step_a, step_b = corner_steps(n_du, n_dz)
     for c in prange((n_pts + _GRID_SPAN - 1) // _GRID_SPAN):
         softs, r_tmps, gs, ratios, scales = (np.empty(_BLOCK), np.empty(_BLOCK), np.empty(_BLOCK), np.empty(_BLOCK),
                                              np.empty(_BLOCK))  # fmt: skip
@@ -362,7 +373,7 @@ def fog_lidar_grid(pts: np.ndarray, terms: np.ndarray, pose: np.ndarray, log_noi
     weights, ramp = field_pulse_weights()
     weights5, ramp5 = field_pulse_weights(FIELD_STEP * FIELD_COARSE)
     n_du, n_dz = cell[2], cell[5]
-    finals, reach = finals_cell(best, where, stops, 1 if n_du > 1 else 0, n_du if n_dz > 1 else 0)
+    finals, reach = finals_cell(best, where, stops, *corner_steps(n_du, n_dz))
     exact = np.zeros((n + _GRID_SPAN - 1) // _GRID_SPAN, np.int64)
     pick(_hahner_grid, _hahner_grid_serial, n)(pts, pose, terms, consts, r0s, dus, dzs, ks, hards, *cell, best,
                                                where, stops, finals, reach, weights, ramp, weights5, ramp5,
