@@ -39,7 +39,9 @@ class ResizeCameras(gym.ObservationWrapper):
     def observation(self, observation: dict) -> dict:
         out = dict(observation)
         for c in self.cameras:
-            img = cv2.resize(observation[c], self.size, interpolation=cv2.INTER_AREA)
+            img = observation[c]
+            if img.shape[1::-1] != self.size:  # (the same size: area resampling is the identity)
+                img = cv2.resize(img, self.size, interpolation=cv2.INTER_AREA)
             if self.grayscale:
                 out[c] = cv2.cvtColor(img, cv2.COLOR_RGB2GRAY)[None]
             else:

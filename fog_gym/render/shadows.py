@@ -18,6 +18,8 @@ Example:
 
 from __future__ import annotations
 
+import functools
+
 from collections.abc import Mapping
 from typing import Any, NamedTuple
 
@@ -173,7 +175,14 @@ def _fill(grid: np.ndarray, prims: Primitives, sun: np.ndarray, ox: float, oy: f
     lib = LIBRARY.arrays()
     reach = 0.5 * max(grid.shape) * resolution
     return _shadow_map(grid, prims.centers, prims.halves, prims.yaws, prims.meshes, lib.outline, lib.outline_start,
-                       sun / np.linalg.norm(sun), float(ox), float(oy), 1.0 / resolution, float(reach))  # fmt: skip
+                       np.array(_unit(tuple(sun.tolist()))), float(ox), float(oy), 1.0 / resolution, float(reach))  # fmt: skip
+
+
+@functools.lru_cache(maxsize=64)
+def _unit(sun: tuple[float, float, float]) -> tuple[float, float, float]:
+    """``sun`` over its length, once per sun (``np.linalg.norm`` calls BLAS, which releases the GIL)."""
+    v = np.asarray(sun, np.float64)
+    return tuple((v / np.linalg.norm(v)).tolist())
 
 
 class ShadowCache:

@@ -11,6 +11,7 @@ Example:
 
 from __future__ import annotations
 
+import bisect
 from dataclasses import dataclass
 
 import numpy as np
@@ -35,13 +36,14 @@ EGO_COLOR = np.array([0.75, 0.10, 0.10])
 _CLASSES = list(CLASS_SPECS)
 _CDF = np.array([CLASS_SPECS[c][0] for c in _CLASSES]).cumsum()
 _CDF /= _CDF[-1]
+_CDF_LIST = _CDF.tolist()  # (numpy's searchsorted releases the GIL for one number; bisect does not)
 
 
 def draw_vehicle(rng: np.random.Generator) -> tuple[int, tuple[float, float, float], np.ndarray]:
     """``(class, (length, width, height), colour)`` of one spawned vehicle, drawn from ``rng`` in a fixed order (class,
     length, width, height, colour, brightness). The class is ``rng.choice(classes, p=shares)`` written out as numpy
     computes it (one uniform against the normalised cumulative shares), which is the same draw without its checks."""
-    cls = int(_CLASSES[int(_CDF.searchsorted(rng.random(), side="right"))])
+    cls = int(_CLASSES[bisect.bisect_right(_CDF_LIST, rng.random())])  # _CDF.searchsorted(side="right"), in Python
     _, lr, wr, hr = CLASS_SPECS[cls]
     length, width, height = float(rng.uniform(*lr)), float(rng.uniform(*wr)), float(rng.uniform(*hr))
     color = _CAR_COLORS[rng.integers(len(_CAR_COLORS))] * rng.uniform(0.9, 1.05)
@@ -62,3 +64,20 @@ class VehicleState:
 
     def __len__(self) -> int:
         return len(self.ids)
+
+    def take(self, mask: np.ndarray) -> VehicleState:
+        """The vehicles where the boolean ``mask`` holds, every array a copy, in order. Contiguous rows (the ego:
+        row 0; every other vehicle: rows 1 …) are sliced rather than indexed: numpy releases the GIL to index with a
+        mask or an index array however few the rows, and in the pixel vector env another world's thread then takes
+        it for its whole stretch of Python (docs/performance.md).
+
+        >>> v = VehicleState(np.array([1, 7, 9]), np.zeros(3, np.int8), np.eye(3), np.ones((3, 3)), np.zeros(3),
+        ...                  np.zeros((3, 3)), np.ones((3, 3)))
+        >>> v.take(v.ids != 1).ids.tolist(), v.take(v.ids == 1).centers.tolist(), len(v.take(v.ids == 3))
+        ([7, 9], [[1.0, 0.0, 0.0]], 0)
+        """
+        rows = np.flatnonzero(mask)
+        if len(rows) == 0 or rows[-1] - rows[0] + 1 == len(rows):
+            sel = slice(int(rows[0]), int(rows[-1]) + 1) if len(rows) else slice(0, 0)
+            return VehicleState(*(getattr(self, f)[sel].copy() for f in self.__dataclass_fields__))
+        return VehicleState(*(getattr(self, f)[rows] for f in self.__dataclass_fields__))

@@ -245,8 +245,9 @@ def _mesh_primitives(state: VehicleState, night: bool, exclude_id: int | None) -
     from fog_gym.world.bodies import body_type_of
     from fog_gym.world.meshlib import body_mesh_id
 
-    keep = np.ones(len(state), bool) if exclude_id is None else state.ids != exclude_id
-    ids, classes = state.ids[keep], state.classes[keep]
+    if exclude_id is not None:
+        state = state.take(state.ids != exclude_id)
+    ids, classes = state.ids, state.classes
     key = (ids.tobytes(), classes.tobytes())
     bodies = _BODIES.get(key)
     if bodies is None:  # each vehicle's mesh and tag, per set of vehicles (shared by their frames; only read)
@@ -257,10 +258,10 @@ def _mesh_primitives(state: VehicleState, night: bool, exclude_id: int | None) -
     meshes, tags = bodies
     n = len(ids)
     return Primitives(
-        centers=np.ascontiguousarray(state.centers[keep], np.float64),
-        halves=np.ascontiguousarray(state.sizes[keep] / 2, np.float64),
-        yaws=np.ascontiguousarray(state.yaws[keep], np.float64),
-        colors=np.ascontiguousarray(state.colors[keep], np.float64),
+        centers=np.array(state.centers, np.float64, order="C"),
+        halves=np.ascontiguousarray(state.sizes / 2, np.float64),
+        yaws=np.array(state.yaws, np.float64, order="C"),
+        colors=np.array(state.colors, np.float64, order="C"),
         tags=tags,
         insts=ids.astype(np.uint16),
         emissive=np.full(n, bool(night)),
@@ -273,11 +274,7 @@ _BODIES: dict[tuple, tuple[np.ndarray, np.ndarray]] = {}
 
 def ego_primitives(scene: Scene) -> Primitives:
     """The ego's own primitive (the sensors never see it; its shadow they do)."""
-    import dataclasses
-
-    v = scene.vehicles
-    mine = v.ids == scene.ego_id
-    state = VehicleState(**{f.name: getattr(v, f.name)[mine] for f in dataclasses.fields(v)})
+    state = scene.vehicles.take(scene.vehicles.ids == scene.ego_id)
     return vehicle_primitives(state, scene.lighting.night, meshes=scene.geometry == "meshes")
 
 

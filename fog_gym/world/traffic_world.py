@@ -286,7 +286,7 @@ class NativeTrafficWorld:
         w = self.index
         rewards = self.core.rewards(w)
         info = {"speed": self.ego_speed, "crashed": self.ego_crashed, "action": a, "rewards": rewards}
-        return self.core.reward(w), self.ego_crashed, info
+        return self.core.reward(w, rewards), self.ego_crashed, info
 
     def vehicle_state(self) -> VehicleState:
         return VehicleState(*self.core.vehicle_arrays(self.index))

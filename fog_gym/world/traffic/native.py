@@ -249,10 +249,11 @@ class NativeTraffic:
         return {"collision_reward": out[2], "right_lane_reward": out[3], "high_speed_reward": out[4],
                 "on_road_reward": out[5]}  # fmt: skip
 
-    def reward(self, w: int) -> float:
-        """``HighwayEnv._reward`` of world ``w`` (weights and normalisation from the config)."""
+    def reward(self, w: int, rewards: dict[str, float] | None = None) -> float:
+        """``HighwayEnv._reward`` of world ``w`` (weights and normalisation from the config); ``rewards``: its
+        :meth:`rewards`, when the caller has them already."""
         c = self.config
-        rewards = self.rewards(w)
+        rewards = self.rewards(w) if rewards is None else rewards
         reward = sum(c.get(name, 0) * r for name, r in rewards.items())
         if c["normalize_reward"]:
             lo, hi = c["collision_reward"], c["high_speed_reward"] + c["right_lane_reward"]
