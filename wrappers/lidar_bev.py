@@ -46,7 +46,7 @@ class LidarBEV(gym.ObservationWrapper):
         self.observation_space = spaces.Dict(obs_spaces)
 
     def observation(self, observation: dict) -> dict:
-        pts = unpack_points(observation, self.channel)
+        pts = unpack_points(observation, self.channel, copy=False)  # (read only)
         img = lidar_bev(pts, self.size, self.metres, self.ahead, self.sensor_height)
         out = dict(observation)
         if self.drop_channel:

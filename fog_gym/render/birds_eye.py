@@ -101,7 +101,7 @@ def lidar_bev(points: np.ndarray, size: int, metres: float, ahead: float = 0.0, 
     pts = np.ascontiguousarray(points, np.float32)
     if pts.ndim != 2 or pts.shape[1] < 3:
         raise ValueError(f"expected LiDAR points of shape (N, >=3), got {pts.shape}")
-    img = np.zeros((2, int(size), int(size)), np.uint8)
+    img = np.empty((2, int(size), int(size)), np.uint8)  # (zeroed by _bev: numpy's zeros release the GIL)
     f = np.float32
     _bev(pts, img, f(size / metres), f(size / 2), f(ahead), f(sensor_height))
     return img
@@ -109,6 +109,7 @@ def lidar_bev(points: np.ndarray, size: int, metres: float, ahead: float = 0.0, 
 
 @njit(cache=True, nogil=True)
 def _bev(pts, img, scale, half, ahead, sensor_height):
+    img[:] = 0
     size = img.shape[1]
     lo, hi, four, full = np.float32(0.3), np.float32(4.0), np.float32(4.0), np.float32(255.0)
     for n in range(pts.shape[0]):

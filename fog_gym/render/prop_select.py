@@ -51,21 +51,26 @@ def select_rows(centers: np.ndarray, diagonals: np.ndarray, n_boxes: int, owner:
         raise ValueError(f"select_rows needs centres (N, 2+), diagonals (N,) and 0 <= n_boxes <= N, got "
                          f"{centers.shape}, {diagonals.shape}, {n_boxes}")  # fmt: skip
     own = _NO_OWNER if owner is None else np.ascontiguousarray(owner, np.int64)
-    if own.shape != (len(centers) - n_boxes if owner is not None else 0,) or (len(own) and not
-                                                                          0 <= own.min() <= own.max() < n_boxes):
-        raise ValueError(f"owner must give each of the {len(centers) - n_boxes} parts its box (0 .. {n_boxes - 1}), "
-                         f"got shape {own.shape}")  # fmt: skip
+    bad = ValueError(f"owner must give each of the {len(centers) - n_boxes} parts its box (0 .. {n_boxes - 1}), "
+                     f"got shape {own.shape}")  # fmt: skip
+    if own.shape != (len(centers) - n_boxes if owner is not None else 0,):
+        raise bad
     cams = view_table(ego_pose, views if views is not None else np.zeros((0, 4)))
     rows = np.empty(len(centers), np.int64)
     seen = np.empty(len(centers), np.int64)
     n, m = _select(np.ascontiguousarray(centers, np.float64), np.ascontiguousarray(diagonals, np.float64), n_boxes,
                    own, owner is not None, float(ego_pose[0]), float(ego_pose[1]), float(render_radius),
                    float(detail_radius), cams, views is not None, rows, seen)  # fmt: skip
+    if n < 0:  # an owner outside the boxes (checked in the kernel, before it selects)
+        raise bad
     return rows[:n], (seen[:m] if views is not None else rows[:n])
 
 
 @njit(cache=True, nogil=True)
 def _select(centers, diagonals, n_boxes, owner, parts, ex, ey, render_radius, detail_radius, cams, cull, rows, seen):
+    for p in range(owner.shape[0]):  # every part's box among the boxes, else (-1, -1) and nothing selected
+        if owner[p] < 0 or owner[p] >= n_boxes:
+            return -1, -1
     # the boxes drawn as boxes, then the parts of the boxes drawn as parts (a box's parts: d ≤ detail_radius)
     state = np.zeros(n_boxes, np.uint8)  # 0 out, 1 as its box, 2 as its parts
     n = 0
@@ -94,17 +99,21 @@ def take_concat(table: Primitives, rows: np.ndarray, tail: Primitives) -> Primit
     """The boxes of ``table`` at ``rows`` followed by every box of ``tail``
     (``Primitives.concat(table.take(rows), tail)``, in one pass)."""
     rows = np.ascontiguousarray(rows, np.int64)
-    if len(rows) and (rows.min() < 0 or rows.max() >= len(table)):
-        raise IndexError(f"rows must index the table's {len(table)} boxes, got {rows.min()}..{rows.max()}")
     n = len(rows) + len(tail)
     out = tuple(np.empty((n, *shape), dtype) for dtype, shape in LAYOUT.values())
-    _gather(rows, tuple(getattr(table, k) for k in LAYOUT), tuple(getattr(tail, k) for k in LAYOUT), out)
+    if not _gather(rows, tuple(getattr(table, k) for k in LAYOUT), tuple(getattr(tail, k) for k in LAYOUT), out):
+        raise IndexError(f"rows must index the table's {len(table)} boxes, got {rows.min()}..{rows.max()}")
     return Primitives(*out)
 
 
 @njit(cache=True, nogil=True)
 def _gather(rows, src, tail, out):
-    # each field (LAYOUT's order: three (N, 3) float64, then five (N,) of their own types) of src at rows, then tail's
+    # False, having written nothing, when a row lies outside src (the check here: numpy's min and max of the rows
+    # release the GIL); else each field (LAYOUT's order: three (N, 3) float64, then five (N,) of their own types) of
+    # src at rows, then tail's
+    for i in range(rows.shape[0]):
+        if rows[i] < 0 or rows[i] >= src[0].shape[0]:
+            return False
     _gather2(rows, src[0], tail[0], out[0])
     _gather2(rows, src[1], tail[1], out[1])
     _gather1(rows, src[2], tail[2], out[2])
@@ -113,6 +122,7 @@ def _gather(rows, src, tail, out):
     _gather1(rows, src[5], tail[5], out[5])
     _gather1(rows, src[6], tail[6], out[6])
     _gather1(rows, src[7], tail[7], out[7])
+    return True
 
 
 @njit(cache=True, inline="always")

@@ -230,6 +230,26 @@ INTENSITY_MODELS: tuple[str, ...] = ("carla", "reflectance")
 
 
 @njit(cache=True, nogil=True)
+def _kept_rays(u, rate, dirs):
+    """``rays = np.flatnonzero(u >= rate)`` and ``dirs.take(rays, axis=0)``: the rays the general drop-off keeps, in
+    one call (numpy's comparison, ``flatnonzero`` and ``take`` each release the GIL, which in the pixel vector env
+    another world's thread then holds for its whole stretch of Python)."""
+    n = 0
+    for i in range(u.shape[0]):
+        if u[i] >= rate:
+            n += 1
+    rays = np.empty(n, np.int64)
+    out = np.empty((n, 3), dirs.dtype)
+    k = 0
+    for i in range(u.shape[0]):
+        if u[i] >= rate:
+            rays[k] = i
+            out[k, 0], out[k, 1], out[k, 2] = dirs[i, 0], dirs[i, 1], dirs[i, 2]
+            k += 1
+    return rays, out
+
+
+@njit(cache=True, nogil=True)
 def _lidar_points(dirs, dist, index, noise, uniform, attenuation, limit, alpha, beta, reflect, extra):
     """Kept returns as (N, 4) float32 x, y, z, intensity; ``noise`` / ``uniform`` empty when switched off;
     ``reflect`` (N,) float32 the reflectivity × incidence factor of each ray's hit, or empty (CARLA's model);
@@ -364,8 +384,7 @@ def simulate_lidar(
     dirs = lidar_directions(cfg, simulation_frequency, start_angle)
     rays = None
     if cfg.dropoff_general_rate > _EPS:  # rays skipped before tracing
-        rays = np.flatnonzero(rng.random(dirs.shape[0]) >= cfg.dropoff_general_rate)
-        dirs = dirs.take(rays, axis=0)
+        rays, dirs = _kept_rays(rng.random(dirs.shape[0]), float(cfg.dropoff_general_rate), dirs)
     n = dirs.shape[0]
     times = None
     if motion is None:

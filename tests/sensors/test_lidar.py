@@ -391,3 +391,17 @@ def test_bad_call_arguments_raise():
         simulate_semantic_lidar(cfg, np.eye(3), Primitives.empty(), ROAD)
     with pytest.raises(ValueError, match="max_range"):
         cast_rays(np.zeros(3), np.ones((1, 3)), -1.0, Primitives.empty())
+
+
+@settings(max_examples=40, deadline=None)
+@given(n=st.integers(0, 300), rate=st.floats(0.0, 1.0), seed=st.integers(0, 2**32 - 1))
+def test_the_rays_the_general_drop_off_keeps_are_numpys_comparison_and_take(n, rate, seed):
+    from fog_gym.sensors.lidar import _kept_rays
+
+    rng = np.random.default_rng(seed)
+    u, dirs = rng.random(n), rng.normal(size=(n, 3))
+    dirs.flags.writeable = False  # as the cached ray pattern is
+    rays, kept = _kept_rays(u, rate, dirs)
+    want = np.flatnonzero(u >= rate)
+    assert rays.dtype == want.dtype and np.array_equal(rays, want)
+    assert kept.dtype == dirs.dtype and np.array_equal(kept, dirs.take(want, axis=0))
