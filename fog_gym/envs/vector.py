@@ -278,8 +278,9 @@ class FogDriveVectorEnv(gym.vector.VectorEnv):
             infos = self._add_info(infos, info, i)
         return infos
 
-    def _map(self, f: Any, worlds: Any) -> list:
-        """``[f(i) for i in worlds]``, on the worker threads when there are several."""
+    def _map(self, f: Any, worlds: Any) -> Any:
+        """``f(i)`` for each of ``worlds``, in order: on the worker threads when there are several, each result as soon
+        as it is done (the caller merges a world's info while the threads step the later worlds)."""
         worlds = list(worlds)
         if self.threads == 1 or len(worlds) < 2:
             return [f(i) for i in worlds]
@@ -287,7 +288,7 @@ class FogDriveVectorEnv(gym.vector.VectorEnv):
             from fog_gym._numba import worker_pool
 
             self._pool = worker_pool(self.threads)
-        return list(self._pool.map(f, worlds))
+        return _in_order([self._pool.submit(f, i) for i in worlds])
 
     # -- sub-env access (as SyncVectorEnv) ------------------------------------------------------------
     def get_attr(self, name: str) -> tuple[Any, ...]:
@@ -361,6 +362,18 @@ def world_threads(threads: Any, num_envs: int) -> int:
     if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or threads < 1:
         raise ValueError(f"threads must be an integer >= 1 or None, got {threads!r}")
     return int(threads)
+
+
+def _in_order(futures: list) -> Any:
+    """The futures' results in order, each as soon as it is done; however the caller stops (an error), every world's
+    work has finished before it goes on (no world still stepping on a thread)."""
+    from concurrent.futures import wait
+
+    try:
+        for future in futures:
+            yield future.result()
+    finally:
+        wait(futures)
 
 
 def reset_mask(options: dict[str, Any] | None, num_envs: int) -> np.ndarray:

@@ -140,17 +140,18 @@ class _NearProps:
     def select(cls, boxes: Primitives, detail: tuple | None, ego: np.ndarray, render_radius: float,
                detail_radius: float) -> _NearProps:  # fmt: skip
         keep = boxes.near_mask(ego, render_radius + NEAR_MARGIN)
-        near = boxes.take(keep)
+        kept = np.flatnonzero(keep)
         owner = None
-        table = near
+        parts = Primitives.empty()
         if detail is not None:
             local = np.full(len(keep), -1, np.int64)
-            local[keep] = np.arange(int(keep.sum()))
+            local[keep] = np.arange(len(kept))
             rows = local[detail[1]] >= 0
             owner = local[detail[1]][rows]
-            table = Primitives.concat(near, detail[0].take(rows))
+            parts = take_concat(detail[0], np.flatnonzero(rows), Primitives.empty())
+        table = take_concat(boxes, kept, parts)  # the near boxes, then their parts (one gather, not 8 takes each)
         diagonals = np.linalg.norm(table.halves, axis=1)
-        return cls(ego, table, len(near), owner, diagonals)
+        return cls(ego, table, len(kept), owner, diagonals)
 
 
 class CameraRig:

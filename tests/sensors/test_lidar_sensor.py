@@ -9,6 +9,7 @@ import pytest
 
 import fog_gym
 from fog_gym.dataset.layout import FOGDRIVE_CHANNELS
+from fog_gym.dataset.packing import pack_points
 from fog_gym.sensors.lidar import LidarConfig
 from fog_gym.sensors import LidarSensor, sensor_class
 
@@ -41,7 +42,7 @@ def test_measure_returns_points_inside_the_space():
     pts = s.measure(env.scene, env.cameras.primitives(env.scene), np.random.default_rng(0), 0)["LIDAR_TOP"]
     space = s.space()
     assert pts.dtype == np.float32 and pts.shape[1] == 4 and 0 < len(pts) <= space.shape[0]
-    assert space.contains(fog_gym.dataset.packing.pack_points(pts, space.shape[0]))
+    assert space.contains(pack_points(pts, space.shape[0]))
     env.close()
 
 
