@@ -174,8 +174,9 @@ def _checked(sun_dir: np.ndarray, half: float, resolution: float) -> np.ndarray:
 def _fill(grid: np.ndarray, prims: Primitives, sun: np.ndarray, ox: float, oy: float, resolution: float) -> np.ndarray:
     lib = LIBRARY.arrays()
     reach = 0.5 * max(grid.shape) * resolution
+    unit = np.array(_unit(tuple(sun.tolist())))
     return _shadow_map(grid, prims.centers, prims.halves, prims.yaws, prims.meshes, lib.outline, lib.outline_start,
-                       np.array(_unit(tuple(sun.tolist()))), float(ox), float(oy), 1.0 / resolution, float(reach))  # fmt: skip
+                       unit, float(ox), float(oy), 1.0 / resolution, float(reach))  # fmt: skip
 
 
 @functools.lru_cache(maxsize=64)
