@@ -309,6 +309,8 @@ def setup_faces(
                 corners_c[k, 0] = R[0, 0] * wx + R[0, 1] * wy + R[0, 2] * wz + T[0]
                 corners_c[k, 1] = R[1, 0] * wx + R[1, 1] * wy + R[1, 2] * wz + T[1]
                 corners_c[k, 2] = R[2, 0] * wx + R[2, 1] * wy + R[2, 2] * wz + T[2]
+            if not _covers_pixel(corners_c, 8, fx, fy, cx, cy, width, height):
+                continue  # the whole box between pixel centres, so each of its faces (far scenery on small images)
             for f in range(6):
                 ln0, ln1, ln2 = _FACE_NORMALS[f, 0], _FACE_NORMALS[f, 1], _FACE_NORMALS[f, 2]
                 nwx = ln0 * cyaw - ln1 * syaw

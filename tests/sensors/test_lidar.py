@@ -1,5 +1,6 @@
 """LiDAR, semantic LiDAR and radar on hand-built scenes with known answers (fog_gym.sensors.lidar, fog_gym.sensors.raycast)."""
 
+import functools
 import math
 
 import numpy as np
@@ -405,3 +406,23 @@ def test_the_rays_the_general_drop_off_keeps_are_numpys_comparison_and_take(n, r
     want = np.flatnonzero(u >= rate)
     assert rays.dtype == want.dtype and np.array_equal(rays, want)
     assert kept.dtype == dirs.dtype and np.array_equal(kept, dirs.take(want, axis=0))
+
+
+@functools.lru_cache(maxsize=1)
+def _azimuth_pair():
+    from numba import njit
+
+    from fog_gym.sensors.raycast import _pseudo_azimuth, _pseudo_azimuth_select
+
+    return njit(lambda a, b: (_pseudo_azimuth(a, b), _pseudo_azimuth_select(a, b)))
+
+
+_EDGES = [0.0, -0.0, 1.0, -1.0, 1e-300, -1e-300, 5e-324, -5e-324, 1e300, -1e300]
+
+
+@settings(max_examples=80, deadline=None)
+@given(x=st.one_of(st.sampled_from(_EDGES), st.floats(-1e6, 1e6, allow_nan=False)),
+       y=st.one_of(st.sampled_from(_EDGES), st.floats(-1e6, 1e6, allow_nan=False)))
+def test_the_casts_branch_free_pseudo_azimuth_is_the_same_number_as_the_branching_one(x, y):
+    want, got = _azimuth_pair()(x, y)
+    assert np.float64(got).tobytes() == np.float64(want).tobytes()
