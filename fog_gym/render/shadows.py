@@ -19,7 +19,6 @@ Example:
 from __future__ import annotations
 
 import functools
-
 from collections.abc import Mapping
 from typing import Any, NamedTuple
 
