@@ -76,6 +76,9 @@ class VehicleState:
         >>> v.take(v.ids != 1).ids.tolist(), v.take(v.ids == 1).centers.tolist(), len(v.take(v.ids == 3))
         ([7, 9], [[1.0, 0.0, 0.0]], 0)
         """
+        mask = np.asarray(mask)
+        if mask.dtype != np.bool_ or mask.shape != (len(self),):
+            raise ValueError(f"mask must be a boolean array of shape ({len(self)},), got {mask.dtype} {mask.shape}")
         rows = np.flatnonzero(mask)
         if len(rows) == 0 or rows[-1] - rows[0] + 1 == len(rows):
             sel = slice(int(rows[0]), int(rows[-1]) + 1) if len(rows) else slice(0, 0)

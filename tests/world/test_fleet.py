@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 
 import numpy as np
+import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
@@ -36,3 +37,10 @@ def test_take_gives_the_rows_of_mask_indexing_as_copies(n, seed, kind):
         a, b = getattr(got, f.name), getattr(state, f.name)[mask]
         assert a.dtype == b.dtype and a.shape == b.shape and np.array_equal(a, b) and a.flags.c_contiguous
         assert not np.shares_memory(a, getattr(state, f.name))
+
+
+def test_take_refuses_anything_but_a_mask_of_every_vehicle():
+    state = _state(3, np.random.default_rng(0))
+    for bad in (np.array([0, 2]), np.ones(2, bool), np.ones((3, 1), bool), [1, 0, 1]):
+        with pytest.raises(ValueError, match="mask must be a boolean array of shape \\(3,\\)"):
+            state.take(bad)
