@@ -51,10 +51,8 @@ def select_rows(centers: np.ndarray, diagonals: np.ndarray, n_boxes: int, owner:
         raise ValueError(f"select_rows needs centres (N, 2+), diagonals (N,) and 0 <= n_boxes <= N, got "
                          f"{centers.shape}, {diagonals.shape}, {n_boxes}")  # fmt: skip
     own = _NO_OWNER if owner is None else np.ascontiguousarray(owner, np.int64)
-    bad = ValueError(f"owner must give each of the {len(centers) - n_boxes} parts its box (0 .. {n_boxes - 1}), "
-                     f"got shape {own.shape}")  # fmt: skip
     if own.shape != (len(centers) - n_boxes if owner is not None else 0,):
-        raise bad
+        raise _owner_error(len(centers) - n_boxes, n_boxes, own.shape)
     cams = view_table(ego_pose, views if views is not None else np.zeros((0, 4)))
     rows = np.empty(len(centers), np.int64)
     seen = np.empty(len(centers), np.int64)
@@ -62,8 +60,12 @@ def select_rows(centers: np.ndarray, diagonals: np.ndarray, n_boxes: int, owner:
                    own, owner is not None, float(ego_pose[0]), float(ego_pose[1]), float(render_radius),
                    float(detail_radius), cams, views is not None, rows, seen)  # fmt: skip
     if n < 0:  # an owner outside the boxes (checked in the kernel, before it selects)
-        raise bad
+        raise _owner_error(len(centers) - n_boxes, n_boxes, own.shape)
     return rows[:n], (seen[:m] if views is not None else rows[:n])
+
+
+def _owner_error(n_parts: int, n_boxes: int, shape: tuple) -> ValueError:
+    return ValueError(f"owner must give each of the {n_parts} parts its box (0 .. {n_boxes - 1}), got shape {shape}")
 
 
 @njit(cache=True, nogil=True)

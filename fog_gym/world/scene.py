@@ -245,8 +245,7 @@ def _mesh_primitives(state: VehicleState, night: bool, exclude_id: int | None) -
     from fog_gym.world.bodies import body_type_of
     from fog_gym.world.meshlib import body_mesh_id
 
-    if exclude_id is not None:
-        state = state.take(state.ids != exclude_id)
+    state = state.take(np.ones(len(state), bool) if exclude_id is None else state.ids != exclude_id)  # (copies)
     ids, classes = state.ids, state.classes
     key = (ids.tobytes(), classes.tobytes())
     bodies = _BODIES.get(key)
@@ -258,10 +257,10 @@ def _mesh_primitives(state: VehicleState, night: bool, exclude_id: int | None) -
     meshes, tags = bodies
     n = len(ids)
     return Primitives(
-        centers=np.array(state.centers, np.float64, order="C"),
+        centers=np.ascontiguousarray(state.centers, np.float64),
         halves=np.ascontiguousarray(state.sizes / 2, np.float64),
-        yaws=np.array(state.yaws, np.float64, order="C"),
-        colors=np.array(state.colors, np.float64, order="C"),
+        yaws=np.ascontiguousarray(state.yaws, np.float64),
+        colors=np.ascontiguousarray(state.colors, np.float64),
         tags=tags,
         insts=ids.astype(np.uint16),
         emissive=np.full(n, bool(night)),
