@@ -42,6 +42,8 @@ import numpy as np
 from numba import njit
 from numba.core import event as _event
 
+from fog_gym import _rounds
+
 
 def _load_tbb() -> bool:
     """Whether numba's TBB layer can be loaded here. pip's ``tbb`` wheel puts ``libtbb.so.12`` in the environment's
@@ -109,7 +111,15 @@ def pick(kernel, twin, work: int, below: int = SERIAL_BELOW):
     """``kernel`` for ``work`` pixels, rays or points of at least ``below`` (default :data:`SERIAL_BELOW`; a kernel
     with less work per item passes its own), else its serial ``twin`` (and always the twin in a
     :func:`worker_pool`'s thread)."""
-    return kernel if work >= below and not _THREAD.worker else twin
+    if work >= below and not _THREAD.worker:
+        return kernel
+    return _rounds.deferred(twin) if _rounds.deferring() else twin
+
+
+def defer(kernel):
+    """``kernel`` itself; in a world's step that :func:`fog_gym._rounds.run_worlds` runs, a call that hands it to the
+    kernel threads (its caller waits, the other worlds' Python runs meanwhile)."""
+    return _rounds.deferred(kernel) if _rounds.deferring() else kernel
 
 
 class _ThreadState(threading.local):

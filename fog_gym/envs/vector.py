@@ -8,10 +8,12 @@ shared :class:`~fog_gym.world.traffic.native.NativeTraffic`:
   arrays over all worlds, the Gymnasium-shaped infos assembled from them, :mod:`fog_gym.envs.batched`; no Python per
   world but the resets and, in ``SAME_STEP`` mode, an ended world's final info);
 * ``observation="pixels"``: the traffic batched, then each world's own env (the preset's ``FogDriveEnv`` and its
-  wrappers, on a view of the shared traffic) renders its camera, LiDAR, fog and bird's-eye image. The worlds render
-  on ``threads`` Python threads (default: 2, or fewer cores or worlds): every kernel releases the GIL, so one world's
-  ray casting and rasterising overlap another's Python. The worlds share nothing they write, so the result is the
-  same bits for any ``threads`` (tested); ``threads=1`` renders them one after the other in the calling thread.
+  wrappers, on a view of the shared traffic) renders its camera, LiDAR, fog and bird's-eye image. The worlds' Python
+  runs in the calling thread, each world's step a coroutine, and their kernels (ray cast, camera set-up and raster,
+  fogs, bird's-eye image) in rounds on ``threads`` threads (default: 2, or fewer cores or worlds): every world runs
+  to its next kernel, then the round's kernels of all worlds run in parallel (:mod:`fog_gym._rounds`), so no thread
+  waits for another's Python. The worlds share nothing they write, so the result is the same bits for any ``threads``
+  (tested); ``threads=1`` renders them one after the other, each kernel where it is called.
 
 **Seeded identity**: ``reset(seed=s)`` gives sub-env i exactly the episode of ``gym.make(id, **kwargs)`` reset with
 ``seed=s + i`` (a list of seeds: one per sub-env); a later reset without a seed continues each sub-env's own
@@ -42,6 +44,7 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
+from fog_gym._rounds import Crew, run_rounds
 from fog_gym.envs.presets import (HAZARD_BEV_AHEAD, HAZARD_TRAFFIC, OBJECT_ARGS, OBJECTS_PRESET, RL_TRAFFIC,
                                   check_banks, check_observation, make_fogdrive_rl, objects_config)  # fmt: skip
 from fog_gym.envs.objects import parse_objects_fog
@@ -278,17 +281,15 @@ class FogDriveVectorEnv(gym.vector.VectorEnv):
             infos = self._add_info(infos, info, i)
         return infos
 
-    def _map(self, f: Any, worlds: Any) -> Any:
-        """``f(i)`` for each of ``worlds``, in order: on the worker threads when there are several, each result as soon
-        as it is done (the caller merges a world's info while the threads step the later worlds)."""
+    def _map(self, f: Any, worlds: Any) -> list:
+        """``f(i)`` for each of ``worlds``, in order: with several threads, each world's ``f`` a coroutine in this
+        thread and their kernels in rounds on the threads (:func:`fog_gym._rounds.run_rounds`)."""
         worlds = list(worlds)
         if self.threads == 1 or len(worlds) < 2:
             return [f(i) for i in worlds]
         if self._pool is None:
-            from fog_gym._numba import worker_pool
-
-            self._pool = worker_pool(self.threads)
-        return _in_order([self._pool.submit(f, i) for i in worlds])
+            self._pool = Crew(self.threads)
+        return run_rounds([lambda i=i: f(i) for i in worlds], self._pool)
 
     # -- sub-env access (as SyncVectorEnv) ------------------------------------------------------------
     def get_attr(self, name: str) -> tuple[Any, ...]:
@@ -327,7 +328,7 @@ class FogDriveVectorEnv(gym.vector.VectorEnv):
 
     def close_extras(self, **kwargs: Any) -> None:
         if self._pool is not None:
-            self._pool.shutdown()
+            self._pool.close()
             self._pool = None
         for env in self.envs:
             env.close()
@@ -342,13 +343,13 @@ class FogDriveVectorEnv(gym.vector.VectorEnv):
         return np.stack(obs)
 
 
-#: Worker threads of the pixel path by default (at most; fewer with fewer cores or worlds). A world's step spends
-#: about half its time in Python under the GIL, so more threads gain little (measured: docs/performance.md).
+#: Kernel threads of the pixel path by default (at most; fewer with fewer cores or worlds): the worlds' Python runs in
+#: one thread, their kernels in rounds on these (measured on two cores only: docs/performance.md).
 DEFAULT_THREADS = 2
 
 
 def world_threads(threads: Any, num_envs: int) -> int:
-    """The pixel path's worker threads: ``threads`` (an int >= 1) or, for None, :data:`DEFAULT_THREADS` bounded by the
+    """The pixel path's kernel threads: ``threads`` (an int >= 1) or, for None, :data:`DEFAULT_THREADS` bounded by the
     cores and the worlds.
 
     >>> world_threads(1, 8), world_threads(None, 1), world_threads(3, 8)
@@ -362,18 +363,6 @@ def world_threads(threads: Any, num_envs: int) -> int:
     if isinstance(threads, bool) or not isinstance(threads, (int, np.integer)) or threads < 1:
         raise ValueError(f"threads must be an integer >= 1 or None, got {threads!r}")
     return int(threads)
-
-
-def _in_order(futures: list) -> Any:
-    """The futures' results in order, each as soon as it is done; however the caller stops (an error), every world's
-    work has finished before it goes on (no world still stepping on a thread)."""
-    from concurrent.futures import wait
-
-    try:
-        for future in futures:
-            yield future.result()
-    finally:
-        wait(futures)
 
 
 def reset_mask(options: dict[str, Any] | None, num_envs: int) -> np.ndarray:

@@ -27,6 +27,7 @@ from numba.core.cpu import ParallelOptions
 
 import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
 from fog_gym._numba import FASTMATH, launch, pick, serial_twin
+from fog_gym._rounds import deferring
 
 #: Glow: sources are pixels at or above ``GLOW_THRESHOLD`` (any channel, 0–255), taken at ``GLOW_SOURCE_GAIN`` ×
 #: their 8-bit value (a clipped lamp is far brighter than white); ``GLOW_FORWARD`` of the light they lose to fog
@@ -350,7 +351,10 @@ _SCRATCH = threading.local()
 
 def _scratch(rows: int, cols: int) -> np.ndarray:
     """A float32 ``(≥ rows, cols)`` buffer kept per thread: a fresh one each frame would cost its page faults (≈ 1 ms
-    for the 4 MB of a 1280-wide image's light glow)."""
+    for the 4 MB of a 1280-wide image's light glow). A world's step in :func:`fog_gym._rounds.run_rounds` (worlds that
+    take turns in one thread) gets a fresh one."""
+    if deferring():
+        return np.empty((rows, cols), np.float32)
     buf = getattr(_SCRATCH, "wide", None)
     if buf is None or buf.shape[0] < rows or buf.shape[1] != cols:
         buf = _SCRATCH.wide = np.empty((max(rows, 0 if buf is None else buf.shape[0]), cols), np.float32)

@@ -14,7 +14,7 @@ import cv2
 import numpy as np
 from numba import njit
 
-import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
+from fog_gym._numba import defer  # (numba's fork-safe threading layer, before any kernel runs)
 
 from fog_gym.geometry import box_corners
 from fog_gym.world.scene import Scene
@@ -103,7 +103,7 @@ def lidar_bev(points: np.ndarray, size: int, metres: float, ahead: float = 0.0, 
         raise ValueError(f"expected LiDAR points of shape (N, >=3), got {pts.shape}")
     img = np.empty((2, int(size), int(size)), np.uint8)  # (zeroed by _bev: numpy's zeros release the GIL)
     f = np.float32
-    _bev(pts, img, f(size / metres), f(size / 2), f(ahead), f(sensor_height))
+    defer(_bev)(pts, img, f(size / metres), f(size / 2), f(ahead), f(sensor_height))
     return img
 
 

@@ -28,7 +28,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
+from fog_gym._numba import defer  # (numba's fork-safe threading layer, before any kernel runs)
 from fog_gym.render.view_cull import _sees, view_table
 from fog_gym.world.primitives import LAYOUT, Primitives
 
@@ -56,7 +56,7 @@ def select_rows(centers: np.ndarray, diagonals: np.ndarray, n_boxes: int, owner:
     cams = view_table(ego_pose, views if views is not None else np.zeros((0, 4)))
     rows = np.empty(len(centers), np.int64)
     seen = np.empty(len(centers), np.int64)
-    n, m = _select(np.ascontiguousarray(centers, np.float64), np.ascontiguousarray(diagonals, np.float64), n_boxes,
+    n, m = defer(_select)(np.ascontiguousarray(centers, np.float64), np.ascontiguousarray(diagonals, np.float64), n_boxes,
                    own, owner is not None, float(ego_pose[0]), float(ego_pose[1]), float(render_radius),
                    float(detail_radius), cams, views is not None, rows, seen)  # fmt: skip
     if n < 0:  # an owner outside the boxes (checked in the kernel, before it selects)
@@ -103,7 +103,7 @@ def take_concat(table: Primitives, rows: np.ndarray, tail: Primitives) -> Primit
     rows = np.ascontiguousarray(rows, np.int64)
     n = len(rows) + len(tail)
     out = tuple(np.empty((n, *shape), dtype) for dtype, shape in LAYOUT.values())
-    if not _gather(rows, tuple(getattr(table, k) for k in LAYOUT), tuple(getattr(tail, k) for k in LAYOUT), out):
+    if not defer(_gather)(rows, tuple(getattr(table, k) for k in LAYOUT), tuple(getattr(tail, k) for k in LAYOUT), out):
         raise IndexError(f"rows must index the table's {len(table)} boxes, got {rows.min()}..{rows.max()}")
     return Primitives(*out)
 

@@ -25,7 +25,7 @@ from typing import Any, NamedTuple
 import numpy as np
 from numba import njit
 
-import fog_gym._numba  # noqa: F401  (numba's fork-safe threading layer, before any kernel runs)
+from fog_gym._numba import defer  # (numba's fork-safe threading layer, before any kernel runs)
 from fog_gym.geometry import BOX_CORNER_SIGNS as _SIGNS
 from fog_gym.world.meshlib import LIBRARY
 from fog_gym.world.primitives import Primitives
@@ -174,7 +174,7 @@ def _fill(grid: np.ndarray, prims: Primitives, sun: np.ndarray, ox: float, oy: f
     lib = LIBRARY.arrays()
     reach = 0.5 * max(grid.shape) * resolution
     unit = np.array(_unit(tuple(sun.tolist())))
-    return _shadow_map(grid, prims.centers, prims.halves, prims.yaws, prims.meshes, lib.outline, lib.outline_start,
+    return defer(_shadow_map)(grid, prims.centers, prims.halves, prims.yaws, prims.meshes, lib.outline, lib.outline_start,
                        unit, float(ox), float(oy), 1.0 / resolution, float(reach))  # fmt: skip
 
 

@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from fog_gym._numba import background, in_worker
+from fog_gym._rounds import held
 from fog_gym.sensors.camera_noise import CameraNoise, NoiseJob, NoiseLaw, frame_key, noise_laws
 from fog_gym.sensors.motion_blur import blur_motion, image_flow
 
@@ -76,13 +77,13 @@ class CameraEffects:
         step share it), the others computed together (:func:`~fog_gym.sensors.camera_noise.noise_laws`: one kernel
         launch for all of a frame's cameras)."""
         keys = [(noise, noise.gain(gain, night), bool(night)) for noise, gain in zip(noises, gains)]
-        with _LAWS_LOCK:
+        with held(_LAWS_LOCK):
             missing: dict[tuple, float] = {}
             for key, gain in zip(keys, gains):
                 if key not in _LAWS:
                     missing.setdefault(key, float(gain))
         laws = dict(zip(missing, noise_laws([k[0] for k in missing], list(missing.values()), night))) if missing else {}
-        with _LAWS_LOCK:
+        with held(_LAWS_LOCK):
             _LAWS.update(laws)
             out = []
             for key in keys:

@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
-from fog_gym._numba import readonly
+from fog_gym._numba import defer, readonly
 from fog_gym.checks import finite, interval, positive
 from fog_gym.channels.spec import FOG_LEVELS, LIDAR_MOTIONS, lidar_channel, lidar_columns
 from fog_gym.geometry import Pose, sensor_to_world, transform_matrix
@@ -384,7 +384,7 @@ def simulate_lidar(
     dirs = lidar_directions(cfg, simulation_frequency, start_angle)
     rays = None
     if cfg.dropoff_general_rate > _EPS:  # rays skipped before tracing
-        rays, dirs = _kept_rays(rng.random(dirs.shape[0]), float(cfg.dropoff_general_rate), dirs)
+        rays, dirs = defer(_kept_rays)(rng.random(dirs.shape[0]), float(cfg.dropoff_general_rate), dirs)
     n = dirs.shape[0]
     times = None
     if motion is None:
@@ -421,7 +421,7 @@ def simulate_lidar(
     uniform = rng.random(n) if cfg.dropoff_zero_intensity > 0.0 else _NONE
     limit = cfg.dropoff_intensity_limit
     alpha = cfg.dropoff_zero_intensity / limit if limit > 0.0 else 0.0
-    return _lidar_points(readonly(dirs), hits.distance, hits.index, noise, uniform, cfg.atmosphere_attenuation_rate,
+    return defer(_lidar_points)(readonly(dirs), hits.distance, hits.index, noise, uniform, cfg.atmosphere_attenuation_rate,
                          limit, alpha, 1.0 - cfg.dropoff_zero_intensity, reflect,
                          _NONE32 if times is None else times)  # fmt: skip
 

@@ -27,6 +27,7 @@ from typing import NamedTuple
 
 import numpy as np
 
+from fog_gym._rounds import held
 from fog_gym.world.mesh import Mesh, box_mesh, icosphere
 
 #: Triangles per leaf of a mesh's bounding-volume hierarchy at most.
@@ -133,7 +134,7 @@ class MeshLibrary:
 
     def add(self, name: str, mesh: Mesh) -> int:
         """The id of ``name``, adding ``mesh`` (normalised) the first time."""
-        with self._lock:
+        with held(self._lock):
             if name in self._names:
                 return self._names[name]
             m, nodes = _bvh(normalised(mesh))
@@ -159,7 +160,7 @@ class MeshLibrary:
 
     def arrays(self) -> LibraryArrays:
         """The flat arrays of every mesh added so far (rebuilt only after an addition)."""
-        with self._lock:
+        with held(self._lock):
             if self._arrays is None:
                 self._arrays = self._build()
             return self._arrays

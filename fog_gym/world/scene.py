@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from fog_gym._rounds import held
 from fog_gym.seeds import stream
 from fog_gym.world.primitives import Primitives
 from fog_gym.world.scenery import STYLES, Props, SurfaceMap, build_surface, place_props
@@ -106,7 +107,7 @@ def town_static_world(world: Any, town: str, lanes_count: Any, surface_resolutio
     and props over the stretch episodes can reach (:data:`TOWN_WINDOWS`; elsewhere ``radius`` around the world's
     start), props from a fixed per-town seed. Every episode of the town reuses it: resets cost milliseconds."""
     key = (town, lanes_count, surface_resolution)
-    with _TOWN_LOCK:  # a vector env's worlds reset on threads: one builds it, the others wait for it
+    with held(_TOWN_LOCK):  # a vector env's worlds reset on threads: one builds it, the others wait for it
         static = _TOWN_STATIC.get(key)
         if static is None:
             center, half = TOWN_WINDOWS.get(town, (world.start_position, radius))

@@ -200,28 +200,3 @@ def test_the_default_thread_count_is_bounded_by_the_worlds():
     assert world_threads(None, 1) == 1
     assert 1 <= world_threads(None, 64) <= DEFAULT_THREADS
     assert world_threads(5, 2) == 5  # asked for: kept (extra threads idle)
-
-
-def test_worlds_results_come_in_order_and_a_caller_that_stops_leaves_no_world_running():
-    import threading
-    import time
-    from concurrent.futures import ThreadPoolExecutor
-
-    from fog_gym.envs.vector import _in_order
-
-    done = []
-    lock = threading.Lock()
-
-    def world(i):
-        time.sleep(0.01 * (4 - i))  # the later worlds finish first
-        with lock:
-            done.append(i)
-        return i
-
-    with ThreadPoolExecutor(2) as pool:
-        assert list(_in_order([pool.submit(world, i) for i in range(4)])) == [0, 1, 2, 3]
-        done.clear()
-        with pytest.raises(RuntimeError):
-            for i in _in_order([pool.submit(world, i) for i in range(4)]):
-                raise RuntimeError("the caller's merge failed")
-        assert sorted(done) == [0, 1, 2, 3]  # every world finished before the error reached the caller
