@@ -156,3 +156,24 @@ def test_a_crew_dropped_without_closing_stops_its_helpers():
     for t in helpers:
         t.join(timeout=10)
     assert not any(t.is_alive() for t in helpers)
+
+
+def test_the_spin_sees_a_flag_reached_and_gives_up_after_its_reads():
+    flags = np.zeros(16, np.int64)
+    flags[8] = 3
+    assert _rounds._spin_until(flags, 8, 3, 1) and _rounds._spin_until(flags, 8, 2, 1)
+    assert not _rounds._spin_until(flags, 8, 4, 1000) and not _rounds._spin_until(flags, 0, 1, 10)
+
+
+def test_helpers_asleep_after_their_spin_wake_for_the_next_round(crew):
+    import time
+
+    both = threading.Barrier(2, timeout=10)
+
+    def kernel(i):
+        both.wait()  # both threads in the round at once
+        return i
+
+    for _ in range(3):
+        time.sleep(5 * _rounds.SPIN_SECONDS)  # longer than the helpers stay awake
+        assert run_rounds([lambda i=i: _rounds.deferred(kernel)(i) for i in range(2)], crew) == [0, 1]
