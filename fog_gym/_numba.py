@@ -19,8 +19,10 @@ parallel kernel a second time without ``parallel``; :func:`pick` chooses it belo
 or the kernel's own: the ray cast, whose rays cost far more than pixels, from 8 192 rays). Both give the same bits
 (tests compare them).
 
-**Kernels release the GIL** (``nogil=True``, every kernel; a test checks it), so Python threads can step several
-worlds at once (the pixel vector env's :func:`worker_pool`). The workqueue layer is not thread safe: in a worker thread
+**Kernels release the GIL** (``nogil=True``, every kernel; a test checks it), so several threads run kernels at once:
+the pixel vector env's worlds hand theirs to a crew of threads in rounds (:mod:`fog_gym._rounds`; :func:`pick`'s twin
+and :func:`defer`'s kernel wait for the round in a world's step), the camera noise runs on :func:`background`. The
+workqueue layer is not thread safe: in a worker thread
 :func:`pick` always takes the serial twin, and a parallel kernel without one is called through :func:`launch`, which
 holds the process's launch lock there (a test checks every call site).
 
@@ -110,15 +112,21 @@ def serial_twin(kernel):
 def pick(kernel, twin, work: int, below: int = SERIAL_BELOW):
     """``kernel`` for ``work`` pixels, rays or points of at least ``below`` (default :data:`SERIAL_BELOW`; a kernel
     with less work per item passes its own), else its serial ``twin`` (and always the twin in a
-    :func:`worker_pool`'s thread)."""
+    :func:`worker_pool`'s thread); in a world's step that :func:`fog_gym._rounds.run_rounds` runs, the twin waits for
+    the round (:func:`defer`)."""
     if work >= below and not _THREAD.worker:
         return kernel
     return _rounds.deferred(twin) if _rounds.deferring() else twin
 
 
 def defer(kernel):
-    """``kernel`` itself; in a world's step that :func:`fog_gym._rounds.run_worlds` runs, a call that hands it to the
-    kernel threads (its caller waits, the other worlds' Python runs meanwhile)."""
+    """``kernel`` itself; in a world's step that :func:`fog_gym._rounds.run_rounds` runs, a call that waits for the
+    round: the other worlds run to their next kernel, then the round's kernels run on the crew's threads.
+
+    >>> f = njit(lambda x: x + 1)
+    >>> defer(f) is f
+    True
+    """
     return _rounds.deferred(kernel) if _rounds.deferring() else kernel
 
 

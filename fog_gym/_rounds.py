@@ -28,6 +28,7 @@ Example:
 
 from __future__ import annotations
 
+import contextvars
 import itertools
 import threading
 import time
@@ -110,6 +111,9 @@ def run_rounds(steps: Sequence[Callable[[], Any]], crew: Crew) -> list:
     """Each of ``steps`` (callables without arguments) run to its end, their kernels in rounds on ``crew``; their
     results in order. Should a step raise, the others still run to their end, then the first error is raised."""
     worlds = [_World(_body(f)) for f in steps]
+    context = contextvars.copy_context()
+    for w in worlds:  # the caller's context variables, as a thread's call would see them
+        w.gr_context = context.copy()
     results: list = [None] * len(worlds)
     errors: list[BaseException] = []
     waiting: list[tuple[int, _Call]] = []

@@ -177,3 +177,15 @@ def test_helpers_asleep_after_their_spin_wake_for_the_next_round(crew):
     for _ in range(3):
         time.sleep(5 * _rounds.SPIN_SECONDS)  # longer than the helpers stay awake
         assert run_rounds([lambda i=i: _rounds.deferred(kernel)(i) for i in range(2)], crew) == [0, 1]
+
+
+def test_a_worlds_step_sees_the_callers_context_variables(crew):
+    from fog_gym.checks import command_line, option
+
+    def step():
+        _rounds.deferred(lambda: None)()
+        return option("save", "'F'", "F")
+
+    with command_line():  # the fog-gym command's handlers: errors name its flags
+        assert run_rounds([step, step], crew) == ["--save F", "--save F"]
+    assert run_rounds([step], crew) == ["save='F'"]
