@@ -174,6 +174,19 @@ def worker_pool(threads: int):
     return ThreadPoolExecutor(max_workers=threads, thread_name_prefix="fog-gym-world", initializer=_mark_worker)
 
 
+def worker_crew(threads: int) -> _rounds.Crew:
+    """A :class:`fog_gym._rounds.Crew` of ``threads`` whose helpers are marked as workers (:func:`pick` and
+    :func:`launch` keep numba's threading layer to one launch at a time).
+
+    >>> crew = worker_crew(2); from fog_gym._rounds import _Call
+    >>> both = threading.Barrier(2, timeout=10)
+    >>> crew.run([_Call(lambda: both.wait() * 0 + in_worker(), ())] * 2) in ([False, True], [True, False])
+    True
+    >>> crew.close()
+    """
+    return _rounds.Crew(threads, _mark_worker)
+
+
 _BACKGROUND: tuple[int, object] | None = None
 
 

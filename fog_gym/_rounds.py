@@ -42,8 +42,6 @@ from numba import njit, types
 from numba.core import cgutils
 from numba.core.extending import intrinsic
 
-import fog_gym._numba  # noqa: F401  (numba's threading layer, before any kernel runs)
-
 
 class _Call(NamedTuple):
     kernel: Any
@@ -147,7 +145,8 @@ def _load_acquire(typingctx, flags, i):
 
     def codegen(context, builder, sig, args):
         ary = context.make_array(sig.args[0])(context, builder, args[0])
-        return builder.load_atomic(cgutils.get_item_pointer(context, builder, sig.args[0], ary, [args[1]]), "acquire", 8)
+        ptr = cgutils.get_item_pointer(context, builder, sig.args[0], ary, [args[1]])
+        return builder.load_atomic(ptr, "acquire", 8)
 
     return types.int64(flags, types.intp), codegen
 
@@ -218,10 +217,9 @@ class _Shared:
                 with self.cond:
                     self.cond.wait_for(lambda: flags[_LINE * h] >= r)
 
-    def helper(self, h: int) -> None:
-        from fog_gym._numba import _mark_worker
-
-        _mark_worker()
+    def helper(self, h: int, init: Callable[[], Any] | None) -> None:
+        if init is not None:
+            init()
         flags, seen = self.flags, 0
         while True:
             if not _spin_until(flags, 0, seen + 1, self.spins):
@@ -245,9 +243,9 @@ def _stop(shared: _Shared, helpers: list[threading.Thread]) -> None:
 
 
 class Crew:
-    """The threads that run a round's kernels: the caller's own and ``threads - 1`` helpers (marked as
-    :func:`~fog_gym._numba.worker_pool` threads), each taking the next kernel until none is left. ``rounds`` counts
-    the rounds run; :meth:`close` stops the helpers (also when the crew is collected).
+    """The threads that run a round's kernels: the caller's own and ``threads - 1`` helpers (each runs ``init`` first:
+    :func:`fog_gym._numba.worker_crew` marks them as worker threads), each taking the next kernel until none is left.
+    ``rounds`` counts the rounds run; :meth:`close` stops the helpers (also when the crew is collected).
 
     >>> Crew(0)
     Traceback (most recent call last):
@@ -255,13 +253,13 @@ class Crew:
     ValueError: threads must be an integer >= 1, got 0
     """
 
-    def __init__(self, threads: int) -> None:
+    def __init__(self, threads: int, init: Callable[[], Any] | None = None) -> None:
         if isinstance(threads, bool) or not isinstance(threads, int) or threads < 1:
             raise ValueError(f"threads must be an integer >= 1, got {threads!r}")
         self.threads = threads
         self.rounds = 0
         self._shared = _Shared(threads - 1)
-        self._helpers = [threading.Thread(target=self._shared.helper, args=(k,), name=f"fog-gym-kernels-{k}",
+        self._helpers = [threading.Thread(target=self._shared.helper, args=(k, init), name=f"fog-gym-kernels-{k}",
                                           daemon=True) for k in range(threads - 1)]  # fmt: skip
         for t in self._helpers:
             t.start()

@@ -19,7 +19,7 @@ PURE = ("fog_gym._numba", "fog_gym.channels.spec", "fog_gym.checks", "fog_gym.ge
         "fog_gym.fog.camera", "fog_gym.fog.glow", "fog_gym.fog.lidar", "fog_gym.fog.lidar_field", "fog_gym.fog.lidar_grid", "fog_gym.fog.lidar_pulse",
         "fog_gym.fog.lidar_bank", "fog_gym.fog.lidar_height", "fog_gym.fog.depth", "fog_gym.fog.returns",
         "fog_gym.fog.fields", "fog_gym.fog.schedules", "fog_gym.fog.vexp", "fog_gym.encoding",
-        "fog_gym.seeds")  # fmt: skip
+        "fog_gym.seeds", "fog_gym._rounds")  # fmt: skip
 #: What builds or runs an environment (the format layer and the pure modules may import none of it).
 ENVIRONMENT = ("fog_gym.envs", "fog_gym.world.traffic_world", "fog_gym.world.traffic", "fog_gym.wrappers", "fog_gym.rl",
                "fog_gym.generate")  # fmt: skip

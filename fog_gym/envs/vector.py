@@ -44,7 +44,8 @@ import numpy as np
 from gymnasium.vector import AutoresetMode
 from gymnasium.vector.utils import batch_space
 
-from fog_gym._rounds import Crew, run_rounds
+from fog_gym._numba import worker_crew
+from fog_gym._rounds import run_rounds
 from fog_gym.envs.presets import (HAZARD_BEV_AHEAD, HAZARD_TRAFFIC, OBJECT_ARGS, OBJECTS_PRESET, RL_TRAFFIC,
                                   check_banks, check_observation, make_fogdrive_rl, objects_config)  # fmt: skip
 from fog_gym.envs.objects import parse_objects_fog
@@ -288,7 +289,7 @@ class FogDriveVectorEnv(gym.vector.VectorEnv):
         if self.threads == 1 or len(worlds) < 2:
             return [f(i) for i in worlds]
         if self._pool is None:
-            self._pool = Crew(self.threads)
+            self._pool = worker_crew(self.threads)
         return run_rounds([lambda i=i: f(i) for i in worlds], self._pool)
 
     # -- sub-env access (as SyncVectorEnv) ------------------------------------------------------------

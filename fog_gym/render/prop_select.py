@@ -56,9 +56,9 @@ def select_rows(centers: np.ndarray, diagonals: np.ndarray, n_boxes: int, owner:
     cams = view_table(ego_pose, views if views is not None else np.zeros((0, 4)))
     rows = np.empty(len(centers), np.int64)
     seen = np.empty(len(centers), np.int64)
-    n, m = defer(_select)(np.ascontiguousarray(centers, np.float64), np.ascontiguousarray(diagonals, np.float64), n_boxes,
-                   own, owner is not None, float(ego_pose[0]), float(ego_pose[1]), float(render_radius),
-                   float(detail_radius), cams, views is not None, rows, seen)  # fmt: skip
+    n, m = defer(_select)(np.ascontiguousarray(centers, np.float64), np.ascontiguousarray(diagonals, np.float64),
+                          n_boxes, own, owner is not None, float(ego_pose[0]), float(ego_pose[1]),
+                          float(render_radius), float(detail_radius), cams, views is not None, rows, seen)  # fmt: skip
     if n < 0:  # an owner outside the boxes (checked in the kernel, before it selects)
         raise _owner_error(len(centers) - n_boxes, n_boxes, own.shape)
     return rows[:n], (seen[:m] if views is not None else rows[:n])

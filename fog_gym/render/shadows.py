@@ -174,8 +174,8 @@ def _fill(grid: np.ndarray, prims: Primitives, sun: np.ndarray, ox: float, oy: f
     lib = LIBRARY.arrays()
     reach = 0.5 * max(grid.shape) * resolution
     unit = np.array(_unit(tuple(sun.tolist())))
-    return defer(_shadow_map)(grid, prims.centers, prims.halves, prims.yaws, prims.meshes, lib.outline, lib.outline_start,
-                       unit, float(ox), float(oy), 1.0 / resolution, float(reach))  # fmt: skip
+    return defer(_shadow_map)(grid, prims.centers, prims.halves, prims.yaws, prims.meshes, lib.outline,
+                              lib.outline_start, unit, float(ox), float(oy), 1.0 / resolution, float(reach))  # fmt: skip
 
 
 @functools.lru_cache(maxsize=64)

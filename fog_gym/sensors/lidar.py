@@ -421,9 +421,9 @@ def simulate_lidar(
     uniform = rng.random(n) if cfg.dropoff_zero_intensity > 0.0 else _NONE
     limit = cfg.dropoff_intensity_limit
     alpha = cfg.dropoff_zero_intensity / limit if limit > 0.0 else 0.0
-    return defer(_lidar_points)(readonly(dirs), hits.distance, hits.index, noise, uniform, cfg.atmosphere_attenuation_rate,
-                         limit, alpha, 1.0 - cfg.dropoff_zero_intensity, reflect,
-                         _NONE32 if times is None else times)  # fmt: skip
+    return defer(_lidar_points)(readonly(dirs), hits.distance, hits.index, noise, uniform,
+                                cfg.atmosphere_attenuation_rate, limit, alpha, 1.0 - cfg.dropoff_zero_intensity, reflect,
+                                _NONE32 if times is None else times)  # fmt: skip
 
 
 _NONE32 = np.zeros(0, np.float32)
